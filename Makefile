@@ -1,0 +1,50 @@
+# Thin wrapper over the CMake presets. The two commands of the README:
+#   make demo   runs the main job (the simulated hospital comparison)
+#   make test   installs what is missing, then runs every test: host (ASan + UBSan) and
+#               aarch64 (cross-built, under qemu-aarch64)
+JOBS ?= $(shell nproc)
+CTEST_FLAGS ?= -j $(JOBS)
+
+.PHONY: all deps deps-host test test-host test-aarch64 release demo bench format tidy clean
+
+all: release
+
+deps:
+	bash scripts/install-deps.sh
+
+deps-host:
+	bash scripts/install-deps.sh --host
+
+test: deps
+	$(MAKE) test-host
+	$(MAKE) test-aarch64
+
+test-host:
+	cmake --preset host-debug
+	cmake --build --preset host-debug -j $(JOBS)
+	ctest --preset host-debug $(CTEST_FLAGS)
+
+test-aarch64:
+	cmake --preset aarch64-release
+	cmake --build --preset aarch64-release -j $(JOBS)
+	ctest --preset aarch64-release $(CTEST_FLAGS)
+
+release: deps-host
+	cmake --preset host-release
+	cmake --build --preset host-release -j $(JOBS)
+
+demo: release
+	bash scripts/demo.sh
+
+bench: release
+	bash scripts/bench.sh
+
+format:
+	git ls-files '*.h' '*.cc' | xargs clang-format -i
+
+tidy:
+	cmake --preset host-release
+	git ls-files 'arena/*.cc' 'lib/*.cc' 'app/*.cc' | xargs clang-tidy -p build/host-release --quiet
+
+clean:
+	rm -rf build

@@ -1,0 +1,25 @@
+// The subcommands of `zonemap`. Each Add*Command() attaches one CLI11 subcommand whose callback
+// sets the process exit code through CommandContext; errors are printed as one line naming the
+// thing and the limit, never as an exception trace.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string_view>
+
+#include "common/status.h"
+
+namespace zm::app {
+
+struct CommandContext {
+  int exit_code = 0;
+  // Prints "zonemap <command>: <message>" to stderr and sets a non-zero exit code.
+  void Fail(std::string_view command, const Status& status);
+  void Fail(std::string_view command, std::string_view message);
+};
+
+// Attaches every subcommand (commands.cc holds the list).
+void AddAllCommands(CLI::App& app, CommandContext& ctx);
+
+void AddArenaCommand(CLI::App& app, CommandContext& ctx);
+
+}  // namespace zm::app

@@ -1,0 +1,182 @@
+// The arena's contract: capacity arithmetic, refusal when full, disjoint slots, reuse,
+// high-water mark, no heap traffic on acquire/release, and clear errors for bad sizes.
+#include "arena/arena.h"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <set>
+#include <vector>
+
+#include "support/counting_allocator.h"
+
+namespace zm {
+namespace {
+
+Arena MakeArena(ArenaConfig c) {
+  auto r = Arena::Create(c);
+  REQUIRE(std::holds_alternative<Arena>(r));
+  return std::move(std::get<Arena>(r));
+}
+
+ArenaError MakeError(ArenaConfig c) {
+  auto r = Arena::Create(c);
+  REQUIRE(std::holds_alternative<ArenaError>(r));
+  return std::get<ArenaError>(r);
+}
+
+TEST_CASE("capacity is min(count, budget / aligned slot)") {
+  SUBCASE("count limits") {
+    Arena a = MakeArena({.memory_thr_keyframes = 10, .budget_bytes = 1 << 20, .slot_bytes = 1000});
+    CHECK(a.capacity() == 10);
+    CHECK(a.slot_bytes() == 1024);  // 1000 rounded up to 64
+  }
+  SUBCASE("bytes limit") {
+    Arena a = MakeArena({.memory_thr_keyframes = 1000, .budget_bytes = 10 * 1024, .slot_bytes = 1000});
+    CHECK(a.capacity() == 10);  // 10240 / 1024
+  }
+  SUBCASE("count only") {
+    Arena a = MakeArena({.memory_thr_keyframes = 7, .budget_bytes = 0, .slot_bytes = 64});
+    CHECK(a.capacity() == 7);
+  }
+  SUBCASE("bytes only") {
+    Arena a = MakeArena({.memory_thr_keyframes = 0, .budget_bytes = 64 * 5 + 63, .slot_bytes = 64});
+    CHECK(a.capacity() == 5);
+  }
+  auto plan = PlanArena({.memory_thr_keyframes = 3, .budget_bytes = 0, .slot_bytes = 65});
+  REQUIRE(std::holds_alternative<ArenaPlan>(plan));
+  CHECK(std::get<ArenaPlan>(plan).slot_bytes == 128);
+  CHECK(std::get<ArenaPlan>(plan).bytes == 384);
+}
+
+TEST_CASE("refuses when full and never grows") {
+  Arena a = MakeArena({.memory_thr_keyframes = 3, .budget_bytes = 0, .slot_bytes = 256});
+  std::vector<SlotIndex> got;
+  for (int i = 0; i < 3; ++i) {
+    auto s = a.TryAcquire();
+    REQUIRE(s.has_value());
+    got.push_back(*s);
+  }
+  CHECK(a.available() == 0);
+  CHECK_FALSE(a.TryAcquire().has_value());
+  CHECK_FALSE(a.TryAcquire().has_value());
+  CHECK(a.stats().refused == 2);
+  CHECK(a.capacity() == 3);
+  CHECK(a.in_use() == 3);
+}
+
+TEST_CASE("slots are disjoint, aligned and exactly slot_bytes") {
+  Arena a = MakeArena({.memory_thr_keyframes = 50, .budget_bytes = 0, .slot_bytes = 100});
+  std::vector<std::span<std::byte>> spans;
+  while (auto s = a.TryAcquire()) spans.push_back(a.Slot(*s));
+  REQUIRE(spans.size() == 50);
+  std::sort(spans.begin(), spans.end(),
+            [](auto x, auto y) { return x.data() < y.data(); });
+  for (std::size_t i = 0; i < spans.size(); ++i) {
+    CHECK(spans[i].size() == a.slot_bytes());
+    CHECK(reinterpret_cast<std::uintptr_t>(spans[i].data()) % Arena::kSlotAlignment == 0);
+    if (i > 0) CHECK(spans[i - 1].data() + spans[i - 1].size() <= spans[i].data());
+  }
+  // Writing a whole slot leaves its neighbours untouched.
+  std::fill(spans[10].begin(), spans[10].end(), std::byte{0x42});
+  CHECK(spans[9].back() != std::byte{0x42});
+  CHECK(spans[11].front() != std::byte{0x42});
+}
+
+TEST_CASE("release makes a slot reusable, high-water remembers the peak") {
+  Arena a = MakeArena({.memory_thr_keyframes = 4, .budget_bytes = 0, .slot_bytes = 64});
+  auto s0 = a.TryAcquire();
+  auto s1 = a.TryAcquire();
+  auto s2 = a.TryAcquire();
+  REQUIRE((s0 && s1 && s2));
+  CHECK(a.stats().high_water == 3);
+  a.Release(*s1);
+  CHECK(a.in_use() == 2);
+  CHECK_FALSE(a.InUse(*s1));
+  auto again = a.TryAcquire();
+  REQUIRE(again.has_value());
+  CHECK(*again == *s1);  // LIFO reuse keeps recently used memory hot
+  CHECK(a.stats().high_water == 3);
+  a.Release(*s0);
+  a.Release(*s2);
+  a.Release(*again);
+  CHECK(a.in_use() == 0);
+  CHECK(a.stats().high_water == 3);
+  a.ResetCounters();
+  CHECK(a.stats().high_water == 0);
+  std::set<std::uint32_t> seen;
+  while (auto s = a.TryAcquire()) seen.insert(s->value);
+  CHECK(seen.size() == 4);
+}
+
+TEST_CASE("acquire and release allocate nothing") {
+  Arena a = MakeArena({.memory_thr_keyframes = 64, .budget_bytes = 0, .slot_bytes = 4096});
+  std::array<SlotIndex, 64> held{};
+  test::AllocationCounter counter;
+  for (int round = 0; round < 100; ++round) {
+    std::size_t n = 0;
+    while (auto s = a.TryAcquire()) held[n++] = *s;
+    CHECK(n == 64);
+    CHECK_FALSE(a.TryAcquire().has_value());
+    for (std::size_t i = 0; i < n; ++i) a.Release(held[i]);
+  }
+  CHECK(counter.allocations() == 0);
+  CHECK(counter.deallocations() == 0);
+}
+
+TEST_CASE("debug builds poison acquired and released slots") {
+  Arena a = MakeArena({.memory_thr_keyframes = 2, .budget_bytes = 0, .slot_bytes = 64});
+  if (!a.poisoning()) return;  // release builds skip the fill for speed
+  auto s = a.TryAcquire();
+  REQUIRE(s.has_value());
+  auto bytes = a.Slot(*s);
+  CHECK(std::all_of(bytes.begin(), bytes.end(),
+                    [](std::byte b) { return b == Arena::kAcquiredPattern; }));
+  a.Release(*s);
+  CHECK(std::all_of(bytes.begin(), bytes.end(),
+                    [](std::byte b) { return b == Arena::kReleasedPattern; }));
+}
+
+TEST_CASE("bad sizes give one clear error naming the limit") {
+  SUBCASE("zero slot bytes") {
+    auto e = MakeError({.memory_thr_keyframes = 10, .budget_bytes = 0, .slot_bytes = 0});
+    CHECK(e.code == ArenaErrorCode::kZeroSlotBytes);
+    CHECK(e.message.find("slot_bytes") != std::string::npos);
+  }
+  SUBCASE("no budget at all") {
+    auto e = MakeError({.memory_thr_keyframes = 0, .budget_bytes = 0, .slot_bytes = 64});
+    CHECK(e.code == ArenaErrorCode::kNoBudget);
+  }
+  SUBCASE("slot larger than the budget") {
+    auto e = MakeError({.memory_thr_keyframes = 10, .budget_bytes = 1000, .slot_bytes = 4096});
+    CHECK(e.code == ArenaErrorCode::kSlotLargerThanBudget);
+    CHECK(e.message.find("4096") != std::string::npos);
+    CHECK(e.message.find("1000") != std::string::npos);
+  }
+  SUBCASE("budget that rounds to zero slots") {
+    auto e = MakeError({.memory_thr_keyframes = 0, .budget_bytes = 100, .slot_bytes = 100});
+    CHECK(e.code == ArenaErrorCode::kSlotLargerThanBudget);  // 100 aligns to 128 > 100
+  }
+  SUBCASE("more than the machine has") {
+    auto e = MakeError({.memory_thr_keyframes = 0, .budget_bytes = 1ULL << 50, .slot_bytes = 1 << 20});
+    CHECK(e.code == ArenaErrorCode::kExceedsMachine);
+    CHECK(e.message.find("exceeds") != std::string::npos);
+  }
+  SUBCASE("more slots than a SlotIndex can name") {
+    auto e = MakeError({.memory_thr_keyframes = 1ULL << 40, .budget_bytes = 0, .slot_bytes = 64});
+    CHECK(e.code == ArenaErrorCode::kTooManySlots);
+  }
+}
+
+TEST_CASE("a moved-from arena owns nothing") {
+  Arena a = MakeArena({.memory_thr_keyframes = 2, .budget_bytes = 0, .slot_bytes = 64});
+  auto s = a.TryAcquire();
+  Arena b = std::move(a);
+  CHECK(b.in_use() == 1);
+  CHECK(b.InUse(*s));
+  CHECK(a.capacity() == 0);  // NOLINT(bugprone-use-after-move): checking the moved-from state
+  CHECK_FALSE(a.TryAcquire().has_value());
+}
+
+}  // namespace
+}  // namespace zm
