@@ -13,6 +13,16 @@ void CommandContext::Fail(std::string_view command, std::string_view message) {
   exit_code = 1;
 }
 
+CLI::App* GetOrAddSubcommand(CLI::App& app, const std::string& name,
+                             const std::string& description) {
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
+    if (sub->get_name() == name) return sub;
+  }
+  CLI::App* sub = app.add_subcommand(name, description);
+  sub->require_subcommand(1);
+  return sub;
+}
+
 void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddArenaCommand(app, ctx);
 }

@@ -17,6 +17,10 @@ struct CommandContext {
   void Fail(std::string_view command, std::string_view message);
 };
 
+// Returns the subcommand `name` of `app`, creating it if needed, so that groups such as
+// `zonemap zones annotate|segment` can be filled from several files in any order.
+CLI::App* GetOrAddSubcommand(CLI::App& app, const std::string& name, const std::string& description);
+
 // Attaches every subcommand (commands.cc holds the list).
 void AddAllCommands(CLI::App& app, CommandContext& ctx);
 
