@@ -1,0 +1,79 @@
+// Per-tick telemetry: one fixed-size record per tick, written as one JSON line to
+// RUNDIR/ticks.jsonl. Formatting goes through snprintf into a member buffer and a FILE* whose
+// buffer is set once at open, so writing a tick never allocates. SIGINT/SIGTERM handling only
+// sets a flag; the loop then flushes and closes the file normally.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+
+#include "common/ids.h"
+#include "common/status.h"
+
+namespace zm {
+
+// The loop's fixed steps (PX4 work-item shape), each timed.
+enum class TickStep : int {
+  kReadFrame = 0,
+  kPoseUpdate,
+  kZoneLookup,
+  kPlan,
+  kApply,
+  kLocalize,
+  kTelemetry,
+  kCount
+};
+inline constexpr int kTickStepCount = static_cast<int>(TickStep::kCount);
+[[nodiscard]] const char* TickStepName(TickStep step);
+
+struct TickRecord {
+  std::uint64_t tick = 0;
+  double stamp_s = 0.0;
+  double x_m = 0.0, y_m = 0.0, yaw_rad = 0.0;  // corrected map pose
+  ZoneId zone = kNoZone;
+  std::uint32_t resident_keyframes = 0;
+  std::uint64_t resident_bytes = 0;
+  std::uint32_t keyframes_loaded = 0;
+  std::uint32_t keyframes_unloaded = 0;
+  std::uint32_t db_transactions = 0;
+  std::uint32_t db_queries = 0;
+  std::uint64_t db_bytes_read = 0;
+  double load_ms = 0.0;
+  double unload_ms = 0.0;
+  bool over_budget = false;
+  std::uint64_t refused_acquisitions = 0;  // cumulative arena refusals
+  bool loop_closure = false;               // a closure was accepted this tick
+  std::int64_t matched_keyframe = 0;       // 0 = none
+  std::uint32_t inliers = 0;
+  std::int64_t highest_hypothesis = 0;
+  std::uint32_t candidates = 0;
+  std::uint64_t oom_events = 0;            // cumulative device-ledger / allocation failures
+  bool stalled = false;                    // the tick could not do its work (e.g. OOM)
+  double step_ms[kTickStepCount] = {};
+  double tick_ms = 0.0;
+};
+
+class TelemetryWriter {
+ public:
+  TelemetryWriter() = default;
+  TelemetryWriter(const TelemetryWriter&) = delete;
+  TelemetryWriter& operator=(const TelemetryWriter&) = delete;
+  ~TelemetryWriter();
+
+  // Opens (truncates) `path`. The stdio buffer is allocated here, once.
+  [[nodiscard]] Status Open(const std::string& path);
+  // Appends one JSON line. Never allocates; returns false if the write failed.
+  bool Write(const TickRecord& r);
+  void Flush();
+  void Close();
+  [[nodiscard]] std::uint64_t lines() const { return lines_; }
+
+ private:
+  std::FILE* file_ = nullptr;
+  char* stdio_buffer_ = nullptr;
+  char line_[2048] = {};
+  std::uint64_t lines_ = 0;
+};
+
+}  // namespace zm

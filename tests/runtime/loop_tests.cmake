@@ -1,0 +1,3 @@
+zm_add_test(zm_runtime_loop_test
+  SOURCES ${CMAKE_CURRENT_LIST_DIR}/line_protocol_test.cc ${CMAKE_CURRENT_LIST_DIR}/telemetry_test.cc
+  DEPS zm_runtime)
