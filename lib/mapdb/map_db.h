@@ -14,9 +14,11 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "arena/arena.h"
@@ -163,6 +165,11 @@ struct KeyframeRecord {
   std::span<const std::byte> payload;  // an EncodePayload() blob
 };
 
+// Progress of a long write, for a progress bar: `stage` names it ("keyframes", "links"), `done`
+// of `total` rows of the current call.
+using WriteProgressFn =
+    std::function<void(std::string_view stage, std::uint64_t done, std::uint64_t total)>;
+
 // Creates or modifies a map database. WAL journal; bulk inserts in transactions.
 class MapDbWriter {
  public:
@@ -180,6 +187,8 @@ class MapDbWriter {
   Status ReplaceZones(std::span<const ZoneRecord> zones, std::span<const ZoneMember> members);
   Status SetCamera(const CameraIntrinsics& camera);
   Status SetSource(const std::string& source);
+  // Called every 256 rows and at the end of each bulk insert; empty = no reports.
+  void SetProgress(WriteProgressFn progress);
   // Reads back (for annotation: positions of the keyframes to assign).
   [[nodiscard]] Result<std::vector<KeyframeMeta>> Keyframes() const;
   [[nodiscard]] Result<std::vector<LinkRecord>> Links() const;

@@ -1,0 +1,881 @@
+// The map database over SQLite (see map_db.h and docs/mapdb.md for the schema).
+//
+// Schema version 1:
+//   keyframe(id INTEGER PRIMARY KEY, stamp REAL, pose BLOB = 12 float64 row-major [R|t],
+//            weight INTEGER, payload_bytes INTEGER)
+//   payload(keyframe_id INTEGER PRIMARY KEY, blob BLOB)   -- separate, so metadata reads no
+//                                                          -- payload pages
+//   link(from_id, to_id, type, transform BLOB = 12 float64, information BLOB = 36 float64)
+//   zone(id INTEGER PRIMARY KEY, name UNIQUE, kind, floor, z_min, z_max, polygon BLOB = n x 2 f64)
+//   zone_member(zone_id, keyframe_id, PRIMARY KEY(zone_id, keyframe_id)) WITHOUT ROWID
+//   meta(key TEXT PRIMARY KEY, value) WITHOUT ROWID
+//
+// Invariants of the read path:
+//   - the database is opened SQLITE_OPEN_READONLY; every statement is prepared in Open();
+//   - LoadZone() is one BEGIN..COMMIT and one statement stepping over zone_member's primary key;
+//     payload bytes go from SQLite's page cache straight into the arena slot through an
+//     incremental blob handle (sqlite3_blob_read), never through a buffer of ours;
+//   - a blob's size is checked against the slot BEFORE any byte is copied, and a slot whose
+//     payload fails validation is released before the error is returned, so nothing is written
+//     outside a slot and nothing half-valid is reported as loaded;
+//   - once warm, the load paths make no allocation through operator new (errors aside).
+#include "mapdb/map_db.h"
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <string_view>
+
+#include "mapdb/keyframe_payload.h"
+#include "mapdb/sqlite_util.h"
+
+namespace zm {
+namespace {
+
+using sqlite::FromSqlite;
+using sqlite::Prepare;
+using sqlite::StmtReset;
+
+constexpr const char* kTables[] = {"keyframe", "payload", "link", "zone", "zone_member", "meta"};
+
+constexpr const char* kSchemaSql = R"sql(
+CREATE TABLE keyframe(
+  id INTEGER PRIMARY KEY,
+  stamp REAL NOT NULL,
+  pose BLOB NOT NULL,
+  weight INTEGER NOT NULL,
+  payload_bytes INTEGER NOT NULL);
+CREATE TABLE payload(
+  keyframe_id INTEGER PRIMARY KEY,
+  blob BLOB NOT NULL);
+CREATE TABLE link(
+  from_id INTEGER NOT NULL,
+  to_id INTEGER NOT NULL,
+  type INTEGER NOT NULL,
+  transform BLOB NOT NULL,
+  information BLOB NOT NULL);
+CREATE INDEX link_from ON link(from_id);
+CREATE TABLE zone(
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL UNIQUE,
+  kind TEXT NOT NULL,
+  floor INTEGER NOT NULL,
+  z_min REAL NOT NULL,
+  z_max REAL NOT NULL,
+  polygon BLOB NOT NULL);
+CREATE TABLE zone_member(
+  zone_id INTEGER NOT NULL,
+  keyframe_id INTEGER NOT NULL,
+  PRIMARY KEY(zone_id, keyframe_id)) WITHOUT ROWID;
+CREATE TABLE meta(
+  key TEXT PRIMARY KEY,
+  value) WITHOUT ROWID;
+)sql";
+
+constexpr int kPoseBlobBytes = 12 * 8;
+constexpr int kInformationBlobBytes = 36 * 8;
+
+std::string Kf(KeyframeId id) { return "keyframe " + std::to_string(id.value); }
+
+void PoseToDoubles(const Pose3& p, double out[12]) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out[r * 4 + c] = p.linear()(r, c);
+    out[r * 4 + 3] = p.translation()(r);
+  }
+}
+
+bool PoseFromColumn(sqlite3_stmt* s, int col, Pose3& out) {
+  if (sqlite3_column_bytes(s, col) != kPoseBlobBytes) return false;
+  double v[12];
+  std::memcpy(v, sqlite3_column_blob(s, col), sizeof v);
+  out = Pose3::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out.linear()(r, c) = v[r * 4 + c];
+    out.translation()(r) = v[r * 4 + 3];
+  }
+  return true;
+}
+
+double Ms(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Checks the schema version and that every table exists; shared by the reader and
+// MapDbWriter::OpenExisting. Errors name the file, the version or the table.
+Status CheckSchema(sqlite3* db, const std::string& path) {
+  ZM_ASSIGN_OR_RETURN(sqlite::Stmt s, Prepare(db, "PRAGMA user_version"));
+  const int rc = sqlite3_step(s.get());
+  if (rc != SQLITE_ROW) {
+    const Status st = FromSqlite(rc, db, path);
+    if ((rc & 0xff) == SQLITE_NOTADB || (rc & 0xff) == SQLITE_CORRUPT) {
+      return Corrupt(path + " is not a valid SQLite database or is truncated (" +
+                     sqlite::DescribeFileVsHeader(path) + "): " + st.message());
+    }
+    return st;
+  }
+  const int version = sqlite3_column_int(s.get(), 0);
+  if (version != kMapDbSchemaVersion) {
+    ZM_ASSIGN_OR_RETURN(const bool has_keyframe, sqlite::TableExists(db, "keyframe"));
+    if (version == 0 && !has_keyframe) {
+      return FailedPrecondition(path + " is not a zonemap map database (schema version 0, no table "
+                                "keyframe)");
+    }
+    return FailedPrecondition(path + " has map schema version " + std::to_string(version) +
+                              "; this build reads version " + std::to_string(kMapDbSchemaVersion));
+  }
+  for (const char* t : kTables) {
+    ZM_ASSIGN_OR_RETURN(const bool exists, sqlite::TableExists(db, t));
+    if (!exists) {
+      return Corrupt(path + ": missing table " + t + " (schema version " +
+                     std::to_string(kMapDbSchemaVersion) +
+                     " needs keyframe, payload, link, zone, zone_member, meta)");
+    }
+  }
+  return Status::Ok();
+}
+
+// Prepares `sql`, turning failure into an error that names the file and the table.
+Result<sqlite::Stmt> PrepareOn(sqlite3* db, const std::string& path, std::string_view table,
+                               std::string_view sql) {
+  auto s = Prepare(db, sql);
+  if (!s.ok()) {
+    return Corrupt(path + ": table " + std::string(table) +
+                   " does not have the expected columns: " + s.status().message());
+  }
+  return s;
+}
+
+Result<std::vector<KeyframeMeta>> ReadKeyframes(sqlite3* db, sqlite3_stmt* s) {
+  StmtReset reset(s);
+  std::vector<KeyframeMeta> out;
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    KeyframeMeta m;
+    m.id = KeyframeId{sqlite3_column_int64(s, 0)};
+    m.stamp_s = sqlite3_column_double(s, 1);
+    if (!PoseFromColumn(s, 2, m.pose)) {
+      return Corrupt(Kf(m.id) + ": pose blob is " + std::to_string(sqlite3_column_bytes(s, 2)) +
+                     " bytes, expected " + std::to_string(kPoseBlobBytes) + " (12 float64)");
+    }
+    m.weight = sqlite3_column_int(s, 3);
+    if (!sqlite::ColumnU32(s, 4, m.payload_bytes)) {
+      return Corrupt(Kf(m.id) + ": payload_bytes " + std::to_string(sqlite3_column_int64(s, 4)) +
+                     " out of range");
+    }
+    out.push_back(m);
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, db, "reading table keyframe");
+  return out;
+}
+
+Result<std::vector<LinkRecord>> ReadLinks(sqlite3* db, sqlite3_stmt* s) {
+  StmtReset reset(s);
+  std::vector<LinkRecord> out;
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    LinkRecord l;
+    l.from = KeyframeId{sqlite3_column_int64(s, 0)};
+    l.to = KeyframeId{sqlite3_column_int64(s, 1)};
+    l.type = static_cast<LinkType>(sqlite3_column_int(s, 2));
+    const std::string what =
+        "link " + std::to_string(l.from.value) + "->" + std::to_string(l.to.value);
+    if (!PoseFromColumn(s, 3, l.transform)) {
+      return Corrupt(what + ": transform blob is " + std::to_string(sqlite3_column_bytes(s, 3)) +
+                     " bytes, expected " + std::to_string(kPoseBlobBytes));
+    }
+    if (sqlite3_column_bytes(s, 4) != kInformationBlobBytes) {
+      return Corrupt(what + ": information blob is " + std::to_string(sqlite3_column_bytes(s, 4)) +
+                     " bytes, expected " + std::to_string(kInformationBlobBytes) + " (36 float64)");
+    }
+    std::memcpy(l.information.data(), sqlite3_column_blob(s, 4), kInformationBlobBytes);
+    out.push_back(l);
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, db, "reading table link");
+  return out;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Reader
+// ---------------------------------------------------------------------------------------------
+
+struct MapDb::Impl {
+  std::string path;
+  MapDbOptions options;
+  sqlite::Db db;
+  sqlite::Stmt begin, commit, rollback;
+  sqlite::Stmt zone_members;   // keyframe ids of one zone, stepping over zone_member's PK
+  sqlite::Stmt payload_point;  // one payload by keyframe id (the per-keyframe path)
+  sqlite::Stmt keyframes, links, zones, all_members, zone_sizes;
+  MapMetadata meta;
+  std::uint64_t total_queries = 0;
+  std::uint64_t total_transactions = 0;
+  std::uint64_t total_bytes = 0;
+
+  // Validates the payload that now sits in `slot` (exactly `bytes` long) for keyframe `id`.
+  Status Validate(KeyframeId id, std::span<const std::byte> blob) const {
+    auto view = DecodePayload(blob, DecodeOptions{.verify_crc = options.verify_checksums});
+    if (!view.ok()) return view.status().Annotate(Kf(id) + " in " + path);
+    if (view->id != id) {
+      return Corrupt(Kf(id) + " in " + path + ": payload row holds keyframe " +
+                     std::to_string(view->id.value));
+    }
+    return Status::Ok();
+  }
+};
+
+MapDb::MapDb(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+MapDb::~MapDb() = default;
+
+Result<std::unique_ptr<MapDb>> MapDb::Open(const std::string& path, MapDbOptions options) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return NotFound("map database " + path + " does not exist");
+  if (std::filesystem::is_directory(path, ec)) {
+    return InvalidArgument("map database " + path + " is a directory, not a file");
+  }
+  if (std::filesystem::file_size(path, ec) == 0 && !ec) {
+    return InvalidArgument(path + " is empty (0 bytes): not a zonemap map database");
+  }
+  if (options.sqlite_heap_limit_bytes > 0) sqlite3_hard_heap_limit64(options.sqlite_heap_limit_bytes);
+
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->options = options;
+  ZM_ASSIGN_OR_RETURN(impl->db, sqlite::Open(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX));
+  sqlite3* db = impl->db.get();
+  ZM_RETURN_IF_ERROR(CheckSchema(db, path));
+
+  ZM_ASSIGN_OR_RETURN(impl->begin, Prepare(db, "BEGIN"));
+  ZM_ASSIGN_OR_RETURN(impl->commit, Prepare(db, "COMMIT"));
+  ZM_ASSIGN_OR_RETURN(impl->rollback, Prepare(db, "ROLLBACK"));
+  ZM_ASSIGN_OR_RETURN(impl->zone_members,
+                      PrepareOn(db, path, "zone_member",
+                                "SELECT keyframe_id FROM zone_member WHERE zone_id=?1 "
+                                "ORDER BY keyframe_id"));
+  ZM_ASSIGN_OR_RETURN(impl->payload_point,
+                      PrepareOn(db, path, "payload", "SELECT blob FROM payload WHERE keyframe_id=?1"));
+  ZM_ASSIGN_OR_RETURN(impl->keyframes,
+                      PrepareOn(db, path, "keyframe",
+                                "SELECT id, stamp, pose, weight, payload_bytes FROM keyframe "
+                                "ORDER BY id"));
+  ZM_ASSIGN_OR_RETURN(impl->links, PrepareOn(db, path, "link",
+                                             "SELECT from_id, to_id, type, transform, information "
+                                             "FROM link ORDER BY rowid"));
+  ZM_ASSIGN_OR_RETURN(impl->zones,
+                      PrepareOn(db, path, "zone",
+                                "SELECT id, name, kind, floor, z_min, z_max, polygon FROM zone "
+                                "ORDER BY id"));
+  ZM_ASSIGN_OR_RETURN(impl->all_members,
+                      PrepareOn(db, path, "zone_member",
+                                "SELECT zone_id, keyframe_id FROM zone_member "
+                                "ORDER BY zone_id, keyframe_id"));
+  ZM_ASSIGN_OR_RETURN(impl->zone_sizes,
+                      PrepareOn(db, path, "zone_member",
+                                "SELECT zone_id, count(*) FROM zone_member GROUP BY zone_id"));
+
+  // Metadata, then a cross-check against the keyframe table (which holds no payload pages), so
+  // a lying meta table cannot make callers size slots too small.
+  ZM_ASSIGN_OR_RETURN(sqlite::Stmt meta_stmt, PrepareOn(db, path, "meta", "SELECT key, value FROM meta"));
+  MapMetadata& m = impl->meta;
+  bool finished = false;
+  int rc;
+  while ((rc = sqlite3_step(meta_stmt.get())) == SQLITE_ROW) {
+    const char* key_text = reinterpret_cast<const char*>(sqlite3_column_text(meta_stmt.get(), 0));
+    const std::string_view key = key_text != nullptr ? key_text : "";
+    sqlite3_stmt* s = meta_stmt.get();
+    const auto u64 = [&] { return static_cast<std::uint64_t>(sqlite3_column_int64(s, 1)); };
+    if (key == "keyframe_count") {
+      m.keyframe_count = u64();
+      finished = true;
+    } else if (key == "link_count") {
+      m.link_count = u64();
+    } else if (key == "zone_count") {
+      m.zone_count = u64();
+    } else if (key == "largest_payload_bytes") {
+      if (!sqlite::ColumnU32(s, 1, m.largest_payload_bytes)) {
+        return Corrupt(path + ": meta largest_payload_bytes out of range");
+      }
+    } else if (key == "total_payload_bytes") {
+      m.total_payload_bytes = u64();
+    } else if (key == "camera_fx") {
+      m.camera.fx = sqlite3_column_double(s, 1);
+    } else if (key == "camera_fy") {
+      m.camera.fy = sqlite3_column_double(s, 1);
+    } else if (key == "camera_cx") {
+      m.camera.cx = sqlite3_column_double(s, 1);
+    } else if (key == "camera_cy") {
+      m.camera.cy = sqlite3_column_double(s, 1);
+    } else if (key == "camera_width") {
+      (void)sqlite::ColumnU32(s, 1, m.camera.width);
+    } else if (key == "camera_height") {
+      (void)sqlite::ColumnU32(s, 1, m.camera.height);
+    } else if (key == "source") {
+      const auto* t = reinterpret_cast<const char*>(sqlite3_column_text(s, 1));
+      m.source = t != nullptr ? t : "";
+    }
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, db, path + ": reading table meta");
+  if (!finished) {
+    return FailedPrecondition(path + " was not finished by its writer (meta has no keyframe_count; "
+                              "MapDbWriter::Finish() was not called)");
+  }
+  ZM_ASSIGN_OR_RETURN(sqlite::Stmt check,
+                      PrepareOn(db, path, "keyframe",
+                                "SELECT count(*), coalesce(max(payload_bytes), 0), "
+                                "(SELECT count(*) FROM zone) FROM keyframe"));
+  rc = sqlite3_step(check.get());
+  if (rc != SQLITE_ROW) return FromSqlite(rc, db, path + ": counting keyframes");
+  const auto kf_count = static_cast<std::uint64_t>(sqlite3_column_int64(check.get(), 0));
+  const auto largest = static_cast<std::uint64_t>(sqlite3_column_int64(check.get(), 1));
+  const auto zone_count = static_cast<std::uint64_t>(sqlite3_column_int64(check.get(), 2));
+  if (kf_count != m.keyframe_count || largest != m.largest_payload_bytes ||
+      zone_count != m.zone_count) {
+    return Corrupt(path + ": meta says " + std::to_string(m.keyframe_count) + " keyframes, " +
+                   std::to_string(m.zone_count) + " zones, largest payload " +
+                   std::to_string(m.largest_payload_bytes) + " bytes, but the tables hold " +
+                   std::to_string(kf_count) + ", " + std::to_string(zone_count) + " and " +
+                   std::to_string(largest) + " bytes");
+  }
+  return std::unique_ptr<MapDb>(new MapDb(std::move(impl)));
+}
+
+const MapMetadata& MapDb::metadata() const { return impl_->meta; }
+
+Result<std::vector<KeyframeMeta>> MapDb::Keyframes() const {
+  ++impl_->total_queries;
+  return ReadKeyframes(impl_->db.get(), impl_->keyframes.get());
+}
+
+Result<std::vector<LinkRecord>> MapDb::Links() const {
+  ++impl_->total_queries;
+  return ReadLinks(impl_->db.get(), impl_->links.get());
+}
+
+Result<std::vector<ZoneRecord>> MapDb::Zones() const {
+  ++impl_->total_queries;
+  sqlite3_stmt* s = impl_->zones.get();
+  StmtReset reset(s);
+  std::vector<ZoneRecord> out;
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    ZoneRecord z;
+    z.id = ZoneId{sqlite3_column_int(s, 0)};
+    const auto* name = reinterpret_cast<const char*>(sqlite3_column_text(s, 1));
+    const auto* kind = reinterpret_cast<const char*>(sqlite3_column_text(s, 2));
+    z.name = name != nullptr ? name : "";
+    z.kind = kind != nullptr ? kind : "";
+    z.floor = sqlite3_column_int(s, 3);
+    z.z_min_m = sqlite3_column_double(s, 4);
+    z.z_max_m = sqlite3_column_double(s, 5);
+    const int bytes = sqlite3_column_bytes(s, 6);
+    if (bytes % 16 != 0) {
+      return Corrupt("zone " + std::to_string(z.id.value) + " (" + z.name + "): polygon blob of " +
+                     std::to_string(bytes) + " bytes is not a whole number of (x, y) float64 pairs");
+    }
+    z.polygon.resize(static_cast<std::size_t>(bytes / 16));
+    if (bytes > 0) std::memcpy(z.polygon.data(), sqlite3_column_blob(s, 6), static_cast<std::size_t>(bytes));
+    if (z.id.value != static_cast<std::int32_t>(out.size())) {
+      return Corrupt(impl_->path + ": zone ids are not dense: found zone " +
+                     std::to_string(z.id.value) + " at position " + std::to_string(out.size()));
+    }
+    out.push_back(std::move(z));
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, impl_->db.get(), "reading table zone");
+  return out;
+}
+
+Result<std::vector<ZoneMember>> MapDb::ZoneMembers() const {
+  ++impl_->total_queries;
+  sqlite3_stmt* s = impl_->all_members.get();
+  StmtReset reset(s);
+  std::vector<ZoneMember> out;
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    out.push_back(ZoneMember{ZoneId{sqlite3_column_int(s, 0)}, KeyframeId{sqlite3_column_int64(s, 1)}});
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, impl_->db.get(), "reading table zone_member");
+  return out;
+}
+
+Result<std::vector<std::uint32_t>> MapDb::ZoneSizes() const {
+  ++impl_->total_queries;
+  sqlite3_stmt* s = impl_->zone_sizes.get();
+  StmtReset reset(s);
+  std::vector<std::uint32_t> out(impl_->meta.zone_count, 0);
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    const auto zone = sqlite3_column_int64(s, 0);
+    if (zone < 0 || static_cast<std::uint64_t>(zone) >= out.size()) {
+      return Corrupt(impl_->path + ": zone_member lists zone " + std::to_string(zone) +
+                     ", but the map has " + std::to_string(out.size()) + " zones");
+    }
+    out[static_cast<std::size_t>(zone)] = static_cast<std::uint32_t>(sqlite3_column_int64(s, 1));
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, impl_->db.get(), "reading table zone_member");
+  return out;
+}
+
+Result<LoadStats> MapDb::LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Impl& im = *impl_;
+  if (zone.value < 0 || static_cast<std::uint64_t>(zone.value) >= im.meta.zone_count) {
+    return NotFound("zone " + std::to_string(zone.value) + " is not in " + im.path + " (" +
+                    std::to_string(im.meta.zone_count) + " zones)");
+  }
+  sqlite3* db = im.db.get();
+  LoadStats st;
+  int rc = sqlite3_step(im.begin.get());
+  sqlite3_reset(im.begin.get());
+  if (rc != SQLITE_DONE) return FromSqlite(rc, db, "BEGIN for zone " + std::to_string(zone.value));
+  ++st.transactions;
+  ++im.total_transactions;
+
+  // The body; whatever it returns, the statement is reset, the blob handle closed and the read
+  // transaction ended below.
+  sqlite::Blob blob;
+  sqlite3_stmt* members = im.zone_members.get();
+  const auto MissingPayload = [&](int brc, KeyframeId id) {
+    return Corrupt(Kf(id) + " of zone " + std::to_string(zone.value) + " in " + im.path +
+                   ": no readable payload row (" + sqlite3_errstr(brc) + ": " + sqlite3_errmsg(db) +
+                   ")");
+  };
+  const auto body = [&]() -> Status {
+    sqlite3_bind_int(members, 1, zone.value);
+    ++st.queries;
+    ++im.total_queries;
+    while ((rc = sqlite3_step(members)) == SQLITE_ROW) {
+      const KeyframeId id{sqlite3_column_int64(members, 0)};
+      if (!sink.Wants(id)) {
+        ++st.skipped;
+        continue;
+      }
+      // The blob handle is opened on the first wanted member and moved along the payload table
+      // for the others: no statement compile, no buffer.
+      if (!blob) {
+        sqlite3_blob* raw = nullptr;
+        const int brc = sqlite3_blob_open(db, "main", "payload", "blob", id.value, 0, &raw);
+        blob.reset(raw);
+        if (brc != SQLITE_OK) return MissingPayload(brc, id);
+      } else {
+        const int brc = sqlite3_blob_reopen(blob.get(), id.value);
+        if (brc != SQLITE_OK) return MissingPayload(brc, id);
+      }
+      const int bytes = sqlite3_blob_bytes(blob.get());
+      if (bytes < 0 || static_cast<std::uint64_t>(bytes) > arena.slot_bytes()) {
+        return OutOfRange(Kf(id) + " in " + im.path + ": payload blob of " + std::to_string(bytes) +
+                          " bytes is larger than the arena slot of " +
+                          std::to_string(arena.slot_bytes()) + " bytes");
+      }
+      const auto slot = arena.TryAcquire();
+      if (!slot) {
+        return ResourceExhausted("arena full (" + std::to_string(arena.capacity()) +
+                                 " slots) loading " + Kf(id) + " of zone " +
+                                 std::to_string(zone.value) + " after " +
+                                 std::to_string(st.keyframes) + " keyframes of this zone");
+      }
+      std::span<std::byte> dst = arena.Slot(*slot).first(static_cast<std::size_t>(bytes));
+      const int rrc = sqlite3_blob_read(blob.get(), dst.data(), bytes, 0);
+      Status valid = rrc == SQLITE_OK ? im.Validate(id, dst)
+                                      : FromSqlite(rrc, db, "reading the payload of " + Kf(id));
+      if (!valid.ok()) {
+        arena.Release(*slot);
+        return valid;
+      }
+      sink.Loaded(id, *slot, static_cast<std::uint32_t>(bytes));
+      ++st.keyframes;
+      st.bytes += static_cast<std::uint64_t>(bytes);
+      im.total_bytes += static_cast<std::uint64_t>(bytes);
+    }
+    if (rc != SQLITE_DONE) {
+      return FromSqlite(rc, db, "stepping the members of zone " + std::to_string(zone.value));
+    }
+    return Status::Ok();
+  };
+  Status status = body();
+  sqlite3_reset(members);
+  sqlite3_clear_bindings(members);
+  blob.reset();
+  sqlite3_stmt* end = status.ok() ? im.commit.get() : im.rollback.get();
+  rc = sqlite3_step(end);
+  sqlite3_reset(end);
+  if (status.ok() && rc != SQLITE_DONE) status = FromSqlite(rc, db, "COMMIT");
+  if (!status.ok()) return status;
+  st.ms = Ms(t0);
+  return st;
+}
+
+Result<LoadStats> MapDb::LoadKeyframes(std::span<const KeyframeId> ids, Arena& arena,
+                                       LoadSink& sink) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Impl& im = *impl_;
+  sqlite3* db = im.db.get();
+  sqlite3_stmt* s = im.payload_point.get();
+  LoadStats st;
+  // RTAB-Map's pattern: one point query per keyframe, each in its own implicit transaction.
+  for (const KeyframeId id : ids) {
+    if (!sink.Wants(id)) {
+      ++st.skipped;
+      continue;
+    }
+    StmtReset reset(s);
+    sqlite3_bind_int64(s, 1, id.value);
+    ++st.queries;
+    ++im.total_queries;
+    const int rc = sqlite3_step(s);
+    if (rc == SQLITE_DONE) return NotFound(Kf(id) + " is not in " + im.path);
+    if (rc != SQLITE_ROW) return FromSqlite(rc, db, "reading the payload of " + Kf(id));
+    const int bytes = sqlite3_column_bytes(s, 0);
+    if (bytes < 0 || static_cast<std::uint64_t>(bytes) > arena.slot_bytes()) {
+      return OutOfRange(Kf(id) + " in " + im.path + ": payload blob of " + std::to_string(bytes) +
+                        " bytes is larger than the arena slot of " +
+                        std::to_string(arena.slot_bytes()) + " bytes");
+    }
+    const void* src = sqlite3_column_blob(s, 0);
+    if (src == nullptr && bytes > 0) {
+      return ResourceExhausted("SQLite could not materialise the payload of " + Kf(id) + " (" +
+                               std::to_string(bytes) + " bytes)");
+    }
+    const auto slot = arena.TryAcquire();
+    if (!slot) {
+      return ResourceExhausted("arena full (" + std::to_string(arena.capacity()) +
+                               " slots) loading " + Kf(id) + " after " +
+                               std::to_string(st.keyframes) + " keyframes of this call");
+    }
+    std::span<std::byte> dst = arena.Slot(*slot).first(static_cast<std::size_t>(bytes));
+    if (bytes > 0) std::memcpy(dst.data(), src, static_cast<std::size_t>(bytes));
+    Status valid = im.Validate(id, dst);
+    if (!valid.ok()) {
+      arena.Release(*slot);
+      return valid;
+    }
+    sink.Loaded(id, *slot, static_cast<std::uint32_t>(bytes));
+    ++st.keyframes;
+    st.bytes += static_cast<std::uint64_t>(bytes);
+    im.total_bytes += static_cast<std::uint64_t>(bytes);
+  }
+  st.ms = Ms(t0);
+  return st;
+}
+
+std::uint64_t MapDb::total_queries() const { return impl_->total_queries; }
+std::uint64_t MapDb::total_transactions() const { return impl_->total_transactions; }
+std::uint64_t MapDb::total_bytes_read() const { return impl_->total_bytes; }
+
+// ---------------------------------------------------------------------------------------------
+// Writer
+// ---------------------------------------------------------------------------------------------
+
+struct MapDbWriter::Impl {
+  std::string path;
+  sqlite::Db db;
+  sqlite::Stmt begin, commit, rollback;
+  sqlite::Stmt ins_keyframe, ins_payload, ins_link, ins_zone, ins_member, del_zones, del_members;
+  sqlite::Stmt put_meta, keyframe_exists, keyframes, links;
+  WriteProgressFn progress;
+
+  Status Prepare() {
+    sqlite3* d = db.get();
+    ZM_ASSIGN_OR_RETURN(begin, sqlite::Prepare(d, "BEGIN IMMEDIATE"));
+    ZM_ASSIGN_OR_RETURN(commit, sqlite::Prepare(d, "COMMIT"));
+    ZM_ASSIGN_OR_RETURN(rollback, sqlite::Prepare(d, "ROLLBACK"));
+    ZM_ASSIGN_OR_RETURN(ins_keyframe,
+                        PrepareOn(d, path, "keyframe",
+                                  "INSERT INTO keyframe(id, stamp, pose, weight, payload_bytes) "
+                                  "VALUES(?1, ?2, ?3, ?4, ?5)"));
+    ZM_ASSIGN_OR_RETURN(ins_payload, PrepareOn(d, path, "payload",
+                                               "INSERT INTO payload(keyframe_id, blob) VALUES(?1, ?2)"));
+    ZM_ASSIGN_OR_RETURN(ins_link,
+                        PrepareOn(d, path, "link",
+                                  "INSERT INTO link(from_id, to_id, type, transform, information) "
+                                  "VALUES(?1, ?2, ?3, ?4, ?5)"));
+    ZM_ASSIGN_OR_RETURN(ins_zone,
+                        PrepareOn(d, path, "zone",
+                                  "INSERT INTO zone(id, name, kind, floor, z_min, z_max, polygon) "
+                                  "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)"));
+    ZM_ASSIGN_OR_RETURN(ins_member, PrepareOn(d, path, "zone_member",
+                                              "INSERT INTO zone_member(zone_id, keyframe_id) "
+                                              "VALUES(?1, ?2)"));
+    ZM_ASSIGN_OR_RETURN(del_zones, PrepareOn(d, path, "zone", "DELETE FROM zone"));
+    ZM_ASSIGN_OR_RETURN(del_members, PrepareOn(d, path, "zone_member", "DELETE FROM zone_member"));
+    ZM_ASSIGN_OR_RETURN(put_meta, PrepareOn(d, path, "meta",
+                                            "INSERT OR REPLACE INTO meta(key, value) VALUES(?1, ?2)"));
+    ZM_ASSIGN_OR_RETURN(keyframe_exists,
+                        PrepareOn(d, path, "keyframe", "SELECT 1 FROM keyframe WHERE id=?1"));
+    ZM_ASSIGN_OR_RETURN(keyframes, PrepareOn(d, path, "keyframe",
+                                             "SELECT id, stamp, pose, weight, payload_bytes "
+                                             "FROM keyframe ORDER BY id"));
+    ZM_ASSIGN_OR_RETURN(links, PrepareOn(d, path, "link",
+                                         "SELECT from_id, to_id, type, transform, information "
+                                         "FROM link ORDER BY rowid"));
+    return Status::Ok();
+  }
+
+  // Runs `fn` inside BEGIN IMMEDIATE..COMMIT, rolling back if it fails.
+  template <class Fn>
+  Status InTransaction(std::string_view what, Fn&& fn) {
+    sqlite3* d = db.get();
+    ZM_RETURN_IF_ERROR(sqlite::StepDone(d, begin.get(), std::string("BEGIN for ") + std::string(what)));
+    Status st = fn();
+    if (st.ok()) st = sqlite::StepDone(d, commit.get(), std::string("COMMIT of ") + std::string(what));
+    if (!st.ok()) (void)sqlite::StepDone(d, rollback.get(), "ROLLBACK");
+    return st;
+  }
+
+  Result<bool> KeyframeExists(KeyframeId id) {
+    sqlite3_stmt* s = keyframe_exists.get();
+    StmtReset reset(s);
+    sqlite3_bind_int64(s, 1, id.value);
+    const int rc = sqlite3_step(s);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    return FromSqlite(rc, db.get(), "looking up " + Kf(id));
+  }
+
+  Status PutMeta(const char* key, const std::string& text) {
+    sqlite3_stmt* s = put_meta.get();
+    sqlite3_bind_text(s, 1, key, -1, SQLITE_STATIC);
+    sqlite3_bind_text(s, 2, text.c_str(), static_cast<int>(text.size()), SQLITE_TRANSIENT);
+    return sqlite::StepDone(db.get(), s, std::string("writing meta ") + key);
+  }
+  Status PutMeta(const char* key, sqlite3_int64 v) {
+    sqlite3_stmt* s = put_meta.get();
+    sqlite3_bind_text(s, 1, key, -1, SQLITE_STATIC);
+    sqlite3_bind_int64(s, 2, v);
+    return sqlite::StepDone(db.get(), s, std::string("writing meta ") + key);
+  }
+  Status PutMeta(const char* key, double v) {
+    sqlite3_stmt* s = put_meta.get();
+    sqlite3_bind_text(s, 1, key, -1, SQLITE_STATIC);
+    sqlite3_bind_double(s, 2, v);
+    return sqlite::StepDone(db.get(), s, std::string("writing meta ") + key);
+  }
+
+  void Report(std::string_view stage, std::uint64_t done, std::uint64_t total) const {
+    if (progress && (done % 256 == 0 || done == total)) progress(stage, done, total);
+  }
+};
+
+MapDbWriter::MapDbWriter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+MapDbWriter::~MapDbWriter() = default;
+
+Result<std::unique_ptr<MapDbWriter>> MapDbWriter::Create(const std::string& path, bool overwrite) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec)) {
+    if (!overwrite) return FailedPrecondition(path + " already exists (pass overwrite to replace it)");
+    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
+      std::filesystem::remove(path + suffix, ec);
+      if (ec) return IoError("cannot remove " + path + suffix + ": " + ec.message());
+    }
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  ZM_ASSIGN_OR_RETURN(impl->db, sqlite::Open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE |
+                                                       SQLITE_OPEN_NOMUTEX));
+  sqlite3* db = impl->db.get();
+  ZM_RETURN_IF_ERROR(sqlite::Exec(db, "PRAGMA page_size=4096; PRAGMA journal_mode=WAL; "
+                                      "PRAGMA synchronous=NORMAL;", "configuring " + path));
+  ZM_RETURN_IF_ERROR(sqlite::Exec(
+      db, std::string("BEGIN;") + kSchemaSql + "PRAGMA user_version=" +
+              std::to_string(kMapDbSchemaVersion) + "; COMMIT;",
+      "creating the schema in " + path));
+  ZM_RETURN_IF_ERROR(impl->Prepare());
+  return std::unique_ptr<MapDbWriter>(new MapDbWriter(std::move(impl)));
+}
+
+Result<std::unique_ptr<MapDbWriter>> MapDbWriter::OpenExisting(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return NotFound("map database " + path + " does not exist");
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  ZM_ASSIGN_OR_RETURN(impl->db, sqlite::Open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX));
+  sqlite3* db = impl->db.get();
+  ZM_RETURN_IF_ERROR(CheckSchema(db, path));
+  ZM_RETURN_IF_ERROR(sqlite::Exec(db, "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;",
+                                  "configuring " + path));
+  ZM_RETURN_IF_ERROR(impl->Prepare());
+  return std::unique_ptr<MapDbWriter>(new MapDbWriter(std::move(impl)));
+}
+
+void MapDbWriter::SetProgress(WriteProgressFn progress) { impl_->progress = std::move(progress); }
+
+Status MapDbWriter::InsertKeyframes(std::span<const KeyframeRecord> keyframes) {
+  Impl& im = *impl_;
+  sqlite3* db = im.db.get();
+  return im.InTransaction("keyframes", [&]() -> Status {
+    std::uint64_t done = 0;
+    for (const KeyframeRecord& k : keyframes) {
+      const KeyframeId id = k.meta.id;
+      auto view = DecodePayload(k.payload);
+      if (!view.ok()) return view.status().Annotate("inserting " + Kf(id));
+      if (view->id != id) {
+        return InvalidArgument("inserting " + Kf(id) + ": its payload is for keyframe " +
+                               std::to_string(view->id.value));
+      }
+      double pose[12];
+      PoseToDoubles(k.meta.pose, pose);
+      sqlite3_stmt* s = im.ins_keyframe.get();
+      sqlite3_bind_int64(s, 1, id.value);
+      sqlite3_bind_double(s, 2, k.meta.stamp_s);
+      sqlite3_bind_blob(s, 3, pose, sizeof pose, SQLITE_TRANSIENT);
+      sqlite3_bind_int(s, 4, k.meta.weight);
+      sqlite3_bind_int64(s, 5, static_cast<sqlite3_int64>(k.payload.size()));
+      Status st = sqlite::StepDone(db, s, "inserting " + Kf(id) + " into table keyframe");
+      if (!st.ok()) {
+        if (st.code() == StatusCode::kInvalidArgument) {
+          return InvalidArgument("inserting " + Kf(id) + ": already in " + im.path + " (" +
+                                 st.message() + ")");
+        }
+        return st;
+      }
+      s = im.ins_payload.get();
+      sqlite3_bind_int64(s, 1, id.value);
+      sqlite3_bind_blob64(s, 2, k.payload.data(), k.payload.size(), SQLITE_STATIC);
+      ZM_RETURN_IF_ERROR(sqlite::StepDone(db, s, "inserting the payload of " + Kf(id)));
+      im.Report("keyframes", ++done, keyframes.size());
+    }
+    return Status::Ok();
+  });
+}
+
+Status MapDbWriter::InsertLinks(std::span<const LinkRecord> links) {
+  Impl& im = *impl_;
+  sqlite3* db = im.db.get();
+  return im.InTransaction("links", [&]() -> Status {
+    std::uint64_t done = 0;
+    for (const LinkRecord& l : links) {
+      const std::string what = "link " + std::to_string(l.from.value) + "->" +
+                               std::to_string(l.to.value) + " (type " +
+                               std::to_string(static_cast<int>(l.type)) + ")";
+      for (const KeyframeId end : {l.from, l.to}) {
+        ZM_ASSIGN_OR_RETURN(const bool exists, im.KeyframeExists(end));
+        if (!exists) {
+          return InvalidArgument(what + ": " + Kf(end) + " is not in the map (insert keyframes first)");
+        }
+      }
+      double t[12];
+      PoseToDoubles(l.transform, t);
+      sqlite3_stmt* s = im.ins_link.get();
+      sqlite3_bind_int64(s, 1, l.from.value);
+      sqlite3_bind_int64(s, 2, l.to.value);
+      sqlite3_bind_int(s, 3, static_cast<int>(l.type));
+      sqlite3_bind_blob(s, 4, t, sizeof t, SQLITE_TRANSIENT);
+      sqlite3_bind_blob(s, 5, l.information.data(), kInformationBlobBytes, SQLITE_STATIC);
+      ZM_RETURN_IF_ERROR(sqlite::StepDone(db, s, "inserting " + what));
+      im.Report("links", ++done, links.size());
+    }
+    return Status::Ok();
+  });
+}
+
+Status MapDbWriter::ReplaceZones(std::span<const ZoneRecord> zones,
+                                 std::span<const ZoneMember> members) {
+  Impl& im = *impl_;
+  sqlite3* db = im.db.get();
+  return im.InTransaction("zones", [&]() -> Status {
+    ZM_RETURN_IF_ERROR(sqlite::StepDone(db, im.del_members.get(), "clearing table zone_member"));
+    ZM_RETURN_IF_ERROR(sqlite::StepDone(db, im.del_zones.get(), "clearing table zone"));
+    for (std::size_t i = 0; i < zones.size(); ++i) {
+      const ZoneRecord& z = zones[i];
+      const std::string what = "zone " + std::to_string(z.id.value) + " (" + z.name + ")";
+      if (z.id.value < 0 || static_cast<std::size_t>(z.id.value) != i) {
+        return InvalidArgument(what + " at position " + std::to_string(i) +
+                               ": zone ids must be dense 0..N-1 in order");
+      }
+      if (z.name.empty()) return InvalidArgument(what + ": empty name");
+      sqlite3_stmt* s = im.ins_zone.get();
+      sqlite3_bind_int(s, 1, z.id.value);
+      sqlite3_bind_text(s, 2, z.name.c_str(), static_cast<int>(z.name.size()), SQLITE_STATIC);
+      sqlite3_bind_text(s, 3, z.kind.c_str(), static_cast<int>(z.kind.size()), SQLITE_STATIC);
+      sqlite3_bind_int(s, 4, z.floor);
+      sqlite3_bind_double(s, 5, z.z_min_m);
+      sqlite3_bind_double(s, 6, z.z_max_m);
+      if (z.polygon.empty()) {
+        sqlite3_bind_zeroblob(s, 7, 0);
+      } else {
+        sqlite3_bind_blob64(s, 7, z.polygon.data(), z.polygon.size() * sizeof(z.polygon[0]),
+                            SQLITE_STATIC);
+      }
+      Status st = sqlite::StepDone(db, s, "inserting " + what);
+      if (!st.ok()) {
+        return st.code() == StatusCode::kInvalidArgument
+                   ? InvalidArgument("inserting " + what + ": zone names must be unique (" +
+                                     st.message() + ")")
+                   : st;
+      }
+    }
+    std::uint64_t done = 0;
+    for (const ZoneMember& m : members) {
+      const std::string what = "zone " + std::to_string(m.zone.value) + " member " + Kf(m.keyframe);
+      if (m.zone.value < 0 || static_cast<std::size_t>(m.zone.value) >= zones.size()) {
+        return InvalidArgument(what + ": zone " + std::to_string(m.zone.value) + " is not among the " +
+                               std::to_string(zones.size()) + " zones given");
+      }
+      ZM_ASSIGN_OR_RETURN(const bool exists, im.KeyframeExists(m.keyframe));
+      if (!exists) return InvalidArgument(what + ": " + Kf(m.keyframe) + " is not in the map");
+      sqlite3_stmt* s = im.ins_member.get();
+      sqlite3_bind_int(s, 1, m.zone.value);
+      sqlite3_bind_int64(s, 2, m.keyframe.value);
+      Status st = sqlite::StepDone(db, s, "inserting " + what);
+      if (!st.ok()) {
+        return st.code() == StatusCode::kInvalidArgument
+                   ? InvalidArgument("inserting " + what + ": listed twice")
+                   : st;
+      }
+      im.Report("zone members", ++done, members.size());
+    }
+    return Status::Ok();
+  });
+}
+
+Status MapDbWriter::SetCamera(const CameraIntrinsics& c) {
+  Impl& im = *impl_;
+  return im.InTransaction("camera", [&]() -> Status {
+    ZM_RETURN_IF_ERROR(im.PutMeta("camera_fx", c.fx));
+    ZM_RETURN_IF_ERROR(im.PutMeta("camera_fy", c.fy));
+    ZM_RETURN_IF_ERROR(im.PutMeta("camera_cx", c.cx));
+    ZM_RETURN_IF_ERROR(im.PutMeta("camera_cy", c.cy));
+    ZM_RETURN_IF_ERROR(im.PutMeta("camera_width", sqlite3_int64{c.width}));
+    return im.PutMeta("camera_height", sqlite3_int64{c.height});
+  });
+}
+
+Status MapDbWriter::SetSource(const std::string& source) {
+  Impl& im = *impl_;
+  return im.InTransaction("source", [&] { return im.PutMeta("source", source); });
+}
+
+Result<std::vector<KeyframeMeta>> MapDbWriter::Keyframes() const {
+  return ReadKeyframes(impl_->db.get(), impl_->keyframes.get());
+}
+
+Result<std::vector<LinkRecord>> MapDbWriter::Links() const {
+  return ReadLinks(impl_->db.get(), impl_->links.get());
+}
+
+Status MapDbWriter::Finish() {
+  Impl& im = *impl_;
+  sqlite3* db = im.db.get();
+  const auto compute = [&]() -> Status {
+    ZM_ASSIGN_OR_RETURN(sqlite::Stmt s,
+                        Prepare(db,
+                                "SELECT (SELECT count(*) FROM keyframe), "
+                                "(SELECT coalesce(max(payload_bytes), 0) FROM keyframe), "
+                                "(SELECT coalesce(sum(payload_bytes), 0) FROM keyframe), "
+                                "(SELECT count(*) FROM link), (SELECT count(*) FROM zone)"));
+    const int rc = sqlite3_step(s.get());
+    if (rc != SQLITE_ROW) return FromSqlite(rc, db, "computing the metadata of " + im.path);
+    ZM_RETURN_IF_ERROR(im.PutMeta("keyframe_count", sqlite3_column_int64(s.get(), 0)));
+    ZM_RETURN_IF_ERROR(im.PutMeta("largest_payload_bytes", sqlite3_column_int64(s.get(), 1)));
+    ZM_RETURN_IF_ERROR(im.PutMeta("total_payload_bytes", sqlite3_column_int64(s.get(), 2)));
+    ZM_RETURN_IF_ERROR(im.PutMeta("link_count", sqlite3_column_int64(s.get(), 3)));
+    return im.PutMeta("zone_count", sqlite3_column_int64(s.get(), 4));
+  };
+  ZM_RETURN_IF_ERROR(im.InTransaction("metadata", compute));
+  // Fold the WAL back into the file and leave it in rollback-journal mode, so the finished map
+  // is one self-contained file that a read-only process can open without creating -shm/-wal.
+  return sqlite::Exec(db, "PRAGMA wal_checkpoint(TRUNCATE); PRAGMA journal_mode=DELETE;",
+                      "checkpointing " + im.path);
+}
+
+}  // namespace zm
