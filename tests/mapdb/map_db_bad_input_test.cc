@@ -1,0 +1,268 @@
+// Every bad input of issue 3 gives one clear error naming the keyframe or table and the sizes,
+// never writes outside a slot (every slot that was not reported loaded keeps its bytes), leaves
+// the reader usable, and never changes the file on disk.
+#include <doctest/doctest.h>
+#include <sqlite3.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+#include "mapdb/map_db.h"
+#include "mapdb/mapdb_test_util.h"
+
+namespace zm {
+namespace {
+
+using test::BuildMap;
+using test::MakeArena;
+using test::RecordingSink;
+using test::Snapshot;
+using test::TempDir;
+
+bool Contains(const Status& s, const std::string& text) {
+  return s.message().find(text) != std::string::npos;
+}
+
+// Runs SQL on the file with a plain read-write connection (to damage it on purpose).
+void Sql(const std::string& path, const std::string& sql) {
+  sqlite3* db = nullptr;
+  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
+  char* err = nullptr;
+  const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err);
+  INFO(sql << ": " << (err ? err : ""));
+  sqlite3_free(err);
+  sqlite3_close(db);
+  REQUIRE(rc == SQLITE_OK);
+}
+
+// Replaces keyframe `id`'s payload blob by `edit(blob)`.
+void EditPayload(const std::string& path, std::int64_t id,
+                 const std::function<void(std::vector<unsigned char>&)>& edit) {
+  sqlite3* db = nullptr;
+  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
+  sqlite3_stmt* s = nullptr;
+  REQUIRE(sqlite3_prepare_v2(db, "SELECT blob FROM payload WHERE keyframe_id=?1", -1, &s, nullptr) == SQLITE_OK);
+  sqlite3_bind_int64(s, 1, id);
+  REQUIRE(sqlite3_step(s) == SQLITE_ROW);
+  const auto* p = static_cast<const unsigned char*>(sqlite3_column_blob(s, 0));
+  std::vector<unsigned char> blob(p, p + sqlite3_column_bytes(s, 0));
+  sqlite3_finalize(s);
+  edit(blob);
+  REQUIRE(sqlite3_prepare_v2(db, "UPDATE payload SET blob=?2 WHERE keyframe_id=?1", -1, &s, nullptr) == SQLITE_OK);
+  sqlite3_bind_int64(s, 1, id);
+  sqlite3_bind_blob(s, 2, blob.data(), static_cast<int>(blob.size()), SQLITE_TRANSIENT);
+  REQUIRE(sqlite3_step(s) == SQLITE_DONE);
+  sqlite3_finalize(s);
+  sqlite3_close(db);
+}
+
+// Fills every slot with a pattern (holding them all), then frees `free_slots` of them, so a
+// load can only use those; returns a copy of the whole arena to compare against afterwards.
+std::vector<std::byte> Prepare(Arena& arena, std::uint32_t free_slots) {
+  for (std::uint32_t i = 0; i < arena.capacity(); ++i) {
+    const auto s = arena.TryAcquire();
+    REQUIRE(s.has_value());
+    std::memset(arena.Slot(*s).data(), 0x5A + static_cast<int>(i), arena.slot_bytes());
+  }
+  for (std::uint32_t i = 0; i < free_slots; ++i) arena.Release(SlotIndex{i});
+  std::vector<std::byte> copy;
+  for (std::uint32_t i = 0; i < arena.capacity(); ++i) {
+    auto s = arena.Slot(SlotIndex{i});
+    copy.insert(copy.end(), s.begin(), s.end());
+  }
+  return copy;
+}
+
+// Every slot not reported loaded has exactly its bytes from before the load.
+void CheckUntouched(const Arena& arena, const std::vector<std::byte>& before, const RecordingSink& sink) {
+  for (std::uint32_t i = 0; i < arena.capacity(); ++i) {
+    bool loaded = false;
+    for (const auto& e : sink.loaded()) loaded |= e.slot == SlotIndex{i};
+    if (loaded) continue;
+    const auto s = arena.Slot(SlotIndex{i});
+    INFO("slot " << i);
+    CHECK(std::memcmp(s.data(), before.data() + std::size_t{i} * arena.slot_bytes(), s.size()) == 0);
+  }
+}
+
+struct Fixture {
+  TempDir dir;
+  std::string path = dir.File("map.db");
+  test::BuiltMap built = BuildMap(path);
+};
+
+TEST_CASE("a blob larger than slot_bytes is refused before any byte is copied") {
+  Fixture f;
+  const std::uint64_t small = f.built.payloads.at(10).size();  // rounded up, still < 11's size
+  auto db = MapDb::Open(f.path);
+  REQUIRE(db.ok());
+  Arena arena = MakeArena(8, small);
+  REQUIRE(arena.slot_bytes() < f.built.payloads.at(11).size());
+  const auto before = Prepare(arena, 4);
+  const auto file_before = Snapshot(f.path);
+  RecordingSink sink;
+  auto st = (*db)->LoadZone(ZoneId{2}, arena, sink);  // 9, 10 fit; 11 does not
+  REQUIRE_FALSE(st.ok());
+  CHECK(st.status().code() == StatusCode::kOutOfRange);
+  CHECK(Contains(st.status(), "keyframe 11"));
+  CHECK(Contains(st.status(), std::to_string(f.built.payloads.at(11).size()) + " bytes"));
+  CHECK(Contains(st.status(), "slot of " + std::to_string(arena.slot_bytes()) + " bytes"));
+  CHECK(sink.loaded().size() == 2);  // already reported: they stay loaded
+  CHECK(arena.in_use() == 4 + 2);
+  CheckUntouched(arena, before, sink);
+
+  RecordingSink sink2;
+  const std::vector<KeyframeId> ids = {KeyframeId{12}};
+  auto st2 = (*db)->LoadKeyframes(ids, arena, sink2);
+  REQUIRE_FALSE(st2.ok());
+  CHECK(st2.status().code() == StatusCode::kOutOfRange);
+  CHECK(arena.in_use() == 6);
+  CHECK(Snapshot(f.path) == file_before);
+}
+
+TEST_CASE("truncated, corrupt, misplaced and missing payload blobs give clear errors") {
+  Fixture f;
+  std::string expect;
+  std::int64_t bad_id = 7;  // zone 1 holds 5, 6, 7, 8
+  SUBCASE("truncated") {
+    EditPayload(f.path, bad_id, [](auto& b) { b.resize(b.size() - 100); });
+    expect = "truncated";
+  }
+  SUBCASE("corrupt body") {
+    EditPayload(f.path, bad_id, [](auto& b) { b[200] ^= 0x40; });
+    expect = "checksum mismatch";
+  }
+  SUBCASE("corrupt header") {
+    EditPayload(f.path, bad_id, [](auto& b) { b[0] = 0; });
+    expect = "bad magic";
+  }
+  SUBCASE("shorter than a header") {
+    EditPayload(f.path, bad_id, [](auto& b) { b.resize(10); });
+    expect = "shorter than";
+  }
+  SUBCASE("another keyframe's payload") {
+    EditPayload(f.path, bad_id, [&](auto& b) {
+      const auto& other = f.built.payloads.at(6);
+      b.assign(reinterpret_cast<const unsigned char*>(other.data()),
+               reinterpret_cast<const unsigned char*>(other.data()) + other.size());
+    });
+    expect = "holds keyframe 6";
+  }
+  SUBCASE("missing payload row") {
+    Sql(f.path, "DELETE FROM payload WHERE keyframe_id=7");
+    expect = "no readable payload row";
+  }
+  const auto file_before = Snapshot(f.path);
+  auto db = MapDb::Open(f.path);
+  REQUIRE(db.ok());
+  Arena arena = MakeArena(8, (*db)->metadata().largest_payload_bytes);
+  const auto before = Prepare(arena, 8);
+  RecordingSink sink;
+  auto st = (*db)->LoadZone(ZoneId{1}, arena, sink);
+  REQUIRE_FALSE(st.ok());
+  INFO(st.status().ToString());
+  CHECK(st.status().code() == StatusCode::kCorrupt);
+  CHECK(Contains(st.status(), "keyframe 7"));
+  CHECK(Contains(st.status(), expect));
+  CHECK(sink.loaded().size() == 2);   // 5 and 6 came before 7
+  CHECK(arena.in_use() == 2);         // 7's slot was released
+  CheckUntouched(arena, before, sink);
+  // The reader is still usable: the failed load ended its transaction.
+  auto ok = (*db)->LoadZone(ZoneId{2}, arena, sink);
+  CHECK(ok.ok());
+  CHECK(Snapshot(f.path) == file_before);
+}
+
+TEST_CASE("a corrupt body loads when checksums are off (option honoured)") {
+  Fixture f;
+  EditPayload(f.path, 3, [](auto& b) { b[200] ^= 0x40; });
+  auto db = MapDb::Open(f.path, MapDbOptions{.verify_checksums = false});
+  REQUIRE(db.ok());
+  Arena arena = MakeArena(8, (*db)->metadata().largest_payload_bytes);
+  RecordingSink sink;
+  CHECK((*db)->LoadZone(ZoneId{0}, arena, sink).ok());
+}
+
+TEST_CASE("a full arena stops the load with ResourceExhausted") {
+  Fixture f;
+  auto db = MapDb::Open(f.path);
+  REQUIRE(db.ok());
+  Arena arena = MakeArena(3, (*db)->metadata().largest_payload_bytes);
+  RecordingSink sink;
+  auto st = (*db)->LoadZone(ZoneId{0}, arena, sink);
+  REQUIRE_FALSE(st.ok());
+  CHECK(st.status().code() == StatusCode::kResourceExhausted);
+  CHECK(Contains(st.status(), "keyframe 4"));
+  CHECK(Contains(st.status(), "3 slots"));
+  CHECK(sink.loaded().size() == 3);
+}
+
+TEST_CASE("bad database files are refused at open with one clear error") {
+  Fixture f;
+  std::string expect;
+  StatusCode code = StatusCode::kCorrupt;
+  std::string path = f.path;
+  SUBCASE("wrong schema version") {
+    Sql(f.path, "PRAGMA user_version=7");
+    code = StatusCode::kFailedPrecondition;
+    expect = "schema version 7; this build reads version 1";
+  }
+  SUBCASE("missing table") {
+    Sql(f.path, "DROP TABLE zone_member");
+    expect = "missing table zone_member";
+  }
+  SUBCASE("missing column") {
+    Sql(f.path, "ALTER TABLE keyframe DROP COLUMN weight");
+    expect = "table keyframe does not have the expected columns";
+  }
+  SUBCASE("meta disagrees with the tables") {
+    Sql(f.path, "UPDATE meta SET value=10 WHERE key='largest_payload_bytes'");
+    expect = "largest payload 10 bytes";
+  }
+  SUBCASE("writer never finished") {
+    Sql(f.path, "DELETE FROM meta WHERE key='keyframe_count'");
+    code = StatusCode::kFailedPrecondition;
+    expect = "not finished";
+  }
+  SUBCASE("not a database") {
+    path = f.dir.File("text.db");
+    std::ofstream(path) << std::string(4096, 'x');
+    expect = "not a valid SQLite database";
+  }
+  SUBCASE("some other SQLite database") {
+    path = f.dir.File("other.db");
+    Sql(path, "CREATE TABLE t(x)");
+    code = StatusCode::kFailedPrecondition;
+    expect = "not a zonemap map database";
+  }
+  SUBCASE("empty file") {
+    path = f.dir.File("empty.db");
+    std::ofstream(path).flush();
+    code = StatusCode::kInvalidArgument;
+    expect = "empty (0 bytes)";
+  }
+  SUBCASE("no such file") {
+    path = f.dir.File("nope.db");
+    code = StatusCode::kNotFound;
+    expect = "does not exist";
+  }
+  SUBCASE("truncated database") {
+    const auto size = std::filesystem::file_size(f.path);
+    std::filesystem::resize_file(f.path, size / 2);
+    expect = "truncated";
+  }
+  const bool existed = std::filesystem::exists(path);
+  const auto file_before = existed ? Snapshot(path) : std::vector<char>{};
+  auto db = MapDb::Open(path);
+  REQUIRE_FALSE(db.ok());
+  INFO(db.status().ToString());
+  CHECK(db.status().code() == code);
+  CHECK(Contains(db.status(), expect));
+  CHECK(std::filesystem::exists(path) == existed);
+  if (existed) CHECK(Snapshot(path) == file_before);
+}
+
+}  // namespace
+}  // namespace zm
