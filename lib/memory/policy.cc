@@ -1,0 +1,34 @@
+// MakePolicy: the one place that knows every policy by name.
+#include <string>
+
+#include "memory/oracle_policy.h"
+#include "memory/policy.h"
+#include "memory/semantic_policy.h"
+#include "memory/unbounded_policy.h"
+
+namespace zm {
+
+Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
+                                                 const PolicyOptions& options) {
+  const std::string& p = options.policy;
+  if (p != "unbounded" && options.k_max == 0 && p != "basic") {
+    return InvalidArgument("policy " + p + " needs k_max > 0 (MemoryThr)");
+  }
+  if (p == "semantic") {
+    SemanticOptions o = options.semantic;
+    o.k_max = options.k_max;
+    return std::unique_ptr<MemoryPolicy>(std::make_unique<SemanticPolicy>(index, o));
+  }
+  if (p == "oracle") {
+    OracleOptions o = options.oracle;
+    o.k_max = options.k_max;
+    return std::unique_ptr<MemoryPolicy>(std::make_unique<OraclePolicy>(index, o));
+  }
+  if (p == "unbounded") {
+    return std::unique_ptr<MemoryPolicy>(std::make_unique<UnboundedPolicy>(index));
+  }
+  return InvalidArgument("unknown memory policy '" + p +
+                         "'; expected semantic, basic, radius, predictive, oracle or unbounded");
+}
+
+}  // namespace zm

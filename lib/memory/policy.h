@@ -1,0 +1,107 @@
+// The memory-policy seam: a policy is a pure decision over the MapIndex (metadata) and its own
+// small state; it writes a Plan, which the WorkingSet carries out. Policies never touch the
+// database, the arena or payload bytes, so their tests need neither.
+//
+// One tick, in this order (the runtime's loop):
+//   plan.Clear(); policy.PlanBeforeLocalize(ctx, &plan); working_set.Apply(plan, &tel);
+//   ... localizer matches against working_set.resident(), fills ctx.highest_hypothesis and
+//       ctx.localized_on ...
+//   plan.Clear(); policy.PlanAfterLocalize(ctx, &plan); working_set.Apply(plan, &tel);
+// Start(ctx, &plan) is called once before the first tick (start-up load).
+//
+// Two hooks because Algorithm 1 (semantic, and radius/predictive/oracle) runs before
+// localization, while RTAB-Map's retrieval and transfer (basic) run after its likelihood and
+// loop-closure step, so basic's retrieved nodes become candidates from the next tick.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/ids.h"
+#include "common/status.h"
+#include "geometry/pose.h"
+#include "memory/map_index.h"
+#include "memory/plan.h"
+
+namespace zm {
+
+struct TickContext {
+  std::uint64_t tick = 0;
+  double now_s = 0.0;                 // monotonic seconds (basic truncates ages to whole seconds)
+  Pose3 pose = Pose3::Identity();     // current pose estimate, map frame
+  ZoneId zone = kNoZone;              // GetZone(pose) after hysteresis; kNoZone = outside all
+  bool small_displacement = false;    // < 0.1 m and < 0.1 rad since the last kept frame
+  KeyframeId highest_hypothesis{0};   // best-ranked resident keyframe for this frame; 0 = none
+  KeyframeId localized_on{0};         // keyframe the frame was localized on; 0 = not localized
+  std::span<const ZoneId> route;      // planned zone sequence (predictive); may be empty
+  double load_ms_per_keyframe = 0.0;  // WorkingSet::load_ms_per_keyframe(); 0 = unknown
+};
+
+class MemoryPolicy {
+ public:
+  virtual ~MemoryPolicy() = default;
+  [[nodiscard]] virtual std::string_view name() const = 0;
+  // Start-up load (called once, before the first tick).
+  virtual void Start(const TickContext& ctx, Plan* plan) = 0;
+  virtual void PlanBeforeLocalize(const TickContext& ctx, Plan* plan) = 0;
+  virtual void PlanAfterLocalize(const TickContext& ctx, Plan* plan) = 0;
+  // Zone batches this policy has started so far (0 for the keyframe-level policies).
+  [[nodiscard]] virtual std::uint64_t zone_loads() const { return 0; }
+};
+
+// Options of every policy, plain structs (read once from a profile).
+struct SemanticOptions {
+  std::uint32_t k_max = 0;  // MemoryThr in keyframes
+};
+
+struct BasicOptions {
+  std::uint32_t memory_thr = 0;            // Rtabmap/MemoryThr; 0 = memory management off
+  std::uint32_t max_retrieved = 2;         // Rtabmap/MaxRetrieved
+  std::uint32_t max_local_retrieved = 2;   // RGBD/MaxLocalRetrieved
+  double local_radius_m = 10.0;            // RGBD/LocalRadius
+  double local_immunization_ratio = 0.25;  // RGBD/LocalImmunizationRatio
+  std::uint32_t prediction_lc_size = 18;   // |Bayes/PredictionLC|: margins 0..size-2
+  bool transfer_sorting_by_weight_id = false;  // Mem/TransferSortingByWeightId
+  bool init_wm_with_all_nodes = false;     // Mem/InitWMWithAllNodes
+  std::vector<KeyframeId> initial_wm;      // the last session's WM when !init_wm_with_all_nodes
+};
+
+struct RadiusOptions {
+  std::uint32_t k_max = 0;
+  double tile_m = 20.0;             // pointcloud_divider grid
+  double map_radius_m = 150.0;      // ndt_scan_matcher dynamic_map_loading.map_radius
+  double update_distance_m = 20.0;  // ndt_scan_matcher dynamic_map_loading.update_distance
+};
+
+struct PredictiveOptions {
+  std::uint32_t k_max = 0;
+  std::uint32_t max_keyframes_per_tick = 64;  // time slice in keyframes; 0 = unlimited
+  double max_ms_per_tick = 0.0;               // time slice in ms (with load_ms_per_keyframe); 0 = off
+  bool prefetch = true;
+};
+
+struct OracleOptions {
+  std::uint32_t k_max = 0;
+  std::vector<ZoneId> future;  // the zone of every tick (kNoZone allowed), from tick 0
+};
+
+struct PolicyOptions {
+  std::string policy = "semantic";  // semantic|basic|radius|predictive|oracle|unbounded
+  std::uint32_t k_max = 0;          // copied into every policy's budget
+  SemanticOptions semantic;
+  BasicOptions basic;
+  RadiusOptions radius;
+  PredictiveOptions predictive;
+  OracleOptions oracle;
+};
+
+// Makes the named policy over `index` (which must outlive it). Allocates everything it will
+// ever need here. Errors name the unknown policy or the bad option.
+[[nodiscard]] Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
+                                                               const PolicyOptions& options);
+
+}  // namespace zm
