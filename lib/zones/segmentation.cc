@@ -1,0 +1,810 @@
+// Room segmentation of occupancy grids (distance-transform seed hierarchy + watershed flood),
+// oversize splits by keyframe count, polygonisation, keyframe-only zones and scoring. See
+// segmentation.h for the method and invariants; OpenCV exceptions become Status values here.
+#include "zones/segmentation.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <numeric>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <queue>
+#include <tuple>
+#include <unordered_map>
+
+#include "zones/polygon.h"
+
+namespace zm {
+namespace {
+
+std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+
+int CellsFromMetres(double m, double res) {
+  return std::max(0, static_cast<int>(std::lround(m / res)));
+}
+
+cv::Mat Disk(int diameter) {
+  const int d = std::max(1, diameter);
+  return cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(d, d));
+}
+
+// Sets to `value` every 8-connected component of `mask` (255 = member) smaller than `max_area`
+// that does not touch the image border.
+void FillSmallInteriorComponents(const cv::Mat& mask, int max_area, cv::Mat* target,
+                                 std::uint8_t value) {
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  std::vector<std::uint8_t> fill(Idx(n), 0);
+  for (int i = 1; i < n; ++i) {
+    const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    const bool touches = x == 0 || y == 0 || x + w == mask.cols || y + h == mask.rows;
+    fill[Idx(i)] = (!touches && stats.at<int>(i, cv::CC_STAT_AREA) < max_area) ? 1 : 0;
+  }
+  for (int r = 0; r < mask.rows; ++r) {
+    const int* l = labels.ptr<int>(r);
+    std::uint8_t* t = target->ptr<std::uint8_t>(r);
+    for (int c = 0; c < mask.cols; ++c) {
+      if (l[c] > 0 && fill[Idx(l[c])]) t[c] = value;
+    }
+  }
+}
+
+// The cleaned free-space mask (255 = free) of `cells`.
+cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res) {
+  cv::Mat occupied = cells == kCellOccupied;
+  // Close gaps in walls (scan noise) so that rooms do not leak through them.
+  const int gap = CellsFromMetres(o.wall_gap_close_m, res);
+  if (gap > 0) cv::morphologyEx(occupied, occupied, cv::MORPH_CLOSE, Disk(gap + 1));
+  cv::Mat free_mask = (cells == kCellFree) & ~occupied;
+  // Clutter (furniture, people, unknown patches) standing inside free space becomes free.
+  const int clutter = static_cast<int>(o.clutter_area_m2 / (res * res));
+  cv::Mat not_free = ~free_mask;
+  FillSmallInteriorComponents(not_free, clutter, &free_mask, 255);
+  // Drop laser rays and one-cell strands.
+  const int ray = CellsFromMetres(o.ray_width_m, res);
+  if (ray > 1) cv::morphologyEx(free_mask, free_mask, cv::MORPH_OPEN, Disk(ray));
+  return free_mask;
+}
+
+struct LevelComponent {
+  int area = 0;
+  float max_dt = 0.0f;
+  int parent = -1;  // component index at the previous level
+  std::vector<int> children;
+};
+
+// Room seeds from the hierarchy of distance-transform thresholds (see segmentation.h).
+// Returns a CV_32S marker image (0 = no seed, 1..K).
+cv::Mat FindSeeds(const cv::Mat& dt, const SegmentOptions& o, double res, int* seed_count) {
+  std::vector<float> levels;
+  for (double l = o.seed_min_level_m; l <= o.seed_max_level_m + 1e-9; l += o.seed_level_step_m) {
+    levels.push_back(static_cast<float>(l / res));
+  }
+  const int min_area = std::max(1, static_cast<int>(o.seed_min_area_m2 / (res * res)));
+  const float persistence = static_cast<float>(o.seed_min_persistence_m / res);
+  std::vector<cv::Mat> labels(levels.size());
+  std::vector<std::vector<LevelComponent>> comps(levels.size());
+  for (std::size_t i = 0; i < levels.size(); ++i) {
+    cv::Mat mask = dt > levels[i];
+    const int n = cv::connectedComponents(mask, labels[i], 4, CV_32S);
+    comps[i].resize(Idx(n));
+    if (n <= 1) {
+      levels.resize(i + 1);
+      labels.resize(i + 1);
+      comps.resize(i + 1);
+      break;
+    }
+    for (int r = 0; r < dt.rows; ++r) {
+      const int* l = labels[i].ptr<int>(r);
+      const int* lp = i > 0 ? labels[i - 1].ptr<int>(r) : nullptr;
+      const float* d = dt.ptr<float>(r);
+      for (int c = 0; c < dt.cols; ++c) {
+        if (l[c] == 0) continue;
+        LevelComponent& comp = comps[i][Idx(l[c])];
+        ++comp.area;
+        comp.max_dt = std::max(comp.max_dt, d[c]);
+        if (lp != nullptr && comp.parent < 0) {
+          comp.parent = lp[c];
+          comps[i - 1][Idx(lp[c])].children.push_back(l[c]);
+        }
+      }
+    }
+  }
+  // Select(level, comp) -> seeds as (level, comp) pairs.
+  std::vector<std::pair<std::size_t, int>> seeds;
+  std::vector<std::pair<std::size_t, int>> tmp;
+  auto select = [&](auto&& self, std::size_t level, int comp,
+                    std::vector<std::pair<std::size_t, int>>* out) -> void {
+    const LevelComponent& c = comps[level][Idx(comp)];
+    std::vector<int> significant;
+    if (level + 1 < comps.size()) {
+      for (int child : c.children) {
+        const LevelComponent& ch = comps[level + 1][Idx(child)];
+        if (ch.area >= min_area && ch.max_dt - levels[level] >= persistence) {
+          significant.push_back(child);
+        }
+      }
+    }
+    if (significant.size() >= 2) {
+      for (int child : significant) self(self, level + 1, child, out);
+      return;
+    }
+    if (significant.size() == 1) {
+      std::vector<std::pair<std::size_t, int>> sub;
+      self(self, level + 1, significant[0], &sub);
+      if (sub.size() >= 2) {
+        out->insert(out->end(), sub.begin(), sub.end());
+        return;
+      }
+    }
+    out->emplace_back(level, comp);  // a leaf: this (largest single) component is the seed
+  };
+  if (!comps.empty()) {
+    for (int comp = 1; comp < static_cast<int>(comps[0].size()); ++comp) {
+      tmp.clear();
+      select(select, 0, comp, &tmp);
+      seeds.insert(seeds.end(), tmp.begin(), tmp.end());
+    }
+  }
+  cv::Mat markers = cv::Mat::zeros(dt.size(), CV_32S);
+  // Seed ids per level for a single pass over each used level.
+  std::map<std::size_t, std::unordered_map<int, int>> by_level;
+  for (std::size_t s = 0; s < seeds.size(); ++s) {
+    by_level[seeds[s].first][seeds[s].second] = static_cast<int>(s) + 1;
+  }
+  for (const auto& [level, ids] : by_level) {
+    for (int r = 0; r < dt.rows; ++r) {
+      const int* l = labels[level].ptr<int>(r);
+      int* m = markers.ptr<int>(r);
+      for (int c = 0; c < dt.cols; ++c) {
+        if (l[c] == 0) continue;
+        if (auto it = ids.find(l[c]); it != ids.end()) m[c] = it->second;
+      }
+    }
+  }
+  *seed_count = static_cast<int>(seeds.size());
+  return markers;
+}
+
+// Priority flood (watershed on -dt) of the markers over free space, 4-connected: the highest
+// clearance cells are claimed first, so two floods meet at the narrowest passage.
+void Flood(const cv::Mat& free_mask, const cv::Mat& dt, cv::Mat* labels) {
+  using Entry = std::tuple<float, std::int64_t, int, int>;  // dt, -order, index, label
+  std::priority_queue<Entry> queue;
+  std::int64_t order = 0;
+  const int cols = free_mask.cols, rows = free_mask.rows;
+  auto push_neighbours = [&](int r, int c, int label) {
+    const int dr[4] = {-1, 1, 0, 0}, dc[4] = {0, 0, -1, 1};
+    for (int k = 0; k < 4; ++k) {
+      const int nr = r + dr[k], nc = c + dc[k];
+      if (nr < 0 || nc < 0 || nr >= rows || nc >= cols) continue;
+      if (free_mask.at<std::uint8_t>(nr, nc) == 0 || labels->at<int>(nr, nc) != 0) continue;
+      queue.emplace(dt.at<float>(nr, nc), -order++, nr * cols + nc, label);
+    }
+  };
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      const int l = labels->at<int>(r, c);
+      if (l != 0) push_neighbours(r, c, l);
+    }
+  }
+  while (!queue.empty()) {
+    const auto [d, ord, index, label] = queue.top();
+    queue.pop();
+    (void)d;
+    (void)ord;
+    const int r = index / cols, c = index % cols;
+    if (labels->at<int>(r, c) != 0) continue;
+    labels->at<int>(r, c) = label;
+    push_neighbours(r, c, label);
+  }
+}
+
+// Merges segments smaller than `min_area` into the neighbour sharing the longest border
+// (dropping isolated ones), then renumbers labels 1..N. Returns N.
+int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
+  std::vector<int> area(Idx(label_count) + 1, 0);
+  std::vector<std::map<int, int>> border(Idx(label_count) + 1);
+  for (int r = 0; r < labels->rows; ++r) {
+    const int* l = labels->ptr<int>(r);
+    const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
+    for (int c = 0; c < labels->cols; ++c) {
+      if (l[c] == 0) continue;
+      ++area[Idx(l[c])];
+      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c]) {
+        ++border[Idx(l[c])][l[c + 1]];
+        ++border[Idx(l[c + 1])][l[c]];
+      }
+      if (below != nullptr && below[c] != 0 && below[c] != l[c]) {
+        ++border[Idx(l[c])][below[c]];
+        ++border[Idx(below[c])][l[c]];
+      }
+    }
+  }
+  std::vector<int> target(Idx(label_count) + 1);
+  std::iota(target.begin(), target.end(), 0);
+  std::vector<bool> alive(Idx(label_count) + 1, true);
+  alive[0] = false;
+  for (;;) {
+    int smallest = -1;
+    for (int l = 1; l <= label_count; ++l) {
+      if (alive[Idx(l)] && area[Idx(l)] < min_area &&
+          (smallest < 0 || area[Idx(l)] < area[Idx(smallest)])) {
+        smallest = l;
+      }
+    }
+    if (smallest < 0) break;
+    alive[Idx(smallest)] = false;
+    int best = 0, best_len = 0;
+    for (const auto& [n, len] : border[Idx(smallest)]) {
+      if (len > best_len) best = n, best_len = len;
+    }
+    target[Idx(smallest)] = best;  // 0 = dropped
+    if (best == 0) continue;
+    area[Idx(best)] += area[Idx(smallest)];
+    for (const auto& [n, len] : border[Idx(smallest)]) {
+      border[Idx(n)].erase(smallest);
+      if (n == best) continue;
+      border[Idx(best)][n] += len;
+      border[Idx(n)][best] += len;
+    }
+    border[Idx(smallest)].clear();
+  }
+  // Resolve chains of merges and renumber densely.
+  std::vector<int> final_label(Idx(label_count) + 1, 0);
+  int next = 0;
+  for (int l = 1; l <= label_count; ++l) {
+    int t = l;
+    while (t != 0 && !alive[Idx(t)]) {
+      if (target[Idx(t)] == t) { t = 0; break; }
+      t = target[Idx(t)];
+    }
+    if (t == 0) continue;
+    if (final_label[Idx(t)] == 0) final_label[Idx(t)] = ++next;
+    final_label[Idx(l)] = final_label[Idx(t)];
+  }
+  for (int r = 0; r < labels->rows; ++r) {
+    int* l = labels->ptr<int>(r);
+    for (int c = 0; c < labels->cols; ++c) l[c] = final_label[Idx(l[c])];
+  }
+  return next;
+}
+
+// Merges neighbouring segments whose shared border is not a constriction: the widest point of
+// the border (the largest clearance on it, `saddle`) is at least `ratio` of the smaller of the
+// two segments' own largest clearance (`peak`). Doors are narrow against both rooms; a split
+// through the middle of one open room is not. Labels stay in 1..label_count (some unused).
+void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, double ratio) {
+  if (ratio <= 0.0 || label_count < 2) return;
+  std::vector<float> peak(Idx(label_count) + 1, 0.0f);
+  std::map<std::pair<int, int>, float> saddle;
+  auto note = [&](int a, int b, float d) {
+    if (a > b) std::swap(a, b);
+    float& s = saddle[{a, b}];
+    s = std::max(s, d);
+  };
+  for (int r = 0; r < labels->rows; ++r) {
+    const int* l = labels->ptr<int>(r);
+    const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
+    const float* d = dt.ptr<float>(r);
+    const float* dbelow = below != nullptr ? dt.ptr<float>(r + 1) : nullptr;
+    for (int c = 0; c < labels->cols; ++c) {
+      if (l[c] == 0) continue;
+      peak[Idx(l[c])] = std::max(peak[Idx(l[c])], d[c]);
+      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c]) {
+        note(l[c], l[c + 1], std::min(d[c], d[c + 1]));
+      }
+      if (below != nullptr && below[c] != 0 && below[c] != l[c]) {
+        note(l[c], below[c], std::min(d[c], dbelow[c]));
+      }
+    }
+  }
+  std::vector<int> parent(Idx(label_count) + 1);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) {
+    while (parent[Idx(x)] != x) x = parent[Idx(x)] = parent[Idx(parent[Idx(x)])];
+    return x;
+  };
+  for (;;) {
+    // The most open border first; recompute over current roots.
+    std::map<std::pair<int, int>, float> current;
+    for (const auto& [key, s] : saddle) {
+      int a = find(key.first), b = find(key.second);
+      if (a == b) continue;
+      if (a > b) std::swap(a, b);
+      float& v = current[{a, b}];
+      v = std::max(v, s);
+    }
+    double best = 0.0;
+    std::pair<int, int> best_pair{0, 0};
+    for (const auto& [key, s] : current) {
+      const float lo = std::min(peak[Idx(key.first)], peak[Idx(key.second)]);
+      const double q = lo > 0.0f ? static_cast<double>(s / lo) : 0.0;
+      if (q >= ratio && q > best) best = q, best_pair = key;
+    }
+    if (best_pair.first == 0) break;
+    parent[Idx(best_pair.second)] = best_pair.first;
+    peak[Idx(best_pair.first)] = std::max(peak[Idx(best_pair.first)], peak[Idx(best_pair.second)]);
+  }
+  for (int r = 0; r < labels->rows; ++r) {
+    int* l = labels->ptr<int>(r);
+    for (int c = 0; c < labels->cols; ++c) {
+      if (l[c] != 0) l[c] = find(l[c]);
+    }
+  }
+}
+
+void Describe(const cv::Mat& labels, const cv::Mat& dt, int count, double res,
+              const SegmentOptions& o, std::vector<SegmentInfo>* out) {
+  out->assign(Idx(count), SegmentInfo{});
+  std::vector<float> max_dt(Idx(count), 0.0f);
+  for (int r = 0; r < labels.rows; ++r) {
+    const int* l = labels.ptr<int>(r);
+    const float* d = dt.ptr<float>(r);
+    for (int c = 0; c < labels.cols; ++c) {
+      if (l[c] == 0) continue;
+      ++(*out)[Idx(l[c] - 1)].area_cells;
+      max_dt[Idx(l[c] - 1)] = std::max(max_dt[Idx(l[c] - 1)], d[c]);
+    }
+  }
+  for (int i = 0; i < count; ++i) {
+    SegmentInfo& s = (*out)[Idx(i)];
+    s.label = i + 1;
+    s.area_m2 = s.area_cells * res * res;
+    s.width_m = 2.0 * static_cast<double>(max_dt[Idx(i)]) * res;
+    s.elongation = s.width_m > 0.0 ? s.area_m2 / (s.width_m * s.width_m) : 0.0;
+    s.kind = (s.elongation >= o.corridor_elongation && s.width_m <= o.corridor_max_width_m)
+                 ? "corridor"
+                 : "room";
+  }
+}
+
+Status CheckOptions(const SegmentOptions& o) {
+  auto bad = [](const char* what) {
+    return InvalidArgument(std::string("segmentation option ") + what);
+  };
+  if (!(o.seed_level_step_m > 0.0)) return bad("seed_level_step_m must be > 0");
+  if (!(o.seed_min_level_m > 0.0 && o.seed_max_level_m >= o.seed_min_level_m)) {
+    return bad("seed levels must satisfy 0 < seed_min_level_m <= seed_max_level_m");
+  }
+  if ((o.seed_max_level_m - o.seed_min_level_m) / o.seed_level_step_m > 1000.0) {
+    return bad("seed levels: at most 1000 levels");
+  }
+  if (o.min_room_area_m2 < 0.0 || o.seed_min_area_m2 < 0.0 || o.clutter_area_m2 < 0.0) {
+    return bad("areas must be >= 0");
+  }
+  if (o.simplify_tolerance_m < 0.0) return bad("simplify_tolerance_m must be >= 0");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (grid.cells.empty() || grid.cells.type() != CV_8UC1) {
+    return InvalidArgument("occupancy grid is empty or not 8-bit single-channel");
+  }
+  if (!(grid.resolution_m > 0.0)) {
+    return InvalidArgument("occupancy grid resolution must be > 0, got " +
+                           std::to_string(grid.resolution_m));
+  }
+  ZM_RETURN_IF_ERROR(CheckOptions(options));
+  const double res = grid.resolution_m;
+  Segmentation seg;
+  try {
+    seg.free_cleaned = CleanFreeSpace(grid.cells, options, res);
+    seg.labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
+    // Work inside the bounding box of free space (plus a border) only.
+    cv::Rect box = cv::boundingRect(seg.free_cleaned);
+    if (box.area() > 0) {
+      box = cv::Rect(box.x - 2, box.y - 2, box.width + 4, box.height + 4) &
+            cv::Rect(0, 0, grid.cols(), grid.rows());
+      cv::Mat free_roi = seg.free_cleaned(box);
+      cv::Mat dt;
+      cv::distanceTransform(free_roi, dt, cv::DIST_L2, cv::DIST_MASK_5, CV_32F);
+      int seed_count = 0;
+      cv::Mat labels = FindSeeds(dt, options, res, &seed_count);
+      Flood(free_roi, dt, &labels);
+      // Free areas no seed reached (too thin for any level) become segments of their own; the
+      // merge below keeps only those big enough.
+      cv::Mat unreached = (labels == 0) & free_roi;
+      cv::Mat extra;
+      const int n_extra = cv::connectedComponents(unreached, extra, 4, CV_32S);
+      for (int r = 0; r < labels.rows; ++r) {
+        int* l = labels.ptr<int>(r);
+        const int* e = extra.ptr<int>(r);
+        for (int c = 0; c < labels.cols; ++c) {
+          if (e[c] > 0) l[c] = seed_count + e[c];
+        }
+      }
+      const int label_count = seed_count + std::max(0, n_extra - 1);
+      MergeOpenBorders(&labels, dt, label_count, options.merge_open_border_ratio);
+      const int min_area = static_cast<int>(options.min_room_area_m2 / (res * res));
+      const int count = MergeSmallSegments(&labels, label_count, min_area);
+      Describe(labels, dt, count, res, options, &seg.segments);
+      labels.copyTo(seg.labels(box));
+    }
+  } catch (const cv::Exception& e) {
+    return Internal(std::string("room segmentation: OpenCV failed: ") + e.what());
+  }
+  seg.runtime_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return seg;
+}
+
+Status SplitOversizeSegments(const OccupancyGrid& grid,
+                             std::span<const Eigen::Vector2d> positions_m, int max_keyframes,
+                             Segmentation* seg) {
+  if (max_keyframes < 1) {
+    return InvalidArgument("max keyframes per zone must be >= 1, got " +
+                           std::to_string(max_keyframes));
+  }
+  if (seg->labels.size() != grid.cells.size()) {
+    return InvalidArgument("segmentation and grid differ in size");
+  }
+  // Keyframes of each label, as cell coordinates.
+  std::map<int, std::vector<Eigen::Vector2d>> members;
+  for (const Eigen::Vector2d& p : positions_m) {
+    int col = 0, row = 0;
+    if (!grid.CellOf(p, &col, &row)) continue;
+    const int l = seg->labels.at<int>(row, col);
+    if (l > 0) members[l].push_back(grid.MetresToCell(p));
+  }
+  std::vector<std::pair<int, std::vector<Eigen::Vector2d>>> work(members.begin(), members.end());
+  while (!work.empty()) {
+    auto [label, pts] = std::move(work.back());
+    work.pop_back();
+    if (static_cast<int>(pts.size()) <= max_keyframes) continue;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& p : pts) mean += p;
+    mean /= static_cast<double>(pts.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+    Eigen::Vector2d axis = eig.eigenvectors().col(1);
+    std::vector<double> proj;
+    proj.reserve(pts.size());
+    for (const auto& p : pts) proj.push_back(p.dot(axis));
+    std::vector<double> sorted = proj;
+    std::sort(sorted.begin(), sorted.end());
+    // Split between two distinct projections nearest the median.
+    const std::size_t n = sorted.size();
+    std::size_t split = 0;
+    for (std::size_t off = 0; off < n && split == 0; ++off) {
+      for (std::size_t k : {n / 2 + off, n / 2 - std::min(off, n / 2)}) {
+        if (k >= 1 && k < n && sorted[k - 1] < sorted[k]) {
+          split = k;
+          break;
+        }
+      }
+    }
+    if (split == 0) {
+      return FailedPrecondition("zone " + std::to_string(label) + " holds " +
+                                std::to_string(n) + " keyframes at one spot, more than the limit " +
+                                std::to_string(max_keyframes) + ": cannot split it in space");
+    }
+    const double threshold = 0.5 * (sorted[split - 1] + sorted[split]);
+    const int new_label = static_cast<int>(seg->segments.size()) + 1;
+    SegmentInfo info = seg->segments[Idx(label - 1)];
+    info.label = new_label;
+    info.area_cells = 0;
+    int kept = 0;
+    for (int r = 0; r < seg->labels.rows; ++r) {
+      int* l = seg->labels.ptr<int>(r);
+      for (int c = 0; c < seg->labels.cols; ++c) {
+        if (l[c] != label) continue;
+        // Cell centres are at (c + 0.5, r + 0.5) in MetresToCell's continuous coordinates.
+        if (Eigen::Vector2d(c + 0.5, r + 0.5).dot(axis) > threshold) {
+          l[c] = new_label;
+          ++info.area_cells;
+        } else {
+          ++kept;
+        }
+      }
+    }
+    seg->segments[Idx(label - 1)].area_cells = kept;
+    seg->segments[Idx(label - 1)].area_m2 = kept * grid.resolution_m * grid.resolution_m;
+    info.area_m2 = info.area_cells * grid.resolution_m * grid.resolution_m;
+    seg->segments.push_back(info);
+    std::vector<Eigen::Vector2d> low, high;
+    for (std::size_t i = 0; i < pts.size(); ++i) (proj[i] > threshold ? high : low).push_back(pts[i]);
+    work.emplace_back(label, std::move(low));
+    work.emplace_back(new_label, std::move(high));
+  }
+  return Status::Ok();
+}
+
+Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg, const OccupancyGrid& grid,
+                                              const SegmentOptions& options) {
+  std::vector<Zone> zones;
+  std::map<std::string, int> per_kind;
+  const double eps_px = options.simplify_tolerance_m / grid.resolution_m;
+  try {
+    for (const SegmentInfo& s : seg.segments) {
+      cv::Mat mask = seg.labels == s.label;
+      std::vector<std::vector<cv::Point>> contours;
+      cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+      if (contours.empty()) continue;
+      const auto largest = std::max_element(
+          contours.begin(), contours.end(), [](const auto& a, const auto& b) {
+            return cv::contourArea(a) < cv::contourArea(b);
+          });
+      std::vector<Eigen::Vector2d> ring;
+      // Simplify; halve the tolerance while the outline self-intersects; last resort the hull.
+      for (double eps = eps_px; ; eps *= 0.5) {
+        std::vector<cv::Point> approx;
+        if (eps < 0.25) {
+          cv::convexHull(*largest, approx);
+        } else {
+          cv::approxPolyDP(*largest, approx, eps, true);
+        }
+        ring.clear();
+        for (const cv::Point& p : approx) ring.push_back(grid.CellToMetres(p.x, p.y));
+        if (eps < 0.25 || (ring.size() >= 3 && !FindSelfIntersection(ring) &&
+                           std::abs(SignedArea(ring)) > 0.0)) {
+          break;
+        }
+      }
+      if (ring.size() < 3 || std::abs(SignedArea(ring)) <= 0.0) continue;
+      if (SignedArea(ring) < 0.0) std::reverse(ring.begin(), ring.end());  // GeoJSON: CCW
+      Zone z;
+      z.id = ZoneId(static_cast<std::int32_t>(zones.size()));
+      z.name = s.kind + "_" + std::to_string(++per_kind[s.kind]);
+      z.kind = s.kind;
+      z.floor = 0;
+      z.polygon = std::move(ring);
+      zones.push_back(std::move(z));
+    }
+  } catch (const cv::Exception& e) {
+    return Internal(std::string("zone polygons: OpenCV failed: ") + e.what());
+  }
+  return zones;
+}
+
+std::string ZonesToGeoJson(std::span<const Zone> zones) {
+  nlohmann::json features = nlohmann::json::array();
+  for (const Zone& z : zones) {
+    nlohmann::json ring = nlohmann::json::array();
+    for (const auto& p : z.polygon) ring.push_back({p.x(), p.y()});
+    if (!z.polygon.empty()) ring.push_back({z.polygon.front().x(), z.polygon.front().y()});
+    features.push_back({{"type", "Feature"},
+                        {"properties", {{"name", z.name}, {"kind", z.kind}, {"floor", z.floor}}},
+                        {"geometry", {{"type", "Polygon"}, {"coordinates", {ring}}}}});
+  }
+  nlohmann::json doc = {{"type", "FeatureCollection"}, {"features", features}};
+  return doc.dump(1);
+}
+
+Status WriteZonesGeoJson(const std::string& path, std::span<const Zone> zones) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) return IoError(path + ": cannot open for writing");
+  out << ZonesToGeoJson(zones) << '\n';
+  out.flush();
+  if (!out) return IoError(path + ": write failed");
+  return Status::Ok();
+}
+
+namespace {
+
+// Convex hull (Andrew's monotone chain), counter-clockwise, no repeated vertex.
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> pts) {
+  std::sort(pts.begin(), pts.end(), [](const auto& a, const auto& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  if (pts.size() < 3) return pts;
+  std::vector<Eigen::Vector2d> hull(2 * pts.size());
+  auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+  };
+  std::size_t k = 0;
+  for (const auto& p : pts) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p) <= 0) --k;
+    hull[k++] = p;
+  }
+  for (std::size_t i = pts.size() - 1, t = k + 1; i-- > 0;) {
+    while (k >= t && cross(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
+    hull[k++] = pts[i];
+  }
+  hull.resize(k - 1);
+  return hull;
+}
+
+struct CellPart {
+  std::vector<Eigen::Vector2d> region;  // convex, CCW: the part of the cell this zone owns
+  std::vector<Eigen::Vector2d> points;
+};
+
+}  // namespace
+
+Result<std::vector<Zone>> ZonesFromKeyframes(std::span<const Eigen::Vector2d> positions_m,
+                                             const KeyframeZoneOptions& options) {
+  if (!(options.cell_size_m > 0.0) || options.max_keyframes < 1 || options.margin_m < 0.0) {
+    return InvalidArgument("keyframe zones: need cell_size_m > 0, max_keyframes >= 1, "
+                           "margin_m >= 0");
+  }
+  std::map<std::pair<std::int64_t, std::int64_t>, std::vector<Eigen::Vector2d>> cells;
+  for (const auto& p : positions_m) {
+    if (!p.allFinite()) return InvalidArgument("keyframe zones: a keyframe position is not finite");
+    cells[{static_cast<std::int64_t>(std::floor(p.x() / options.cell_size_m)),
+           static_cast<std::int64_t>(std::floor(p.y() / options.cell_size_m))}]
+        .push_back(p);
+  }
+  std::vector<CellPart> done;
+  std::vector<CellPart> work;
+  for (auto& [key, pts] : cells) {
+    const double x0 = static_cast<double>(key.first) * options.cell_size_m;
+    const double y0 = static_cast<double>(key.second) * options.cell_size_m;
+    const double s = options.cell_size_m;
+    work.push_back({{{x0, y0}, {x0 + s, y0}, {x0 + s, y0 + s}, {x0, y0 + s}}, std::move(pts)});
+    while (!work.empty()) {
+      CellPart part = std::move(work.back());
+      work.pop_back();
+      if (static_cast<int>(part.points.size()) <= options.max_keyframes) {
+        done.push_back(std::move(part));
+        continue;
+      }
+      Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+      for (const auto& p : part.points) mean += p;
+      mean /= static_cast<double>(part.points.size());
+      Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+      for (const auto& p : part.points) cov += (p - mean) * (p - mean).transpose();
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+      bool split_done = false;
+      for (int axis_index : {1, 0}) {
+        const Eigen::Vector2d axis = eig.eigenvectors().col(axis_index);
+        std::vector<double> sorted;
+        for (const auto& p : part.points) sorted.push_back(p.dot(axis));
+        std::sort(sorted.begin(), sorted.end());
+        const std::size_t n = sorted.size();
+        std::size_t split = 0;
+        for (std::size_t off = 0; off < n && split == 0; ++off) {
+          for (std::size_t k : {n / 2 + off, n / 2 - std::min(off, n / 2)}) {
+            if (k >= 1 && k < n && sorted[k - 1] < sorted[k]) {
+              split = k;
+              break;
+            }
+          }
+        }
+        if (split == 0) continue;
+        const double t = 0.5 * (sorted[split - 1] + sorted[split]);
+        CellPart low{ClipToHalfPlane(part.region, axis, t), {}};
+        CellPart high{ClipToHalfPlane(part.region, -axis, -t), {}};
+        for (const auto& p : part.points) (p.dot(axis) <= t ? low : high).points.push_back(p);
+        work.push_back(std::move(low));
+        work.push_back(std::move(high));
+        split_done = true;
+        break;
+      }
+      if (!split_done) {
+        return FailedPrecondition("keyframe zones: " + std::to_string(part.points.size()) +
+                                  " keyframes at one position exceed the limit of " +
+                                  std::to_string(options.max_keyframes) + " per zone");
+      }
+    }
+  }
+  std::vector<Zone> zones;
+  for (const CellPart& part : done) {
+    if (part.points.empty()) continue;
+    // Hull of the keyframes grown by the margin (an octagon around each), clipped to the part.
+    std::vector<Eigen::Vector2d> grown;
+    const double m = std::max(options.margin_m, 1e-3);
+    for (const auto& p : part.points) {
+      for (int k = 0; k < 8; ++k) {
+        const double a = k * std::numbers::pi / 4.0 + std::numbers::pi / 8.0;
+        grown.emplace_back(p.x() + m * std::cos(a), p.y() + m * std::sin(a));
+      }
+    }
+    std::vector<Eigen::Vector2d> ring = ConvexHull(std::move(grown));
+    const auto& reg = part.region;
+    for (std::size_t i = 0; i < reg.size() && ring.size() >= 3; ++i) {
+      const Eigen::Vector2d a = reg[i], b = reg[(i + 1) % reg.size()];
+      const Eigen::Vector2d normal(b.y() - a.y(), a.x() - b.x());  // outward for a CCW region
+      ring = ClipToHalfPlane(ring, normal, normal.dot(a));
+    }
+    if (ring.size() < 3 || std::abs(SignedArea(ring)) < 1e-9) continue;
+    if (SignedArea(ring) < 0.0) std::reverse(ring.begin(), ring.end());
+    Zone z;
+    z.id = ZoneId(static_cast<std::int32_t>(zones.size()));
+    z.name = "area_" + std::to_string(zones.size() + 1);
+    z.kind = "room";
+    z.polygon = std::move(ring);
+    zones.push_back(std::move(z));
+  }
+  return zones;
+}
+
+Result<cv::Mat> LoadGroundTruthLabels(const std::string& path, int min_room_cells) {
+  cv::Mat img;
+  try {
+    img = cv::imread(path, cv::IMREAD_COLOR);
+  } catch (const cv::Exception& e) {
+    return InvalidArgument(path + ": OpenCV could not read it: " + e.what());
+  }
+  if (img.empty()) return NotFound(path + ": missing or not a readable image");
+  cv::Mat labels = cv::Mat::zeros(img.size(), CV_32S);
+  std::unordered_map<std::uint32_t, int> ids;
+  for (int r = 0; r < img.rows; ++r) {
+    const cv::Vec3b* p = img.ptr<cv::Vec3b>(r);
+    int* l = labels.ptr<int>(r);
+    for (int c = 0; c < img.cols; ++c) {
+      if (p[c][0] <= 20 && p[c][1] <= 20 && p[c][2] <= 20) continue;
+      const std::uint32_t key = (std::uint32_t{p[c][0]} << 16) | (std::uint32_t{p[c][1]} << 8) |
+                                std::uint32_t{p[c][2]};
+      auto [it, inserted] = ids.emplace(key, static_cast<int>(ids.size()) + 1);
+      l[c] = it->second;
+    }
+  }
+  // Colours covering fewer than min_room_cells are stray edge pixels of the hand drawing.
+  std::vector<int> count(ids.size() + 1, 0);
+  for (int r = 0; r < labels.rows; ++r) {
+    const int* l = labels.ptr<int>(r);
+    for (int c = 0; c < labels.cols; ++c) ++count[Idx(l[c])];
+  }
+  std::vector<int> renumber(ids.size() + 1, 0);
+  int next = 0;
+  for (std::size_t i = 1; i < count.size(); ++i) {
+    if (count[i] >= min_room_cells) renumber[i] = ++next;
+  }
+  for (int r = 0; r < labels.rows; ++r) {
+    int* l = labels.ptr<int>(r);
+    for (int c = 0; c < labels.cols; ++c) l[c] = renumber[Idx(l[c])];
+  }
+  return labels;
+}
+
+Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::Mat& ground_truth) {
+  if (predicted.type() != CV_32SC1 || ground_truth.type() != CV_32SC1) {
+    return InvalidArgument("scoring needs two CV_32SC1 label images");
+  }
+  const int rows = std::min(predicted.rows, ground_truth.rows);
+  const int cols = std::min(predicted.cols, ground_truth.cols);
+  std::map<std::pair<int, int>, std::int64_t> overlap;  // (pred, gt) -> cells
+  std::map<int, std::int64_t> pred_area, gt_area;       // restricted to cells in both
+  std::map<int, bool> gt_present, pred_present;
+  std::int64_t total = 0;
+  for (int r = 0; r < rows; ++r) {
+    const int* p = predicted.ptr<int>(r);
+    const int* g = ground_truth.ptr<int>(r);
+    for (int c = 0; c < cols; ++c) {
+      if (g[c] > 0) gt_present[g[c]] = true;
+      if (p[c] > 0) pred_present[p[c]] = true;
+      if (p[c] <= 0 || g[c] <= 0) continue;
+      ++overlap[{p[c], g[c]}];
+      ++pred_area[p[c]];
+      ++gt_area[g[c]];
+      ++total;
+    }
+  }
+  SegmentationScore score;
+  score.gt_rooms = static_cast<int>(gt_present.size());
+  score.predicted_segments = static_cast<int>(pred_present.size());
+  if (total == 0) return score;
+  std::map<int, std::int64_t> best_for_pred, best_for_gt;
+  std::map<int, double> best_iou;
+  for (const auto& [key, n] : overlap) {
+    const auto [p, g] = key;
+    best_for_pred[p] = std::max(best_for_pred[p], n);
+    best_for_gt[g] = std::max(best_for_gt[g], n);
+    const double iou = static_cast<double>(n) / static_cast<double>(pred_area[p] + gt_area[g] - n);
+    best_iou[g] = std::max(best_iou[g], iou);
+  }
+  std::int64_t sum_p = 0, sum_g = 0;
+  for (const auto& [p, n] : best_for_pred) sum_p += n;
+  for (const auto& [g, n] : best_for_gt) sum_g += n;
+  score.precision = static_cast<double>(sum_p) / static_cast<double>(total);
+  score.recall = static_cast<double>(sum_g) / static_cast<double>(total);
+  double iou_sum = 0.0;
+  for (const auto& [g, iou] : best_iou) iou_sum += iou;
+  score.mean_iou = score.gt_rooms > 0 ? iou_sum / score.gt_rooms : 0.0;
+  return score;
+}
+
+}  // namespace zm

@@ -1,0 +1,123 @@
+// Automatic semantic zones from a 2-D occupancy grid (room segmentation), from the keyframe
+// graph alone, and their scoring against a hand-made ground truth (docs/segmentation.md).
+//
+// Room segmentation, in order: clean the grid (close wall gaps narrower than
+// `wall_gap_close_m`, drop free specks and laser rays thinner than `ray_width_m`, turn small
+// clutter islands inside free space into free space); distance transform of free space; room
+// seeds from a hierarchy of thresholds of that transform: a component at one level is replaced
+// by its children at a higher level only when at least two of them are room-sized (so each
+// doorway is cut at its own level, not at one global threshold); seeds grow back over free
+// space by a priority flood on the distance transform (a watershed, so borders settle on the
+// narrowest place, the door); segments smaller than `min_room_area_m2` merge into the neighbour
+// sharing the longest border; each segment is labelled corridor when long and narrow, else room.
+//
+// Invariants of a Segmentation: labels is CV_32SC1 of the grid's size; 0 = no zone, 1..N =
+// segments[label - 1]; every labelled cell is free in the cleaned grid; each segment is one
+// 4-connected region.
+#pragma once
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/status.h"
+#include "zones/grid_map.h"
+#include "zones/zone_set.h"
+
+namespace zm {
+
+struct SegmentOptions {
+  double wall_gap_close_m = 0.45;     // gaps in walls up to this width are closed
+  double ray_width_m = 0.15;          // free strands thinner than this are dropped
+  double clutter_area_m2 = 0.5;       // obstacle islands smaller than this become free
+  double seed_min_level_m = 0.35;     // lowest distance-transform level tried for seeds
+  double seed_level_step_m = 0.05;    // step between levels
+  double seed_max_level_m = 3.0;      // highest level tried
+  double seed_min_area_m2 = 0.6;      // a child at a level counts when at least this big...
+  double seed_min_persistence_m = 0.3;  // ...and rises this far above the level it split at
+  double merge_open_border_ratio = 0.55;  // neighbours merge when their border's clearance is
+                                         // >= this x the smaller one's peak clearance (0 = off)
+  double min_room_area_m2 = 2.0;      // smaller segments merge into a neighbour
+  double corridor_elongation = 4.0;   // length / width at or above this = corridor
+  double corridor_max_width_m = 3.5;  // corridors are at most this wide
+  double simplify_tolerance_m = 0.10;  // approxPolyDP tolerance for polygons
+};
+
+struct SegmentInfo {
+  int label = 0;               // value in Segmentation::labels
+  std::string kind;            // "room" or "corridor"
+  int area_cells = 0;
+  double area_m2 = 0.0;
+  double width_m = 0.0;        // twice the largest distance to an obstacle inside
+  double elongation = 0.0;     // area / width^2 (length over width for a rectangle)
+};
+
+struct Segmentation {
+  cv::Mat labels;  // CV_32SC1, 0 = none
+  std::vector<SegmentInfo> segments;
+  cv::Mat free_cleaned;  // CV_8UC1, 255 where the cleaned grid is free
+  double runtime_ms = 0.0;
+};
+
+// Segments the grid into rooms and corridors. Errors: empty grid, bad options, OpenCV failure.
+[[nodiscard]] Result<Segmentation> SegmentRooms(const OccupancyGrid& grid,
+                                                const SegmentOptions& options = {});
+
+// Splits every segment holding more than `max_keyframes` of `positions_m` (map frame) in two
+// along the principal axis of its keyframes at their median, recursively, until each part
+// holds at most `max_keyframes`. Keyframes off the grid or outside every segment are ignored.
+// Labels of split parts are appended; kinds are kept. max_keyframes must be >= 1.
+[[nodiscard]] Status SplitOversizeSegments(const OccupancyGrid& grid,
+                                           std::span<const Eigen::Vector2d> positions_m,
+                                           int max_keyframes, Segmentation* seg);
+
+// One polygon zone per segment (largest outer contour, simplified, in map-frame metres), named
+// "<kind>_<n>", floor 0. Segments whose simplified outline has < 3 vertices are skipped.
+[[nodiscard]] Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg,
+                                                            const OccupancyGrid& grid,
+                                                            const SegmentOptions& options = {});
+
+// GeoJSON FeatureCollection of Polygon features (closed rings, metres) with properties name,
+// kind, floor: the zones module's zone file format.
+[[nodiscard]] std::string ZonesToGeoJson(std::span<const Zone> zones);
+[[nodiscard]] Status WriteZonesGeoJson(const std::string& path, std::span<const Zone> zones);
+
+// Zones from keyframe positions alone (no grid): keyframes are bucketed into square cells of
+// `cell_size_m`; a cell holding more than `max_keyframes` is split along the principal axis of
+// its keyframes at the median, recursively. Each part becomes one zone: the convex hull of its
+// keyframes grown by `margin_m`, clipped to its cell part, so zones never overlap and each
+// contains its keyframes. Zones are named "area_<n>", kind "room".
+struct KeyframeZoneOptions {
+  double cell_size_m = 8.0;
+  int max_keyframes = 200;
+  double margin_m = 0.5;
+};
+[[nodiscard]] Result<std::vector<Zone>> ZonesFromKeyframes(
+    std::span<const Eigen::Vector2d> positions_m, const KeyframeZoneOptions& options = {});
+
+// Ground truth: every flat colour is one room (labels 1..N in order of first appearance,
+// scanning rows), black (all channels <= 20) is no room, and so is a colour covering fewer than
+// `min_room_cells` cells (the shared ground truths carry hundreds of stray anti-aliased colours
+// of <= 136 cells beside rooms of >= 435 cells). Errors name the file.
+inline constexpr int kDefaultMinGtRoomCells = 200;
+[[nodiscard]] Result<cv::Mat> LoadGroundTruthLabels(const std::string& path,
+                                                    int min_room_cells = kDefaultMinGtRoomCells);
+
+struct SegmentationScore {
+  double precision = 0.0;  // [0, 1], area-weighted best-GT fraction of each predicted segment
+  double recall = 0.0;     // [0, 1], area-weighted best-segment fraction of each GT room
+  double mean_iou = 0.0;   // [0, 1], mean over GT rooms of the best IoU with one segment
+  int gt_rooms = 0;
+  int predicted_segments = 0;
+};
+
+// Scores `predicted` against `ground_truth` (both CV_32SC1, 0 = none) over their common top-left
+// size (a map and its ground truth can differ by a pixel). Precision and recall count only cells
+// that are in some GT room and in some predicted segment (ROSE² evaluation); IoU counts the
+// same cells. Errors on a wrong type.
+[[nodiscard]] Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted,
+                                                          const cv::Mat& ground_truth);
+
+}  // namespace zm
