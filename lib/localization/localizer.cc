@@ -1,0 +1,201 @@
+// Localization on the resident working set (see localizer.h for the algorithm and invariants).
+#include "localization/localizer.h"
+
+#include <cassert>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "localization/camera.h"
+
+namespace zm {
+namespace {
+
+double HeadingDiff(double a, double b) {
+  double d = std::remainder(a - b, 2.0 * std::numbers::pi);  // in [-pi, pi]
+  return std::abs(d);
+}
+
+PnpParams PnpParamsFrom(const LocalizerConfig& c) {
+  return {.reprojection_px = c.ransac_reprojection_px,
+          .iterations = c.ransac_iterations,
+          .confidence = c.ransac_confidence,
+          .refine = c.refine};
+}
+
+}  // namespace
+
+Status ValidateLocalizerConfig(const LocalizerConfig& c, const CameraIntrinsics& k) {
+  if (!(c.radius_m > 0.0)) return InvalidArgument("localizer radius_m must be > 0");
+  if (!(c.max_heading_diff_rad > 0.0)) {
+    return InvalidArgument("localizer max_heading_diff_rad must be > 0");
+  }
+  if (c.max_candidates == 0 || c.max_candidates > kMaxLocalizerCandidates) {
+    return InvalidArgument("localizer max_candidates must be in [1, " +
+                           std::to_string(kMaxLocalizerCandidates) + "], got " +
+                           std::to_string(c.max_candidates));
+  }
+  if (c.appearance_candidates > c.max_candidates) {
+    return InvalidArgument("localizer appearance_candidates must be <= max_candidates");
+  }
+  if (!(c.ratio > 0.0f && c.ratio <= 1.0f)) return InvalidArgument("localizer ratio must be in (0, 1]");
+  if (c.max_hamming > 256) return InvalidArgument("localizer max_hamming must be <= 256");
+  if (c.min_inliers < 6) return InvalidArgument("localizer min_inliers must be >= 6");
+  if (!(c.ransac_reprojection_px > 0.0) || c.ransac_iterations <= 0 ||
+      !(c.ransac_confidence > 0.0 && c.ransac_confidence < 1.0)) {
+    return InvalidArgument("localizer RANSAC parameters out of range");
+  }
+  if (!(c.max_correction_m >= 0.0)) return InvalidArgument("localizer max_correction_m must be >= 0");
+  if (!(k.fx > 0.0 && k.fy > 0.0) || k.width == 0 || k.height == 0) {
+    return InvalidArgument("camera intrinsics must have fx, fy > 0 and a non-empty image");
+  }
+  return Status::Ok();
+}
+
+Localizer::Localizer(LocalizerConfig config, CameraIntrinsics camera)
+    : config_(config),
+      camera_(camera),
+      pnp_(camera, PnpParamsFrom(config), config.reserve_features),
+      scores_(config.reserve_keyframes, 0),
+      matches_(config.reserve_features) {
+  assert(ValidateLocalizerConfig(config_, camera_).ok());
+  object_points_.reserve(config.reserve_features);
+  image_points_.reserve(config.reserve_features);
+}
+
+void Localizer::Offer(const Candidate& c, std::uint32_t limit,
+                      std::array<Candidate, kMaxLocalizerCandidates>* list, std::uint32_t* size) {
+  auto better = [](const Candidate& a, const Candidate& b) {
+    return a.key > b.key || (a.key == b.key && a.id > b.id);
+  };
+  if (*size == limit && !better(c, (*list)[*size - 1])) return;
+  std::uint32_t pos = *size < limit ? (*size)++ : limit - 1;
+  while (pos > 0 && better(c, (*list)[pos - 1])) {
+    (*list)[pos] = (*list)[pos - 1];
+    --pos;
+  }
+  (*list)[pos] = c;
+}
+
+LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_map_pose,
+                                   std::span<const ResidentKeyframe> resident) {
+  LocalizeResult r;
+  ++stats_.ticks;
+  const std::uint32_t n = frame.feature_count();
+  if (frame.keypoints.size() != 2 * static_cast<std::size_t>(n)) {
+    r.bad_frame = true;
+    ++stats_.bad_frames;
+    return r;
+  }
+  if (resident.empty() || n == 0) return r;
+  const std::uint8_t* frame_desc = frame.descriptors.front().data();
+  if (scores_.size() < resident.size()) scores_.resize(resident.size());  // grows once
+  if (matches_.size() < n) matches_.resize(n);                            // grows once
+
+  // 1. Appearance scores of every resident keyframe, and the highest hypothesis.
+  std::uint32_t best_score = 0;
+  std::int64_t best_id = 0;
+  if (config_.use_appearance) {
+    appearance_.SetQuery(frame_desc, n);
+    for (std::size_t i = 0; i < resident.size(); ++i) {
+      const KeyframeView& v = resident[i].view;
+      scores_[i] = appearance_.Score(v.descriptors, v.feature_count);
+      const std::int64_t id = resident[i].id.value;
+      if (scores_[i] > best_score || (scores_[i] == best_score && id > best_id)) {
+        best_score = scores_[i];
+        best_id = id;
+      }
+    }
+    appearance_.ClearQuery(frame_desc, n);
+    if (best_score >= config_.min_appearance_score && best_score > 0) {
+      r.highest_hypothesis = KeyframeId{best_id};
+      r.highest_score = best_score;
+    }
+  }
+
+  // 2. Candidates: the top appearance keyframes anywhere, and the pose-gated ones.
+  std::array<Candidate, kMaxLocalizerCandidates> global{};
+  std::uint32_t global_size = 0;
+  if (config_.use_appearance && config_.appearance_candidates > 0) {
+    for (std::size_t i = 0; i < resident.size(); ++i) {
+      if (scores_[i] < config_.min_appearance_score) continue;
+      Offer({static_cast<std::uint32_t>(i), static_cast<double>(scores_[i]), resident[i].id.value},
+            config_.appearance_candidates, &global, &global_size);
+    }
+  }
+  std::array<Candidate, kMaxLocalizerCandidates> list{};
+  std::uint32_t list_size = 0;
+  const Eigen::Vector3d predicted_t = predicted_map_pose.translation();
+  const double predicted_yaw = Yaw(predicted_map_pose);
+  for (std::size_t i = 0; i < resident.size(); ++i) {
+    const double dist = (resident[i].pose.translation() - predicted_t).norm();
+    const bool in_gate = dist <= config_.radius_m &&
+                         HeadingDiff(Yaw(resident[i].pose), predicted_yaw) <=
+                             config_.max_heading_diff_rad;
+    bool in_global = false;
+    for (std::uint32_t g = 0; g < global_size; ++g) in_global = in_global || global[g].index == i;
+    if (!in_gate && !in_global) continue;
+    if (config_.use_appearance && scores_[i] < config_.min_appearance_score) continue;
+    const double key = config_.use_appearance ? static_cast<double>(scores_[i]) : -dist;
+    Offer({static_cast<std::uint32_t>(i), key, resident[i].id.value}, config_.max_candidates,
+          &list, &list_size);
+  }
+
+  // 3. Match and verify, best candidate first, until one is accepted.
+  const simd::RatioTestParams ratio{config_.ratio, config_.max_hamming};
+  for (std::uint32_t c = 0; c < list_size && !r.accepted; ++c) {
+    const ResidentKeyframe& kf = resident[list[c].index];
+    const KeyframeView& v = kf.view;
+    ++r.candidates_examined;
+    const std::size_t m =
+        simd::MatchRatioTest(frame_desc, n, v.descriptors, v.feature_count, ratio, matches_.data());
+    r.matches = static_cast<std::uint32_t>(m);
+    if (m < config_.min_inliers) {
+      ++r.closures_rejected;
+      continue;
+    }
+    object_points_.clear();
+    image_points_.clear();
+    for (std::size_t k = 0; k < m; ++k) {
+      const float* p = v.points + std::size_t{matches_[k].train} * 3;
+      const float* uv = frame.keypoints.data() + std::size_t{matches_[k].query} * 2;
+      object_points_.emplace_back(p[0], p[1], p[2]);
+      image_points_.emplace_back(uv[0], uv[1]);
+    }
+    auto solved = pnp_.Solve(object_points_, image_points_);
+    if (!solved.ok()) {
+      ++r.pnp_errors;
+      ++r.closures_rejected;
+      continue;
+    }
+    if (!solved->found || solved->inliers < config_.min_inliers) {
+      ++r.closures_rejected;
+      continue;
+    }
+    const Pose3 t_map_cam = solved->t_cam_map.inverse();
+    const Pose3 t_map_body = BodyPoseFromCamera(t_map_cam);
+    if (config_.max_correction_m > 0.0 &&
+        (t_map_body.translation() - predicted_t).norm() > config_.max_correction_m) {
+      ++r.closures_rejected;
+      continue;
+    }
+    r.accepted = true;
+    r.matched = kf.id;
+    r.inliers = solved->inliers;
+    r.t_map_cam = t_map_cam;
+    r.t_map_body = t_map_body;
+    r.closures_accepted = 1;
+  }
+  stats_.closures_accepted += r.closures_accepted;
+  stats_.closures_rejected += r.closures_rejected;
+  stats_.candidates_examined += r.candidates_examined;
+  stats_.pnp_errors += r.pnp_errors;
+  return r;
+}
+
+Pose3 MapFromOdomCorrection(const Pose3& t_map_cam, const Pose3& t_odom_body) {
+  const Pose3 t_odom_cam = t_odom_body * BodyToCamera();
+  return t_map_cam * t_odom_cam.inverse();
+}
+
+}  // namespace zm

@@ -1,0 +1,147 @@
+// Localization against the resident working set: the consumer that makes residency matter.
+//
+// Per tick, Localize():
+//   1. scores every resident keyframe's global appearance for the frame (appearance.h, a bag of
+//      binary words); the best one (score >= min_appearance_score, ties to the larger id, as
+//      RTAB-Map's argmax) is `highest_hypothesis`, the id the basic policy retrieves around;
+//   2. picks candidates: resident keyframes within radius_m of the predicted pose and within
+//      max_heading_diff_rad of its heading, plus the top `appearance_candidates` by appearance
+//      wherever they are (global loop closure after large drift); at most max_candidates,
+//      best appearance first (nearest first when appearance is off);
+//   3. for each candidate, in order, until one is accepted: matches the frame's descriptors to
+//      the keyframe's (zm::simd kernels, Lowe ratio + absolute Hamming gate), pairs the frame
+//      keypoints (2-D) with the keyframe's map points (3-D), runs PnP-RANSAC (pnp.h) and
+//      accepts when inliers >= min_inliers (and, if set, the correction is <= max_correction_m).
+//
+// Invariant 4 (docs/design.md): the localizer sees ONLY the keyframes it is handed, and the
+// runtime hands it only resident ones (views into arena slots); a non-resident keyframe can
+// never be a candidate, a hypothesis or a match. Views are read in place, never copied.
+//
+// Allocation: every scratch buffer (scores, matches, correspondences, word sets, PnP buffers) is
+// sized in the constructor from reserve_features / reserve_keyframes; a tick within those sizes
+// allocates nothing in zonemap code. A larger frame or working set grows a buffer once (then it
+// is warm again). OpenCV's solvePnPRansac allocates internally (pnp.h).
+//
+// Pose conventions (camera.h): predicted pose and keyframe poses are BODY poses in the map
+// frame (T_map_body); the PnP result is the CAMERA pose T_map_cam, with T_map_body beside it.
+// The drift correction T_map_odom = T_map_cam * T_odom_cam^-1 is computed by the caller with
+// MapFromOdomCorrection() and applied from the next tick.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <opencv2/core/types.hpp>
+
+#include "common/ids.h"
+#include "common/status.h"
+#include "geometry/pose.h"
+#include "localization/appearance.h"
+#include "localization/frame.h"
+#include "localization/pnp.h"
+#include "mapdb/keyframe_payload.h"
+#include "mapdb/map_db.h"
+#include "simd/hamming.h"
+
+namespace zm {
+
+// One resident keyframe as the runtime passes it: id, body pose in the map, and the view into
+// its arena slot.
+struct ResidentKeyframe {
+  KeyframeId id;
+  Pose3 pose = Pose3::Identity();  // T_map_body of the keyframe
+  KeyframeView view;
+};
+
+inline constexpr std::uint32_t kMaxLocalizerCandidates = 16;
+
+struct LocalizerConfig {
+  double radius_m = 10.0;                  // pose gate: 3-D distance to the predicted pose
+  double max_heading_diff_rad = 1.5708;    // pose gate: |yaw difference| (90 degrees)
+  std::uint32_t max_candidates = 3;        // tried per tick, <= kMaxLocalizerCandidates
+  std::uint32_t appearance_candidates = 1; // top appearance keyframes admitted outside the gate
+  bool use_appearance = true;              // false: pose gate only, nearest first
+  std::uint32_t min_appearance_score = 10; // below: not a hypothesis, not a candidate
+  float ratio = 0.8f;                      // Lowe ratio test
+  std::uint32_t max_hamming = 64;          // absolute descriptor gate (bits of 256)
+  std::uint32_t min_inliers = 20;          // accept a closure at this many PnP inliers
+  double ransac_reprojection_px = 4.0;
+  int ransac_iterations = 100;
+  double ransac_confidence = 0.99;
+  bool refine = true;                      // LM refinement on the inliers
+  double max_correction_m = 0.0;           // reject a pose this far from the prediction; 0 = off
+  std::uint32_t reserve_features = 2048;   // scratch sizes: no allocation below these
+  std::uint32_t reserve_keyframes = 4096;
+};
+
+// Checks ranges (counts, ratio in (0, 1], positive thresholds) and the camera; names the field.
+[[nodiscard]] Status ValidateLocalizerConfig(const LocalizerConfig& config,
+                                             const CameraIntrinsics& camera);
+
+struct LocalizeResult {
+  bool accepted = false;
+  KeyframeId matched;             // keyframe that closed the loop (0 when none)
+  KeyframeId highest_hypothesis;  // best appearance among resident keyframes (0 when none)
+  std::uint32_t highest_score = 0;
+  std::uint32_t inliers = 0;      // PnP inliers of the accepted candidate
+  std::uint32_t matches = 0;      // descriptor matches of the accepted (or last tried) candidate
+  Pose3 t_map_cam = Pose3::Identity();   // camera pose in the map (valid when accepted)
+  Pose3 t_map_body = Pose3::Identity();  // body pose in the map (valid when accepted)
+  std::uint32_t candidates_examined = 0;
+  std::uint32_t closures_accepted = 0;   // 0 or 1 this tick
+  std::uint32_t closures_rejected = 0;   // candidates examined and not accepted this tick
+  std::uint32_t pnp_errors = 0;          // OpenCV exceptions turned into rejections
+  bool bad_frame = false;                // keypoints.size() != 2 * descriptors.size()
+};
+
+// Totals since construction, for telemetry and the run summary.
+struct LocalizerStats {
+  std::uint64_t ticks = 0;
+  std::uint64_t closures_accepted = 0;
+  std::uint64_t closures_rejected = 0;
+  std::uint64_t candidates_examined = 0;
+  std::uint64_t pnp_errors = 0;
+  std::uint64_t bad_frames = 0;
+};
+
+class Localizer {
+ public:
+  // config must satisfy ValidateLocalizerConfig (asserted); allocates all scratch here.
+  Localizer(LocalizerConfig config, CameraIntrinsics camera);
+
+  // Localizes `frame` against `resident` (see the file comment). predicted_map_pose is the
+  // body pose predicted by odometry and the current correction.
+  [[nodiscard]] LocalizeResult Localize(const Frame& frame, const Pose3& predicted_map_pose,
+                                        std::span<const ResidentKeyframe> resident);
+
+  [[nodiscard]] const LocalizerStats& stats() const { return stats_; }
+  [[nodiscard]] const LocalizerConfig& config() const { return config_; }
+
+ private:
+  struct Candidate {
+    std::uint32_t index = 0;  // into `resident`
+    double key = 0.0;         // larger is better
+    std::int64_t id = 0;      // tie-break: larger id first
+  };
+  // Inserts into a best-first fixed array of at most `limit` entries.
+  static void Offer(const Candidate& c, std::uint32_t limit,
+                    std::array<Candidate, kMaxLocalizerCandidates>* list, std::uint32_t* size);
+
+  LocalizerConfig config_;
+  CameraIntrinsics camera_;
+  AppearanceScorer appearance_;
+  PnpRansac pnp_;
+  std::vector<std::uint32_t> scores_;
+  std::vector<simd::DescriptorMatch> matches_;
+  std::vector<cv::Point3f> object_points_;
+  std::vector<cv::Point2f> image_points_;
+  LocalizerStats stats_;
+};
+
+// The drift correction from an accepted closure: T_map_odom = T_map_cam * T_odom_cam^-1 with
+// T_odom_cam = t_odom_body * BodyToCamera(). Predicted pose next tick: T_map_odom * odom.
+[[nodiscard]] Pose3 MapFromOdomCorrection(const Pose3& t_map_cam, const Pose3& t_odom_body);
+
+}  // namespace zm
