@@ -1,8 +1,11 @@
 // MakePolicy: the one place that knows every policy by name.
 #include <string>
 
+#include "memory/basic_policy.h"
 #include "memory/oracle_policy.h"
 #include "memory/policy.h"
+#include "memory/predictive_policy.h"
+#include "memory/radius_policy.h"
 #include "memory/semantic_policy.h"
 #include "memory/unbounded_policy.h"
 
@@ -23,6 +26,24 @@ Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
     OracleOptions o = options.oracle;
     o.k_max = options.k_max;
     return std::unique_ptr<MemoryPolicy>(std::make_unique<OraclePolicy>(index, o));
+  }
+  if (p == "basic") {
+    BasicOptions o = options.basic;
+    if (options.k_max != 0) o.memory_thr = options.k_max;
+    return std::unique_ptr<MemoryPolicy>(std::make_unique<BasicPolicy>(index, std::move(o)));
+  }
+  if (p == "radius") {
+    RadiusOptions o = options.radius;
+    o.k_max = options.k_max;
+    if (!(o.tile_m > 0) || o.map_radius_m < 0 || o.update_distance_m < 0) {
+      return InvalidArgument("radius: tile_m must be > 0, map_radius_m and update_distance_m >= 0");
+    }
+    return std::unique_ptr<MemoryPolicy>(std::make_unique<RadiusPolicy>(index, o));
+  }
+  if (p == "predictive") {
+    PredictiveOptions o = options.predictive;
+    o.k_max = options.k_max;
+    return std::unique_ptr<MemoryPolicy>(std::make_unique<PredictivePolicy>(index, o));
   }
   if (p == "unbounded") {
     return std::unique_ptr<MemoryPolicy>(std::make_unique<UnboundedPolicy>(index));

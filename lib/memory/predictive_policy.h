@@ -1,0 +1,70 @@
+// PredictivePolicy (beyond the paper, which lists it as future work): Algorithm 1's zone
+// batches plus prefetch, value-based eviction and time-sliced loading.
+//
+//   - current zone first: it is loaded nearest-first (from the pose when its loading starts)
+//     up to min(|zone|, k_max), at most `slice` keyframes per tick;
+//   - then, once the current zone is complete, the next zone is prefetched: the zone after the
+//     current one on the planned route when one is given, else the adjacent zone with the most
+//     transitions seen so far from the current one (ties: not the zone we came from, then the
+//     smaller id);
+//   - to make room it evicts the zone whose next use on the route is farthest (not on the
+//     route = never), or without a route the least likely one (fewest transitions from the
+//     current zone, then least recently entered). Prefetch only evicts zones worth less than
+//     the zone it brings in; the current zone is never evicted;
+//   - slice = min(max_keyframes_per_tick, max_ms_per_tick / load_ms_per_keyframe); a zone can
+//     be partially resident across ticks and is completed when the robot is in it.
+//
+// Invariants: resident <= k_max at every instant (unload before load); no allocation after
+// construction.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "memory/policy.h"
+#include "memory/zone_residency.h"
+
+namespace zm {
+
+class PredictivePolicy final : public MemoryPolicy {
+ public:
+  PredictivePolicy(const MapIndex& index, PredictiveOptions options);
+  [[nodiscard]] std::string_view name() const override { return "predictive"; }
+  void Start(const TickContext& ctx, Plan* plan) override;
+  void PlanBeforeLocalize(const TickContext& ctx, Plan* plan) override;
+  void PlanAfterLocalize(const TickContext& /*ctx*/, Plan* /*plan*/) override {}
+  [[nodiscard]] std::uint64_t zone_loads() const override { return zone_loads_; }
+
+  [[nodiscard]] ZoneId current_zone() const { return z_curr_; }
+  [[nodiscard]] ZoneId last_prefetch() const { return last_prefetch_; }
+  [[nodiscard]] const ZoneResidency& residency() const { return residency_; }
+  [[nodiscard]] std::uint32_t Transitions(ZoneId from, ZoneId to) const;
+
+ private:
+  // Value of keeping z (larger = keep): (route rank or transition count, last entry).
+  std::pair<std::int64_t, std::uint64_t> Value(ZoneId z, std::span<const ZoneId> route) const;
+  ZoneId PredictNext(std::span<const ZoneId> route) const;
+  // Loads up to *slice more keyframes of z; returns false if it could not make room.
+  bool LoadSome(ZoneId z, bool is_current, const TickContext& ctx, std::uint32_t* slice,
+                Plan* plan);
+  std::uint32_t Target(ZoneId z) const;
+
+  const MapIndex& index_;
+  PredictiveOptions options_;
+  ZoneResidency residency_;
+  std::vector<KfIndex> order_;               // per zone segment: load order (nearest-first)
+  std::vector<std::uint64_t> last_used_;     // per zone
+  std::vector<std::uint32_t> adj_offsets_;   // per zone: into trans_ (AdjacentZones order)
+  std::vector<std::uint32_t> trans_;         // transition counts along adjacency
+  std::vector<std::pair<double, KfIndex>> sort_scratch_;
+  ZoneId z_curr_ = kNoZone;
+  ZoneId z_prev_ = kNoZone;
+  ZoneId last_prefetch_ = kNoZone;
+  std::size_t route_cursor_ = 0;
+  std::uint64_t clock_ = 0;
+  std::uint64_t zone_loads_ = 0;
+};
+
+}  // namespace zm
