@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <unordered_map>
 
 #include "zones/polygon.h"
@@ -44,6 +45,8 @@ void Bisect(std::vector<Eigen::Vector2d> polygon, std::vector<Item> items, std::
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
   Eigen::Vector2d axis = eig.eigenvectors().col(1);  // largest eigenvalue last
   if (!axis.allFinite() || axis.norm() < 0.5) axis = Eigen::Vector2d::UnitX();
+  // An eigenvector's sign is arbitrary: fix it so part order (and names) are reproducible.
+  if (std::abs(axis.x()) >= std::abs(axis.y()) ? axis.x() < 0.0 : axis.y() < 0.0) axis = -axis;
   std::stable_sort(items.begin(), items.end(), [&](const Item& a, const Item& b) {
     return axis.dot(a.xy) < axis.dot(b.xy);
   });

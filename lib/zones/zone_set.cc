@@ -144,10 +144,15 @@ Result<ZoneSet> ParseGeoJson(const json& root, std::string_view source) {
     }
     for (const char* key : {"z_min", "z_max"}) {
       if (!props.contains(key)) continue;
+      const bool is_min = std::string_view(key) == "z_min";
+      if (props[key].is_null()) {  // explicitly unbounded (how WriteGeoJson says "every z")
+        (is_min ? zone.z_min_m : zone.z_max_m) = is_min ? -kUnboundedZM : kUnboundedZM;
+        continue;
+      }
       if (!props[key].is_number()) {
         return InvalidArgument(where + ": \"" + key + "\" must be a number (metres)");
       }
-      (std::string_view(key) == "z_min" ? zone.z_min_m : zone.z_max_m) = props[key].get<double>();
+      (is_min ? zone.z_min_m : zone.z_max_m) = props[key].get<double>();
     }
     if (!f.contains("geometry") || !f["geometry"].is_object()) {
       return InvalidArgument(where + ": has no geometry object");
@@ -313,8 +318,9 @@ std::string ToGeoJsonText(const ZoneSet& zones) {
     for (const auto& p : z.polygon) ring.push_back({p.x(), p.y()});
     if (!z.polygon.empty()) ring.push_back({z.polygon[0].x(), z.polygon[0].y()});
     json props = {{"name", z.name}, {"kind", z.kind}, {"floor", z.floor}};
-    if (z.z_min_m > -kUnboundedZM) props["z_min"] = z.z_min_m;
-    if (z.z_max_m < kUnboundedZM) props["z_max"] = z.z_max_m;
+    // Always explicit, so reading back does not derive a range from the floor.
+    props["z_min"] = z.z_min_m > -kUnboundedZM ? json(z.z_min_m) : json(nullptr);
+    props["z_max"] = z.z_max_m < kUnboundedZM ? json(z.z_max_m) : json(nullptr);
     features.push_back({{"type", "Feature"},
                         {"properties", props},
                         {"geometry", {{"type", "Polygon"}, {"coordinates", json::array({ring})}}}});

@@ -9,7 +9,8 @@
 //
 // File formats (docs/zones.md):
 //   GeoJSON FeatureCollection of Polygon features, properties `name` (required, unique),
-//   `kind` (default "room"), `floor` (integer, default 0), optional `z_min`/`z_max` (metres).
+//   `kind` (default "room"), `floor` (integer, default 0), optional `z_min`/`z_max` (metres;
+//   null = unbounded on that side).
 //   A zone with `floor` but no z range spans [floor*H - H/2, floor*H + H/2) where H is the
 //   collection's `floor_height_m` (default 3 m); without `floor` or z range it spans every z.
 //   Keyframe lists: {"initial_zone": "L1", "zones": {"L1": [1, 7, 8], "H1": [...]}}.
