@@ -1,0 +1,129 @@
+// predictive: route prefetch, farthest-next-use eviction, learned transitions, time-sliced
+// loads, and a property walk (never above K_max).
+#include "memory/predictive_policy.h"
+
+#include <doctest/doctest.h>
+
+#include <random>
+
+#include "memory/memory_test_util.h"
+
+namespace zm {
+namespace {
+
+using test::At;
+using test::Harness;
+using test::Ids;
+using test::Zones;
+using V = std::vector<std::int64_t>;
+using Zv = std::vector<std::int32_t>;
+
+Harness::Factory Predictive(std::uint32_t k_max, std::uint32_t per_tick, bool prefetch = true) {
+  return [=](const MapIndex& index) {
+    PredictiveOptions o;
+    o.k_max = k_max;
+    o.max_keyframes_per_tick = per_tick;
+    o.prefetch = prefetch;
+    return std::make_unique<PredictivePolicy>(index, o);
+  };
+}
+
+PredictivePolicy& Policy(Harness& h) { return *dynamic_cast<PredictivePolicy*>(h.policy.get()); }
+
+std::vector<std::vector<ZoneId>> Chain(int zones) {
+  std::vector<std::vector<ZoneId>> adj(static_cast<std::size_t>(zones));
+  for (int z = 0; z + 1 < zones; ++z) adj[static_cast<std::size_t>(z)].push_back(ZoneId{z + 1});
+  return adj;
+}
+
+TEST_CASE("predictive: prefetches the next zone of the route, evicts the farthest next use") {
+  test::MapSpec s = test::LineMap({3, 3, 3, 3});
+  s.adjacency = Chain(4);
+  Harness h(s, 9, 9, Predictive(9, 0));
+  const std::vector<ZoneId> route{ZoneId{0}, ZoneId{1}, ZoneId{2}, ZoneId{3}};
+  TickContext c = At(0, 0);
+  c.route = route;
+  h.Start(c);
+  CHECK(Zones(h.before.zones_loaded()) == Zv{0, 1});  // current, then the route's next
+  CHECK(h.before.batches().size() == 2);
+  c = At(1, 1);
+  c.route = route;
+  h.Tick(c);
+  CHECK(Zones(h.before.zones_loaded()) == Zv{2});
+  c = At(2, 2);
+  c.route = route;
+  h.Tick(c);  // zone 3 needs room: zone 0 is no longer on the route, zone 1 is behind us
+  CHECK(Zones(h.before.zones_unloaded()) == Zv{0});
+  CHECK(Zones(h.before.zones_loaded()) == Zv{3});
+  CHECK(h.ResidentIds() == V{4, 5, 6, 7, 8, 9, 10, 11, 12});
+}
+
+TEST_CASE("predictive: without a route it learns transitions from what it has seen") {
+  test::MapSpec s = test::LineMap({2, 2, 2, 2});
+  s.adjacency = {{ZoneId{1}}, {ZoneId{2}, ZoneId{3}}, {}, {}};  // 1 is a hub: 0, 2, 3
+  Harness h(s, 4, 4, Predictive(4, 0));
+  h.Start(At(0, 0));
+  CHECK(Policy(h).last_prefetch() == ZoneId{1});  // the only neighbour
+  // Walk 1 -> 3 twice, so from 1 the likeliest next zone is 3, not 2.
+  std::uint64_t t = 1;
+  for (int z : {1, 3, 1, 3, 1}) h.Tick(At(t++, z));
+  CHECK(Policy(h).Transitions(ZoneId{1}, ZoneId{3}) == 2);
+  CHECK(Policy(h).last_prefetch() == ZoneId{3});
+  CHECK(h.ws.resident_count() <= 4);
+}
+
+TEST_CASE("predictive: time-sliced loading, current zone first, then prefetch") {
+  test::MapSpec s = test::LineMap({10, 10});
+  s.adjacency = Chain(2);
+  Harness h(s, 20, 20, Predictive(20, 4));
+  auto t = h.Start(At(0, 0, {0, 0, 0}));
+  CHECK(Ids(h.index, h.before.acquires()) == V{1, 2, 3, 4});  // nearest-first from x = 0
+  t = h.Tick(At(1, 0));
+  CHECK(t.keyframes_loaded == 4);
+  t = h.Tick(At(2, 0));  // 2 left of zone 0, then 2 of zone 1 (prefetch)
+  CHECK(Ids(h.index, h.before.acquires()) == V{9, 10, 11, 12});
+  CHECK(h.before.batches().size() == 2);
+  CHECK(t.db_transactions == 2);
+  for (std::uint64_t i = 3; i < 6; ++i) h.Tick(At(i, 0));
+  CHECK(h.ws.resident_count() == 20);
+  CHECK(h.policy->zone_loads() == 2);  // partial loads of a zone count once
+}
+
+TEST_CASE("predictive property: random walks, overlaps, slices never exceed K_max") {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 30; ++trial) {
+    const int zones = 3 + static_cast<int>(rng() % 7);
+    const int n = 10 + static_cast<int>(rng() % 60);
+    test::MapSpec s;
+    for (int i = 0; i < n; ++i) s.positions.emplace_back(rng() % 50, rng() % 50, 0);
+    s.zones.resize(static_cast<std::size_t>(zones));
+    for (int i = 1; i <= n; ++i) {
+      const int copies = 1 + static_cast<int>(rng() % 2);
+      for (int c = 0; c < copies; ++c) s.zones[rng() % s.zones.size()].push_back(i);
+    }
+    for (auto& z : s.zones) {
+      std::sort(z.begin(), z.end());
+      z.erase(std::unique(z.begin(), z.end()), z.end());
+    }
+    s.adjacency.resize(static_cast<std::size_t>(zones));
+    for (int e = 0; e < zones * 2; ++e) {
+      s.adjacency[rng() % s.adjacency.size()].push_back(ZoneId{static_cast<std::int32_t>(rng() % static_cast<std::uint32_t>(zones))});
+    }
+    const auto k_max = static_cast<std::uint32_t>(1 + rng() % static_cast<std::uint32_t>(n));
+    Harness h(s, k_max, k_max, Predictive(k_max, rng() % 8));
+    h.Start(At(0, 0));
+    for (std::uint64_t tick = 1; tick < 60; ++tick) {
+      const int z = static_cast<int>(rng() % static_cast<std::uint32_t>(zones + 1)) - 1;
+      auto t = h.Tick(At(tick, z, {static_cast<double>(rng() % 50), 0, 0}));
+      REQUIRE(t.peak_resident_keyframes <= k_max);
+      REQUIRE(t.refused_acquisitions == 0);
+      for (KfIndex k = 0; k < h.index.keyframe_count(); ++k) {
+        REQUIRE(h.ws.refcount(k) == Policy(h).residency().held(k));
+      }
+    }
+    CHECK(h.ws.max_resident_seen() <= k_max);
+  }
+}
+
+}  // namespace
+}  // namespace zm
