@@ -1,0 +1,295 @@
+// RTAB-Map import on databases built here in RTAB-Map's schema: a single RGB-D node (JPEG colour,
+// PNG or RVL depth, features, calibration), a map of hundreds of pose-only nodes with doubly
+// stored links and optimized poses, and damaged blobs that must fail cleanly and atomically.
+#include "mapdb/rtabmap_import.h"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "mapdb/keyframe_payload.h"
+#include "mapdb/mapdb_test_util.h"
+#include "mapdb/rtabmap_test_util.h"
+#include "mapdb/rvl.h"
+
+namespace zm {
+namespace {
+
+using test::Blob;
+using test::RtabDb;
+using test::TempDir;
+
+Blob Encode(const cv::Mat& m, const char* ext) {
+  std::vector<uchar> buf;
+  REQUIRE(cv::imencode(ext, m, buf));
+  Blob b(buf.size());
+  std::memcpy(b.data(), buf.data(), buf.size());
+  return b;
+}
+
+cv::Mat Depth() {
+  cv::Mat d(48, 64, CV_16UC1);
+  for (int r = 0; r < d.rows; ++r)
+    for (int c = 0; c < d.cols; ++c) d.at<std::uint16_t>(r, c) = (c % 9 == 0) ? 0 : static_cast<std::uint16_t>(800 + r * 10 + c);
+  return d;
+}
+
+Blob RvlOf(const cv::Mat& d) {
+  DepthImage16 img{static_cast<std::uint32_t>(d.cols), static_cast<std::uint32_t>(d.rows), {}};
+  img.pixels.assign(d.ptr<std::uint16_t>(), d.ptr<std::uint16_t>() + d.total());
+  return EncodeRvlDepth(img);
+}
+
+// Loads keyframe `id` of `path` into a fresh slot and hands its view to `check`.
+template <class Fn>
+void WithKeyframe(const std::string& path, std::int64_t id, Fn&& check) {
+  auto db = MapDb::Open(path);
+  REQUIRE_MESSAGE(db.ok(), db.status().ToString());
+  Arena arena = test::MakeArena(2, (*db)->metadata().largest_payload_bytes);
+  test::RecordingSink sink;
+  const KeyframeId ids[] = {KeyframeId{id}};
+  auto st = (*db)->LoadKeyframes(ids, arena, sink);
+  REQUIRE_MESSAGE(st.ok(), st.status().ToString());
+  auto view = DecodePayload(arena.Slot(sink.loaded()[0].slot), {}, true);
+  REQUIRE(view.ok());
+  check(**db, *view);
+}
+
+TEST_CASE("one RGB-D node: features move to the map frame, images are kept and valid") {
+  TempDir dir;
+  const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
+  const Pose3 pose = PoseFromXYYaw(1.0, 2.0, std::numbers::pi / 2, 0.5);
+  cv::Mat colour(48, 64, CV_8UC3, cv::Scalar(10, 120, 200));
+  const Blob jpeg = Encode(colour, ".jpg");
+  const cv::Mat depth = Depth();
+  std::string depth_kind;
+  Blob depth_blob, image_blob = jpeg;
+  SUBCASE("PNG depth") { depth_kind = "png", depth_blob = Encode(depth, ".png"); }
+  SUBCASE("RVL depth") { depth_kind = "rvl", depth_blob = RvlOf(depth); }
+  SUBCASE("RVL depth, no image") { depth_kind = "rvl-only", depth_blob = RvlOf(depth), image_blob.clear(); }
+  {
+    RtabDb r(in, test::kRtabmapSchema023);
+    r.AddNode(7, 3, test::PoseBlob(pose));
+    r.Run("INSERT INTO Data(id, image, depth, calibration) VALUES(7, ?, ?, ?)", image_blob, depth_blob,
+          test::CalibrationBlob(525, 526, 319.5, 239.5, 640, 480));
+    const auto feature = [&](double x, double y, double z, int desc_bytes, double u, double v) {
+      Blob desc(static_cast<std::size_t>(desc_bytes));
+      for (std::size_t i = 0; i < desc.size(); ++i) desc[i] = static_cast<std::byte>(i * 7 + static_cast<std::size_t>(u));
+      r.Run("INSERT INTO Feature(node_id, word_id, pos_x, pos_y, size, dir, response, octave, depth_x, "
+            "depth_y, depth_z, descriptor_size, descriptor) VALUES(7, 1, ?, ?, 31, 0, 1, 0, ?, ?, ?, ?, ?)",
+            u, v, x, y, z, std::int64_t{desc_bytes}, desc);
+    };
+    feature(1.0, 0.0, 0.5, 32, 10, 20);
+    feature(2.0, 1.0, 0.0, 32, 30, 40);
+    feature(NAN, NAN, NAN, 32, 50, 60);  // no depth: skipped
+    feature(1.0, 1.0, 1.0, 64, 70, 80);  // not a 256-bit descriptor: skipped
+  }
+  auto rep = ImportRtabmap(in, out);
+  REQUIRE_MESSAGE(rep.ok(), rep.status().ToString());
+  CHECK(rep->rtabmap_version == "0.23.1");
+  CHECK(rep->keyframes == 1);
+  CHECK(rep->features == 2);
+  CHECK(rep->features_skipped == 2);
+  CHECK(rep->has_camera);
+  CHECK(rep->camera.fx == 525);
+  CHECK(rep->camera.cy == 239.5);
+  CHECK(rep->camera.width == 640);
+  CHECK_FALSE(std::filesystem::exists(out + ".tmp"));
+
+  WithKeyframe(out, 7, [&](const MapDb& db, const KeyframeView& v) {
+    CHECK(db.metadata().camera.fy == 526);
+    auto kfs = db.Keyframes();
+    REQUIRE(kfs.ok());
+    CHECK((*kfs)[0].id == KeyframeId{7});
+    CHECK((*kfs)[0].weight == 3);
+    CHECK((*kfs)[0].pose.isApprox(pose, 1e-6));
+    REQUIRE(v.feature_count == 2);
+    const Eigen::Vector3d p0 = pose * Eigen::Vector3d(1.0, 0.0, 0.5);
+    for (int i = 0; i < 3; ++i) CHECK(v.points[i] == doctest::Approx(p0(i)).epsilon(1e-5));
+    CHECK(v.keypoints[2] == 30.0f);
+    CHECK(v.keypoints[3] == 40.0f);
+    CHECK(v.descriptor(1)[1] == static_cast<std::uint8_t>(7 + 30));
+    const auto dense = v.dense;
+    if (depth_kind == "rvl-only") {
+      CHECK(v.dense_format == DenseFormat::kRvlDepth16);
+      CHECK(std::equal(dense.begin(), dense.end(), depth_blob.begin(), depth_blob.end()));
+      return;
+    }
+    REQUIRE(v.dense_format == DenseFormat::kPngDepthAndJpegColour);
+    const cv::Mat png(1, static_cast<int>(v.dense_split), CV_8UC1, const_cast<std::byte*>(dense.data()));
+    const cv::Mat got_depth = cv::imdecode(png, cv::IMREAD_UNCHANGED);
+    REQUIRE(got_depth.type() == CV_16UC1);
+    CHECK(cv::countNonZero(got_depth != depth) == 0);  // lossless, also after RVL -> PNG
+    const auto colour_part = dense.subspan(v.dense_split);
+    CHECK(std::equal(colour_part.begin(), colour_part.end(), jpeg.begin(), jpeg.end()));
+  });
+}
+
+TEST_CASE("hundreds of pose-only nodes: ids kept, links deduplicated, optimized poses used") {
+  TempDir dir;
+  const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
+  constexpr int kNodes = 300;
+  const auto raw = [](int i) { return PoseFromXYYaw(0.5 * i, 0.0, 0.01 * i); };
+  const auto opt = [](int i) { return PoseFromXYYaw(0.5 * i + 10.0, 1.0, 0.01 * i); };
+  {
+    RtabDb r(in, test::kRtabmapSchema019);
+    std::vector<std::int32_t> ids;
+    std::vector<Pose3> poses;
+    for (int i = 1; i <= kNodes; ++i) {
+      r.AddNode(i, i % 4, test::PoseBlob(raw(i)));
+      ids.push_back(i);
+      poses.push_back(opt(i));
+    }
+    r.AddNode(301, -9, test::PoseBlob(raw(301)));        // invalid: skipped
+    r.AddNode(302, 0, Blob(48, std::byte{0}));            // null pose, not optimized: skipped
+    r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", test::OptIdsBlob(ids), test::OptPosesBlob(poses));
+    for (int i = 1; i < kNodes; ++i) {  // every neighbour edge stored twice, as RTAB-Map does
+      const Pose3 t = raw(i).inverse() * raw(i + 1);
+      r.AddLink(i, i + 1, 0, test::PoseBlob(t));
+      r.AddLink(i + 1, i, 0, test::PoseBlob(t.inverse()));
+    }
+    r.AddLink(150, 1, 1, test::PoseBlob(raw(150).inverse() * raw(1)));  // stored once, from > to
+    r.AddLink(5, 5, 7, test::PoseBlob(Pose3::Identity()));              // pose prior
+    r.AddLink(10, -1, 8, test::PoseBlob(Pose3::Identity()));            // landmark
+    r.AddLink(300, 301, 0, test::PoseBlob(Pose3::Identity()));          // to an invalid node
+  }
+  auto rep = ImportRtabmap(in, out);
+  REQUIRE_MESSAGE(rep.ok(), rep.status().ToString());
+  CHECK(rep->rtabmap_version == "0.19.3");
+  CHECK(rep->nodes == 302);
+  CHECK(rep->keyframes == kNodes);
+  CHECK(rep->skipped_invalid == 1);
+  CHECK(rep->skipped_null_pose == 1);
+  CHECK(rep->optimized_poses == kNodes);
+  CHECK(rep->links == kNodes);  // 299 neighbours + 1 loop closure
+  CHECK(rep->links_duplicate == kNodes - 1);
+  CHECK(rep->links_self == 1);
+  CHECK(rep->links_landmark == 1);
+  CHECK(rep->links_dangling == 1);
+  CHECK_FALSE(rep->has_camera);
+
+  auto db = MapDb::Open(out);
+  REQUIRE(db.ok());
+  CHECK((*db)->metadata().keyframe_count == kNodes);
+  CHECK((*db)->metadata().source.find("rtabmap:") == 0);
+  auto kfs = (*db)->Keyframes();
+  REQUIRE(kfs.ok());
+  CHECK(kfs->front().id == KeyframeId{1});
+  CHECK(kfs->back().id == KeyframeId{kNodes});
+  CHECK((*kfs)[16].pose.isApprox(opt(17), 1e-5));
+  CHECK((*kfs)[16].payload_bytes == kPayloadHeaderBytes);  // pose-only: an empty payload
+  auto links = (*db)->Links();
+  REQUIRE(links.ok());
+  REQUIRE(links->size() == kNodes);
+  for (const auto& l : *links) CHECK(l.from < l.to);
+  const auto loop = std::find_if(links->begin(), links->end(),
+                                 [](const LinkRecord& l) { return l.type == LinkType::kGlobalClosure; });
+  REQUIRE(loop != links->end());
+  CHECK(loop->from == KeyframeId{1});
+  CHECK(loop->to == KeyframeId{150});
+  CHECK(loop->transform.isApprox(raw(1).inverse() * raw(150), 1e-5));  // inverted to from < to
+
+  RtabmapImportOptions raw_poses;
+  raw_poses.use_optimized_poses = false;
+  raw_poses.overwrite = true;
+  auto rep2 = ImportRtabmap(in, out, raw_poses);
+  REQUIRE(rep2.ok());
+  CHECK(rep2->optimized_poses == 0);
+  CHECK(rep2->keyframes == kNodes);  // 302's null pose still skipped
+}
+
+TEST_CASE("damaged RTAB-Map blobs give one clear error and leave no output behind") {
+  TempDir dir;
+  const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
+  std::string expect;
+  {
+    RtabDb r(in, test::kRtabmapSchema023);
+    r.AddNode(1, 0, test::PoseBlob(PoseFromXYYaw(0, 0, 0)));
+    r.AddNode(2, 0, test::PoseBlob(PoseFromXYYaw(1, 0, 0)));
+    r.AddLink(1, 2, 0, test::PoseBlob(PoseFromXYYaw(1, 0, 0)));
+    const Blob ids = test::OptIdsBlob({1, 2});
+    const Blob poses = test::OptPosesBlob({PoseFromXYYaw(0, 0, 0), PoseFromXYYaw(1, 0, 0)});
+    SUBCASE("bad zlib") {
+      Blob bad = poses;
+      bad[0] = bad[1] = std::byte{0};  // no zlib header
+      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, bad);
+      expect = "Admin.opt_poses: zlib data";
+    }
+    SUBCASE("trailer claims more than the data holds") {
+      Blob bad = poses;
+      const std::int32_t cols = 48;
+      std::memcpy(bad.data() + bad.size() - 8, &cols, 4);
+      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, bad);
+      expect = "inflates to 96 bytes";
+    }
+    SUBCASE("trailer claims less than the data holds") {
+      Blob bad = poses;
+      const std::int32_t cols = 12;
+      std::memcpy(bad.data() + bad.size() - 8, &cols, 4);
+      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, bad);
+      expect = "inflates to more";
+    }
+    SUBCASE("shorter than its trailer") {
+      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, Blob(5, std::byte{1}));
+      expect = "shorter than the 12-byte";
+    }
+    SUBCASE("short pose blob") {
+      r.Run("UPDATE Node SET pose=? WHERE id=2", Blob(20, std::byte{1}));
+      expect = "node 2: Node.pose is 20 bytes, expected 48";
+    }
+    SUBCASE("corrupt JPEG") {
+      Blob jpeg = {std::byte{0xFF}, std::byte{0xD8}, std::byte{0xFF}, std::byte{0}, std::byte{1}};
+      r.Run("INSERT INTO Data(id, image) VALUES(1, ?)", jpeg);
+      expect = "node 1: Data.image of 5 bytes";
+    }
+    SUBCASE("truncated RVL depth") {
+      Blob rvl = RvlOf(Depth());
+      rvl.resize(rvl.size() / 2);
+      r.Run("INSERT INTO Data(id, depth) VALUES(2, ?)", rvl);
+      expect = "node 2: Data.depth";
+    }
+    SUBCASE("bad calibration") {
+      r.Run("INSERT INTO Data(id, calibration) VALUES(1, ?)", Blob(50, std::byte{0x7f}));
+      expect = "node 1: Data.calibration";
+    }
+    SUBCASE("bad information matrix") {
+      r.Run("UPDATE Link SET information_matrix=? WHERE from_id=1", Blob(10, std::byte{0}));
+      expect = "link 1->2 (type 0): Link.information_matrix is 10 bytes";
+    }
+  }
+  // An existing output survives a failed import byte for byte (the import writes OUT.tmp).
+  test::BuildMap(out);
+  const auto before = test::Snapshot(out);
+  RtabmapImportOptions opts;
+  opts.overwrite = true;
+  auto rep = ImportRtabmap(in, out, opts);
+  REQUIRE_FALSE(rep.ok());
+  INFO(rep.status().ToString());
+  CHECK(rep.status().message().find(expect) != std::string::npos);
+  CHECK(test::Snapshot(out) == before);
+  CHECK_FALSE(std::filesystem::exists(out + ".tmp"));
+  std::filesystem::remove(out);
+  CHECK_FALSE(ImportRtabmap(in, out).ok());
+  CHECK_FALSE(std::filesystem::exists(out));
+}
+
+TEST_CASE("inputs that are not RTAB-Map databases are refused") {
+  TempDir dir;
+  const std::string ours = dir.File("ours.db"), out = dir.File("out.db");
+  test::BuildMap(ours);
+  auto r = ImportRtabmap(ours, out);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("no table Node") != std::string::npos);
+  auto missing = ImportRtabmap(dir.File("nope.db"), out);
+  CHECK(missing.status().code() == StatusCode::kNotFound);
+  auto exists = ImportRtabmap(ours, ours);
+  CHECK(exists.status().message().find("same file") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(out));
+}
+
+}  // namespace
+}  // namespace zm
