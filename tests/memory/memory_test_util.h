@@ -170,13 +170,15 @@ class Harness {
   Plan before;
   Plan after;
   std::unique_ptr<MemoryPolicy> policy;
+  bool verify_slots = true;  // per-Apply slot/refcount checks (off in long runs)
 
  private:
   void ApplyChecked(const Plan& plan, TickTelemetry* t) {
     Status s = ws.Apply(plan, t);
     REQUIRE_MESSAGE(s.ok(), s.ToString());
     // Working-set invariants: slots hold what the fake wrote; counts match the arena.
-    CHECK(ws.resident_count() == arena.in_use());
+    REQUIRE(ws.resident_count() == arena.in_use());
+    if (!verify_slots) return;
     for (const auto& r : ws.resident()) {
       CHECK(FakeKeyframeSource::SlotHolds(arena, r.slot, r.id));
       CHECK(ws.refcount(r.index) > 0);
