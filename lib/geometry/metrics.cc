@@ -18,9 +18,12 @@ Result<Association> Associate(const Trajectory& ref, const Trajectory& est, doub
                              std::to_string(ref.size()) + " vs est " +
                              std::to_string(est.size()) + " poses");
     }
-    a.ref_index.resize(ref.size());
-    a.est_index.resize(ref.size());
-    for (std::size_t i = 0; i < ref.size(); ++i) a.ref_index[i] = a.est_index[i] = i;
+    a.ref_index.reserve(ref.size());
+    a.est_index.reserve(ref.size());
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      a.ref_index.push_back(i);
+      a.est_index.push_back(i);
+    }
     return a;
   }
   // evo: the second trajectory (est) is "longer" only when strictly longer.

@@ -126,7 +126,7 @@ TEST_CASE("Umeyama recovers a similarity, including a reflection-prone configura
   CHECK_FALSE(Umeyama(std::span(p).first(2), std::span(q).first(2), false).ok());
 }
 
-TEST_CASE("RPE: a constant per-step error shows up in every pair; stats are population") {
+TEST_CASE("RPE: a constant per-step error shows up in every pair, and population statistics") {
   Trajectory ref, est;
   for (int i = 0; i < 6; ++i) {
     ref.Add(i, PoseFromXYYaw(i * 1.0, 0, 0));

@@ -19,7 +19,7 @@ std::vector<std::uint8_t> Random(std::mt19937& rng, std::size_t n) {
   return d;
 }
 
-TEST_CASE("appearance: revisit scores far above an unrelated place; clear resets") {
+TEST_CASE("appearance: revisit scores far above an unrelated place and clear resets") {
   std::mt19937 rng(3);
   const auto place = Random(rng, 300);
   const auto other = Random(rng, 300);

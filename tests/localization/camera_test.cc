@@ -30,7 +30,7 @@ TEST_CASE("body to camera: ahead is the image centre, left is u < cx, up is v < 
   CHECK(BodyToCamera().linear().determinant() == doctest::Approx(1.0));
 }
 
-TEST_CASE("camera pose follows the body pose; body pose comes back") {
+TEST_CASE("camera pose follows the body pose and the body pose comes back") {
   const Pose3 body = PoseFromXYYaw(3.0, -2.0, 1.2, 0.4);
   const Pose3 cam = CameraPoseInMap(body);
   CHECK((BodyPoseFromCamera(cam).matrix() - body.matrix()).norm() < 1e-12);

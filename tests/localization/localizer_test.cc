@@ -37,11 +37,11 @@ struct Query {
   std::vector<Pose3> odom;
 };
 
-// A weaving patrol along the corridor, 0.5 m steps; odometry with a yaw bias and 2 % scale.
+// A weaving patrol along the corridor, 0.75 m steps; odometry with a yaw bias and 2 % scale.
 Query MakeQuery() {
   Query q;
-  for (int k = 0; k < 76; ++k) {
-    const double x = 0.5 + 0.5 * k;
+  for (int k = 0; k < 51; ++k) {
+    const double x = 0.5 + 0.75 * k;
     const double y = 0.3 * std::sin(x / 5.0);
     const double yaw = std::atan(0.3 / 5.0 * std::cos(x / 5.0));
     q.truth.push_back(PoseFromXYYaw(x, y, yaw));
@@ -50,7 +50,7 @@ Query MakeQuery() {
   for (std::size_t k = 1; k < q.truth.size(); ++k) {
     Pose3 step = q.truth[k - 1].inverse() * q.truth[k];
     step.translation() *= 1.02;
-    step.rotate(Eigen::AngleAxisd(0.004, Eigen::Vector3d::UnitZ()));
+    step.rotate(Eigen::AngleAxisd(0.006, Eigen::Vector3d::UnitZ()));
     q.odom.push_back(q.odom.back() * step);
   }
   return q;
@@ -129,7 +129,6 @@ TEST_CASE("later keyframes non-resident: no closure there, drift grows like odom
   std::set<std::int64_t> resident_ids;
   for (const auto& k : early) resident_ids.insert(k.id.value);
   const RunOutput partial = Run(world, q, early);
-  const RunOutput full = Run(world, q, store.all());
   std::uint32_t late_closures = 0;
   for (std::size_t k = 0; k < partial.results.size(); ++k) {
     const LocalizeResult& r = partial.results[k];
@@ -140,14 +139,21 @@ TEST_CASE("later keyframes non-resident: no closure there, drift grows like odom
   }
   CHECK(late_closures == 0);
   CHECK(partial.accepted > 0);  // the resident start still localizes
+  // Past the resident start the estimate is dead reckoning from the last correction: its
+  // error grows with distance (the full-residency run of the test above stays at millimetres).
   const double ate_partial = AteRmse(partial.truth, partial.estimate);
-  const double ate_full = AteRmse(full.truth, full.estimate);
-  const double final_error =
-      (partial.estimate.poses.back().translation() - q.truth.back().translation()).norm();
-  MESSAGE("ATE partial residency " << ate_partial << " m vs full " << ate_full
-                                   << " m; final error " << final_error << " m");
-  CHECK(final_error > 2.0);
-  CHECK(ate_partial > 5.0 * ate_full);
+  const double ate_odom = AteRmse(partial.truth, partial.odometry);
+  const auto error_at = [&](std::size_t k) {
+    return (partial.estimate.poses[k].translation() - q.truth[k].translation()).norm();
+  };
+  const std::size_t last = q.truth.size() - 1;
+  MESSAGE("ATE partial residency " << ate_partial << " m, odometry " << ate_odom
+                                   << " m, error at 20 m " << error_at(last / 2) << " m, at end "
+                                   << error_at(last) << " m");
+  CHECK(error_at(last) > 2.0);
+  CHECK(error_at(last) > 2.0 * error_at(last / 2));
+  CHECK(ate_partial > 0.5);
+  CHECK(ate_partial > 0.3 * ate_odom);
 }
 
 TEST_CASE("nothing resident, or only another place resident: no closure, estimate is odometry") {
@@ -163,7 +169,7 @@ TEST_CASE("nothing resident, or only another place resident: no closure, estimat
   for (const auto& r : wrong.results) CHECK(r.highest_hypothesis.value == 0);
 }
 
-TEST_CASE("candidates: pose gate, heading gate, limits; appearance off uses the pose only") {
+TEST_CASE("candidates: pose gate, heading gate, limits and with appearance off the pose only") {
   World world({});
   const KeyframeStore store = MakeKeyframes(world);
   const Pose3 truth = PoseFromXYYaw(10.2, 0.1, 0.02);
