@@ -11,7 +11,7 @@
 namespace zm {
 namespace {
 
-TEST_CASE("no allocation per tick once warm, for every policy") {
+TEST_CASE("no allocation per tick once warm / for every policy") {
   // 12 zones of 15 keyframes on a 3 x 4 grid of rooms, chained by neighbour links, adjacent
   // rooms overlapping by one keyframe.
   test::MapSpec s;

@@ -59,7 +59,7 @@ TEST_CASE("basic: InitWMWithAllNodes with N > MemoryThr takes N - MemoryThr tick
   CHECK(h.ws.resident_count() == 6);
 }
 
-TEST_CASE("basic: ages are truncated to whole seconds, ties broken by id") {
+TEST_CASE("basic: ages are truncated to whole seconds / ties broken by id") {
   // WM {1,2,3} chained 1-2-3, MemoryThr 2, node 4 in LTM (so not all nodes are in WM).
   test::MapSpec s = Spread(4, 20);
   s.links = {{1, 2, LinkType::kNeighbor}, {2, 3, LinkType::kNeighbor}, {3, 4, LinkType::kNeighbor}};
@@ -113,7 +113,7 @@ test::MapSpec Chain() {
   return s;
 }
 
-TEST_CASE("basic: local and hypothesis retrieval, immunization, WM may stay above MemoryThr") {
+TEST_CASE("basic: local and hypothesis retrieval / immunization / WM may stay above MemoryThr") {
   BasicOptions o;
   o.memory_thr = 5;
   for (int i = 1; i <= 5; ++i) o.initial_wm.push_back(KeyframeId{i});

@@ -13,7 +13,7 @@
 namespace zm {
 namespace {
 
-TEST_CASE("map index: lookup, zones both ways, links both ways, adjacency") {
+TEST_CASE("map index: lookup / zones both ways / links both ways / adjacency") {
   test::MapSpec s = test::LineMap({3, 3});
   s.zones[1].push_back(3);  // keyframe 3 in both zones
   s.zones[1].push_back(3);  // duplicate member: ignored
@@ -81,7 +81,7 @@ TEST_CASE("map index: ForEachWithin equals brute force") {
   }
 }
 
-TEST_CASE("MakePolicy: every name, and a clear error for an unknown one") {
+TEST_CASE("MakePolicy: every name / and a clear error for an unknown one") {
   MapIndex m = test::BuildIndex(test::LineMap({2, 2}));
   for (const char* name : {"semantic", "basic", "radius", "predictive", "oracle", "unbounded"}) {
     PolicyOptions o;

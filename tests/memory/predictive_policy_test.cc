@@ -36,7 +36,7 @@ std::vector<std::vector<ZoneId>> Chain(int zones) {
   return adj;
 }
 
-TEST_CASE("predictive: prefetches the next zone of the route, evicts the farthest next use") {
+TEST_CASE("predictive: prefetches the next zone of the route / evicts the farthest next use") {
   test::MapSpec s = test::LineMap({3, 3, 3, 3});
   s.adjacency = Chain(4);
   Harness h(s, 9, 9, Predictive(9, 0));
@@ -72,7 +72,7 @@ TEST_CASE("predictive: without a route it learns transitions from what it has se
   CHECK(h.ws.resident_count() <= 4);
 }
 
-TEST_CASE("predictive: time-sliced loading, current zone first, then prefetch") {
+TEST_CASE("predictive: time-sliced loading / current zone first / then prefetch") {
   test::MapSpec s = test::LineMap({10, 10});
   s.adjacency = Chain(2);
   Harness h(s, 20, 20, Predictive(20, 4));
@@ -89,7 +89,7 @@ TEST_CASE("predictive: time-sliced loading, current zone first, then prefetch") 
   CHECK(h.policy->zone_loads() == 2);  // partial loads of a zone count once
 }
 
-TEST_CASE("predictive property: random walks, overlaps, slices never exceed K_max") {
+TEST_CASE("predictive property: random walks / overlaps / slices never exceed K_max") {
   std::mt19937 rng(5);
   for (int trial = 0; trial < 30; ++trial) {
     const int zones = 3 + static_cast<int>(rng() % 7);

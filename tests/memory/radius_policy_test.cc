@@ -31,7 +31,7 @@ V Range(std::int64_t a, std::int64_t b) {
   return v;
 }
 
-TEST_CASE("radius: tiles of 20 m around the robot, updated every 20 m") {
+TEST_CASE("radius: tiles of 20 m around the robot / updated every 20 m") {
   // Keyframe id i+1 at x = i (0..99): tiles [0,20) = ids 1..20, [20,40) = 21..40, ...
   Harness h(test::LineMap({100}), 60, 60, Radius(60, 25));
   h.Start(At(0, -1, {10, 0, 0}));       // circle [-15, 35]: tiles 0 and 1
@@ -48,7 +48,7 @@ TEST_CASE("radius: tiles of 20 m around the robot, updated every 20 m") {
   CHECK(dynamic_cast<RadiusPolicy*>(h.policy.get())->updates() == 3);
 }
 
-TEST_CASE("radius: never exceeds the budget; the tile that does not fit is taken nearest-first") {
+TEST_CASE("radius: never exceeds the budget - the tile that does not fit is taken nearest-first") {
   Harness h(test::LineMap({100}), 30, 30, Radius(30, 25));
   auto t = h.Start(At(0, -1, {10, 0, 0}));  // tile 0 (20) fits, tile 1 only 10 of 20
   CHECK(h.ResidentIds() == Range(1, 30));    // x = 20..29 are the nearest of tile 1

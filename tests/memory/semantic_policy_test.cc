@@ -25,7 +25,7 @@ Harness::Factory Semantic(std::uint32_t k_max) {
   };
 }
 
-TEST_CASE("semantic: zone-level LRU, unload before load, one transaction per zone") {
+TEST_CASE("semantic: zone-level LRU / unload before load / one transaction per zone") {
   // Zones of 3: z0 = {1,2,3}, z1 = {4,5,6}, z2 = {7,8,9}, z3 = {10,11,12}; two zones fit.
   Harness h(test::LineMap({3, 3, 3, 3}), 6, 6, Semantic(6));
   auto t = h.Start(At(0, 0));
@@ -81,7 +81,7 @@ TEST_CASE("semantic: a pose outside every zone keeps the current zone") {
   CHECK(p->current_zone() == ZoneId{0});
 }
 
-TEST_CASE("semantic: start-up loads only the initial zone, or nothing outside zones") {
+TEST_CASE("semantic: start-up loads only the initial zone / or nothing outside zones") {
   Harness h(test::LineMap({2, 2, 2, 2}), 8, 8, Semantic(8));
   h.Start(At(0, 2));
   CHECK(h.ResidentIds() == V{5, 6});
@@ -140,7 +140,7 @@ TEST_CASE("semantic: a zone larger than K_max loads nearest-first up to the budg
   CHECK(h.ResidentIds() == V{1, 2});
 }
 
-TEST_CASE("semantic property: random walks, overlaps and budgets never exceed K_max") {
+TEST_CASE("semantic property: random walks / overlaps and budgets never exceed K_max") {
   std::mt19937 rng(7);
   for (int trial = 0; trial < 40; ++trial) {
     const int zones = 3 + static_cast<int>(rng() % 8);

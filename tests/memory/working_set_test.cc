@@ -26,7 +26,7 @@ struct Rig {
   Plan plan;
 };
 
-TEST_CASE("working set: unloads happen before loads, so a full arena is never exceeded") {
+TEST_CASE("working set: unloads happen before loads / so a full arena is never exceeded") {
   Rig r(test::LineMap({3, 3}), 3, 3);
   TickTelemetry t;
   r.plan.BeginBatch(ZoneId{0});
@@ -95,7 +95,7 @@ TEST_CASE("working set: a keyframe released and acquired in one plan is not re-r
   CHECK(r.ws.refcount(r.K(2)) == 1);
 }
 
-TEST_CASE("working set: a batch with nothing new costs no transaction; undelivered is an error") {
+TEST_CASE("working set: a batch with nothing new costs no transaction - undelivered is an error") {
   test::MapSpec s = test::LineMap({2, 2});
   Rig r(s, 4, 4);
   TickTelemetry t;
