@@ -27,6 +27,7 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddArenaCommand(app, ctx);
   AddImportCommand(app, ctx);
   AddEvalCommand(app, ctx);
+  AddZonesSegmentCommand(app, ctx);
 }
 
 }  // namespace zm::app

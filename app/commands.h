@@ -27,5 +27,6 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx);
 void AddArenaCommand(CLI::App& app, CommandContext& ctx);
 void AddImportCommand(CLI::App& app, CommandContext& ctx);
 void AddEvalCommand(CLI::App& app, CommandContext& ctx);
+void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx);
 
 }  // namespace zm::app

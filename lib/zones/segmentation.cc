@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -722,6 +723,8 @@ Result<std::vector<Zone>> ZonesFromKeyframes(std::span<const Eigen::Vector2d> po
 }
 
 Result<cv::Mat> LoadGroundTruthLabels(const std::string& path, int min_room_cells) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return NotFound(path + ": no such file");
   cv::Mat img;
   try {
     img = cv::imread(path, cv::IMREAD_COLOR);

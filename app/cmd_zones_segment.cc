@@ -1,0 +1,152 @@
+// `zonemap zones segment`: automatic semantic zones. From an occupancy grid (ROS YAML, PNG
+// floor plan, or an RTAB-Map database's Admin.opt_map) by room segmentation, or from the map
+// database's keyframes alone when no grid is given. Writes a GeoJSON zone file; optionally caps
+// the keyframes per zone (--db with --max-zone-keyframes) and scores against a ground-truth PNG.
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "mapdb/map_db.h"
+#include "zones/grid_map.h"
+#include "zones/segmentation.h"
+
+namespace zm::app {
+namespace {
+
+struct SegmentOpts {
+  std::string map;
+  std::string out;
+  std::string score_gt;
+  std::string db;
+  int max_zone_keyframes = 0;
+  double resolution_m = 0.0;
+  double cell_size_m = 8.0;
+  bool json = false;
+};
+
+Result<std::vector<Eigen::Vector2d>> KeyframePositions(const std::string& db_path) {
+  ZM_ASSIGN_OR_RETURN(auto db, MapDb::Open(db_path));
+  ZM_ASSIGN_OR_RETURN(auto keyframes, db->Keyframes());
+  std::vector<Eigen::Vector2d> positions;
+  positions.reserve(keyframes.size());
+  for (const KeyframeMeta& k : keyframes) positions.push_back(k.pose.translation().head<2>());
+  return positions;
+}
+
+void Run(const SegmentOpts& o, CommandContext& ctx) {
+  constexpr const char* kCmd = "zones segment";
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<Eigen::Vector2d> keyframes;
+  if (!o.db.empty()) {
+    auto positions = KeyframePositions(o.db);
+    if (!positions.ok()) return ctx.Fail(kCmd, positions.status());
+    keyframes = std::move(positions).value();
+  }
+  if (o.max_zone_keyframes < 0) {
+    return ctx.Fail(kCmd, "--max-zone-keyframes must be >= 0 (0 = no cap)");
+  }
+  nlohmann::json report;
+  std::vector<Zone> zones;
+  if (o.map.empty()) {
+    // No grid: compact zones from the keyframe positions alone.
+    if (o.db.empty()) return ctx.Fail(kCmd, "give MAP (.yaml, .png or RTAB-Map .db) or --db");
+    if (!o.score_gt.empty()) return ctx.Fail(kCmd, "--score needs an occupancy grid MAP");
+    KeyframeZoneOptions kz;
+    kz.cell_size_m = o.cell_size_m;
+    kz.max_keyframes = o.max_zone_keyframes > 0 ? o.max_zone_keyframes : kz.max_keyframes;
+    auto made = ZonesFromKeyframes(keyframes, kz);
+    if (!made.ok()) return ctx.Fail(kCmd, made.status());
+    zones = std::move(made).value();
+    report["source"] = "keyframes";
+    report["keyframes"] = keyframes.size();
+  } else {
+    auto grid = LoadOccupancyGrid(o.map, o.resolution_m);
+    if (!grid.ok()) return ctx.Fail(kCmd, grid.status());
+    SegmentOptions options;
+    auto seg = SegmentRooms(*grid, options);
+    if (!seg.ok()) return ctx.Fail(kCmd, seg.status());
+    report["source"] = o.map;
+    report["segment_ms"] = seg->runtime_ms;
+    if (!o.score_gt.empty()) {
+      auto gt = LoadGroundTruthLabels(o.score_gt);
+      if (!gt.ok()) return ctx.Fail(kCmd, gt.status());
+      if (std::abs(gt->rows - grid->rows()) > 1 || std::abs(gt->cols - grid->cols()) > 1) {
+        return ctx.Fail(kCmd, o.score_gt + ": ground truth is " + std::to_string(gt->cols) + "x" +
+                                  std::to_string(gt->rows) + ", map is " +
+                                  std::to_string(grid->cols()) + "x" +
+                                  std::to_string(grid->rows()) + " (at most 1 pixel apart)");
+      }
+      auto score = ScoreSegmentation(seg->labels, *gt);
+      if (!score.ok()) return ctx.Fail(kCmd, score.status());
+      report["score"] = {{"precision", score->precision},
+                         {"recall", score->recall},
+                         {"mean_iou", score->mean_iou},
+                         {"gt_rooms", score->gt_rooms},
+                         {"segments", score->predicted_segments}};
+    }
+    if (o.max_zone_keyframes > 0) {
+      if (o.db.empty()) return ctx.Fail(kCmd, "--max-zone-keyframes needs --db MAP.db");
+      const std::size_t before = seg->segments.size();
+      Status split = SplitOversizeSegments(*grid, keyframes, o.max_zone_keyframes, &*seg);
+      if (!split.ok()) return ctx.Fail(kCmd, split);
+      report["split_added"] = seg->segments.size() - before;
+    }
+    auto made = SegmentationToZones(*seg, *grid, options);
+    if (!made.ok()) return ctx.Fail(kCmd, made.status());
+    zones = std::move(made).value();
+  }
+  if (Status w = WriteZonesGeoJson(o.out, zones); !w.ok()) return ctx.Fail(kCmd, w);
+  int rooms = 0, corridors = 0;
+  for (const Zone& z : zones) (z.kind == "corridor" ? corridors : rooms) += 1;
+  report["zones"] = zones.size();
+  report["rooms"] = rooms;
+  report["corridors"] = corridors;
+  report["out"] = o.out;
+  report["total_ms"] =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (o.json) {
+    std::printf("%s\n", report.dump(2).c_str());
+    return;
+  }
+  std::printf("zones segment: %zu zones (%d rooms, %d corridors) -> %s in %.0f ms\n",
+              zones.size(), rooms, corridors, o.out.c_str(), report["total_ms"].get<double>());
+  if (report.contains("score")) {
+    const auto& s = report["score"];
+    std::printf("score: precision %.1f %% recall %.1f %% mean IoU %.1f %% (%d GT rooms, %d "
+                "segments, segmentation %.0f ms)\n",
+                100.0 * s["precision"].get<double>(), 100.0 * s["recall"].get<double>(),
+                100.0 * s["mean_iou"].get<double>(), s["gt_rooms"].get<int>(),
+                s["segments"].get<int>(), report["segment_ms"].get<double>());
+  }
+}
+
+}  // namespace
+
+void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx) {
+  auto opts = std::make_shared<SegmentOpts>();
+  CLI::App* zones = GetOrAddSubcommand(app, "zones", "Semantic zones");
+  CLI::App* cmd = zones->add_subcommand(
+      "segment", "Automatic zones: room segmentation of an occupancy grid, or keyframe clusters");
+  cmd->add_option("map", opts->map,
+                  "occupancy grid: ROS map YAML, PNG floor plan (white free, black occupied), or "
+                  "RTAB-Map database (Admin.opt_map); omit to zone the --db keyframes alone");
+  cmd->add_option("--out", opts->out, "output GeoJSON zone file")->required();
+  cmd->add_option("--score", opts->score_gt,
+                  "ground-truth PNG (one flat colour per room, black = none): print precision, "
+                  "recall, mean IoU");
+  cmd->add_option("--db", opts->db, "zonemap map database whose keyframes cap or make the zones");
+  cmd->add_option("--max-zone-keyframes", opts->max_zone_keyframes,
+                  "split zones holding more keyframes than this (0 = no cap; needs --db)");
+  cmd->add_option("--resolution", opts->resolution_m,
+                  "metres per pixel of a PNG map (default 0.05) or override of the YAML's");
+  cmd->add_option("--cell-size", opts->cell_size_m,
+                  "keyframe-only zones: cell size in metres before size-capped splits");
+  cmd->add_flag("--json", opts->json, "print a JSON report");
+  cmd->callback([opts, &ctx] { Run(*opts, ctx); });
+}
+
+}  // namespace zm::app

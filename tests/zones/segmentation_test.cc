@@ -1,0 +1,299 @@
+// Automatic zones: a synthetic floor of rectangular rooms joined by doors is segmented exactly;
+// a real map scores within the range measured in docs/segmentation.md; grid loaders (YAML, PNG,
+// RTAB-Map opt_map) place cells right and reject bad input with one clear error; keyframe-only
+// zones and oversize splits respect their keyframe cap.
+#include <doctest/doctest.h>
+#include <sqlite3.h>
+#include <zlib.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+#include <string>
+
+#include "zones/grid_map.h"
+#include "zones/polygon.h"
+#include "zones/segmentation.h"
+#include "zones/zone_set.h"
+
+namespace zm {
+namespace {
+
+std::filesystem::path TempDir(const std::string& name) {
+  auto dir = std::filesystem::path(ZM_BINARY_DIR) / "segmentation_test" / name;
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+// A 0.05 m/px floor: a 12 x 1.6 m corridor along the top, three rooms below it (4 x 4, 4 x 4,
+// 3.5 x 4 m), 0.1 m walls, a 0.9 m door from each room to the corridor. `truth` gets one label
+// per room (1..3) and the corridor (4).
+OccupancyGrid SyntheticFloor(cv::Mat* truth) {
+  constexpr int kPx = 20;  // cells per metre
+  OccupancyGrid grid;
+  grid.resolution_m = 0.05;
+  grid.cells = cv::Mat(8 * kPx, 14 * kPx, CV_8UC1, cv::Scalar(kCellUnknown));
+  *truth = cv::Mat::zeros(grid.cells.size(), CV_32S);
+  auto rect = [&](double x0, double y0, double x1, double y1) {
+    return cv::Rect(cv::Point(static_cast<int>(x0 * kPx), static_cast<int>(y0 * kPx)),
+                    cv::Point(static_cast<int>(x1 * kPx), static_cast<int>(y1 * kPx)));
+  };
+  // Outer wall block then free interiors (walls are what is left between them).
+  cv::rectangle(grid.cells, rect(0.9, 0.9, 13.1, 7.1), cv::Scalar(kCellOccupied), cv::FILLED);
+  const cv::Rect corridor = rect(1.0, 1.0, 13.0, 2.6);
+  const cv::Rect rooms[3] = {rect(1.0, 2.7, 5.0, 7.0), rect(5.1, 2.7, 9.1, 7.0),
+                             rect(9.2, 2.7, 13.0, 7.0)};
+  cv::rectangle(grid.cells, corridor, cv::Scalar(kCellFree), cv::FILLED);
+  cv::rectangle(*truth, corridor, cv::Scalar(4), cv::FILLED);
+  for (int i = 0; i < 3; ++i) {
+    cv::rectangle(grid.cells, rooms[i], cv::Scalar(kCellFree), cv::FILLED);
+    cv::rectangle(*truth, rooms[i], cv::Scalar(i + 1), cv::FILLED);
+    const double door_x = 2.0 + 4.1 * i;
+    cv::rectangle(grid.cells, rect(door_x, 2.6, door_x + 0.9, 2.7), cv::Scalar(kCellFree),
+                  cv::FILLED);
+  }
+  return grid;
+}
+
+TEST_CASE("a synthetic floor of rooms joined by doors is segmented one segment per room") {
+  cv::Mat truth;
+  const OccupancyGrid grid = SyntheticFloor(&truth);
+  auto seg = SegmentRooms(grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  CHECK(seg->segments.size() == 4);
+  auto score = ScoreSegmentation(seg->labels, truth);
+  REQUIRE(score.ok());
+  CHECK(score->gt_rooms == 4);
+  CHECK(score->predicted_segments == 4);
+  CHECK(score->precision > 0.99);
+  CHECK(score->recall > 0.99);
+  CHECK(score->mean_iou > 0.98);
+  // The corridor is labelled by its shape, the rooms too.
+  int corridors = 0;
+  for (const auto& s : seg->segments) corridors += s.kind == "corridor" ? 1 : 0;
+  CHECK(corridors == 1);
+
+  // Polygons in metres, y up: the corridor (top rows of the image) has the largest y.
+  auto zones = SegmentationToZones(*seg, grid);
+  REQUIRE(zones.ok());
+  REQUIRE(zones->size() == 4);
+  for (const Zone& z : *zones) {
+    CHECK(z.polygon.size() >= 4);
+    CHECK(SignedArea(z.polygon) > 0.0);
+    CHECK_FALSE(FindSelfIntersection(z.polygon).has_value());
+    if (z.kind == "corridor") {
+      // Corridor spans image rows 20..51 -> y from 8 - 2.6 = 5.4 m to 8 - 1.0 = 7.0 m.
+      CHECK(PointInPolygon(z.polygon, {7.0, 6.2}));
+      // Outlines run through the boundary cells' centres (half a cell inside) and are simplified.
+      CHECK(SignedArea(z.polygon) > 0.88 * 12.0 * 1.6);
+      CHECK(SignedArea(z.polygon) < 12.0 * 1.6 + 0.2);
+    }
+  }
+  // The GeoJSON is accepted by the zones module's own loader.
+  const auto dir = TempDir("synthetic");
+  const std::string path = (dir / "zones.geojson").string();
+  REQUIRE(WriteZonesGeoJson(path, *zones).ok());
+  auto loaded = LoadZoneFile(path);
+  REQUIRE_MESSAGE(loaded.ok(), loaded.status().ToString());
+  CHECK(loaded->size() == 4);
+}
+
+TEST_CASE("a real map (map15) scores within the measured range") {
+  const std::string base = std::string(ZM_SHARED_DIR) + "/data/floorplans/map15";
+  auto grid = LoadGridImage(base + "_map.png");
+  REQUIRE_MESSAGE(grid.ok(), grid.status().ToString());
+  auto gt = LoadGroundTruthLabels(base + "_gt.png");
+  REQUIRE(gt.ok());
+  auto seg = SegmentRooms(*grid);
+  REQUIRE(seg.ok());
+  auto score = ScoreSegmentation(seg->labels, *gt);
+  REQUIRE(score.ok());
+  // Measured 85.2 / 95.1 / 69.6 % (docs/segmentation.md); bounds leave a margin.
+  CHECK(score->gt_rooms == 20);
+  CHECK(score->precision >= 0.80);
+  CHECK(score->recall >= 0.90);
+  CHECK(score->mean_iou >= 0.62);
+  CHECK(score->predicted_segments >= 12);
+  CHECK(score->predicted_segments <= 25);
+}
+
+TEST_CASE("bad inputs give one clear error naming the file") {
+  const auto dir = TempDir("bad");
+  auto missing = LoadOccupancyGrid((dir / "nope.png").string());
+  REQUIRE_FALSE(missing.ok());
+  CHECK(missing.status().code() == StatusCode::kNotFound);
+  CHECK(missing.status().message().find("nope.png") != std::string::npos);
+
+  const std::string text = (dir / "text.png").string();
+  std::ofstream(text) << "this is not an image\n";
+  auto not_image = LoadOccupancyGrid(text);
+  REQUIRE_FALSE(not_image.ok());
+  CHECK(not_image.status().message().find("not a readable image") != std::string::npos);
+
+  cv::imwrite((dir / "map.pgm").string(), cv::Mat(4, 4, CV_8UC1, cv::Scalar(254)));
+  const std::string bad_res = (dir / "bad_res.yaml").string();
+  std::ofstream(bad_res) << "image: map.pgm\nresolution: -0.05\norigin: [0, 0, 0]\n";
+  auto res = LoadOccupancyGrid(bad_res);
+  REQUIRE_FALSE(res.ok());
+  CHECK(res.status().message().find("resolution") != std::string::npos);
+  CHECK(res.status().message().find("bad_res.yaml:2") != std::string::npos);
+
+  const std::string unknown = (dir / "unknown.yaml").string();
+  std::ofstream(unknown) << "image: map.pgm\nresolution: 0.05\norigin: [0, 0, 0]\ncolour: red\n";
+  auto unk = LoadOccupancyGrid(unknown);
+  REQUIRE_FALSE(unk.ok());
+  CHECK(unk.status().message().find("unknown key 'colour'") != std::string::npos);
+
+  CHECK_FALSE(LoadGridImage(text, 0.0).ok());
+  CHECK_FALSE(LoadGroundTruthLabels((dir / "gt_missing.png").string()).ok());
+}
+
+TEST_CASE("ROS YAML grids follow map_server thresholds and place cells with y up") {
+  const auto dir = TempDir("yaml");
+  cv::Mat img(2, 3, CV_8UC1);
+  img.at<std::uint8_t>(0, 0) = 254;  // free
+  img.at<std::uint8_t>(0, 1) = 0;    // occupied
+  img.at<std::uint8_t>(0, 2) = 205;  // unknown (p = 0.196..0.65)
+  img.at<std::uint8_t>(1, 0) = 0;
+  img.at<std::uint8_t>(1, 1) = 254;
+  img.at<std::uint8_t>(1, 2) = 254;
+  cv::imwrite((dir / "m.pgm").string(), img);
+  const std::string yaml = (dir / "m.yaml").string();
+  std::ofstream(yaml) << "# a map\nimage: m.pgm\nresolution: 0.5\norigin: [-1.0, 2.0, 0.0]\n"
+                         "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n";
+  auto grid = LoadOccupancyGrid(yaml);
+  REQUIRE_MESSAGE(grid.ok(), grid.status().ToString());
+  CHECK(grid->cells.at<std::uint8_t>(0, 0) == kCellFree);
+  CHECK(grid->cells.at<std::uint8_t>(0, 1) == kCellOccupied);
+  CHECK(grid->cells.at<std::uint8_t>(0, 2) == kCellUnknown);
+  CHECK(grid->cells.at<std::uint8_t>(1, 0) == kCellOccupied);
+  // Bottom-left cell (col 0, row 1) has its centre half a cell from the origin.
+  const Eigen::Vector2d p = grid->CellToMetres(0, 1);
+  CHECK(p.x() == doctest::Approx(-0.75));
+  CHECK(p.y() == doctest::Approx(2.25));
+  int col = -1, row = -1;
+  REQUIRE(grid->CellOf({0.1, 2.9}, &col, &row));  // top row, middle column
+  CHECK(col == 2);
+  CHECK(row == 0);
+  CHECK_FALSE(grid->CellOf({-1.1, 2.1}, &col, &row));
+}
+
+TEST_CASE("an RTAB-Map database's Admin.opt_map becomes a grid, flipped to y up") {
+  const auto dir = TempDir("rtabmap");
+  const std::string db_path = (dir / "rtabmap.db").string();
+  // 2 rows x 3 cols int8, RTAB-Map row 0 = lowest y.
+  const std::int8_t cells[6] = {0, 100, -1, 100, 0, 0};
+  uLongf bound = compressBound(sizeof(cells));
+  std::string blob(bound, '\0');
+  REQUIRE(compress(reinterpret_cast<Bytef*>(blob.data()), &bound,
+                   reinterpret_cast<const Bytef*>(cells), sizeof(cells)) == Z_OK);
+  blob.resize(bound);
+  const std::int32_t trailer[3] = {2, 3, CV_8SC1};
+  blob.append(reinterpret_cast<const char*>(trailer), sizeof(trailer));
+
+  sqlite3* db = nullptr;
+  REQUIRE(sqlite3_open(db_path.c_str(), &db) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(db,
+                       "CREATE TABLE Admin (version TEXT, opt_map BLOB, opt_map_x_min FLOAT, "
+                       "opt_map_y_min FLOAT, opt_map_resolution FLOAT)",
+                       nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  REQUIRE(sqlite3_prepare_v2(db, "INSERT INTO Admin VALUES ('0.21.0', ?, -2.0, 3.0, 0.1)", -1,
+                             &stmt, nullptr) == SQLITE_OK);
+  sqlite3_bind_blob(stmt, 1, blob.data(), static_cast<int>(blob.size()), SQLITE_TRANSIENT);
+  REQUIRE(sqlite3_step(stmt) == SQLITE_DONE);
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+
+  auto grid = LoadOccupancyGrid(db_path);
+  REQUIRE_MESSAGE(grid.ok(), grid.status().ToString());
+  REQUIRE(grid->rows() == 2);
+  REQUIRE(grid->cols() == 3);
+  CHECK(grid->resolution_m == doctest::Approx(0.1));
+  // RTAB-Map row 0 is our bottom row (image row 1).
+  CHECK(grid->cells.at<std::uint8_t>(1, 0) == kCellFree);
+  CHECK(grid->cells.at<std::uint8_t>(1, 1) == kCellOccupied);
+  CHECK(grid->cells.at<std::uint8_t>(1, 2) == kCellUnknown);
+  CHECK(grid->cells.at<std::uint8_t>(0, 0) == kCellOccupied);
+  const Eigen::Vector2d p = grid->CellToMetres(0, 1);
+  CHECK(p.x() == doctest::Approx(-1.95));
+  CHECK(p.y() == doctest::Approx(3.05));
+
+  // A truncated blob is a clear Corrupt error, not a crash.
+  auto truncated = DecodeRtabmapMapBlob(blob.substr(0, 8), 0.0, 0.0, 0.1);
+  REQUIRE_FALSE(truncated.ok());
+  CHECK(truncated.status().code() == StatusCode::kCorrupt);
+  // A database without a saved map says so.
+  REQUIRE(sqlite3_open(db_path.c_str(), &db) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(db, "UPDATE Admin SET opt_map = NULL", nullptr, nullptr, nullptr) ==
+          SQLITE_OK);
+  sqlite3_close(db);
+  auto empty = LoadOccupancyGrid(db_path);
+  REQUIRE_FALSE(empty.ok());
+  CHECK(empty.status().code() == StatusCode::kNotFound);
+}
+
+TEST_CASE("keyframe-only zones are compact, disjoint and capped in keyframes") {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 20.0);
+  std::vector<Eigen::Vector2d> pts;
+  for (int i = 0; i < 900; ++i) pts.emplace_back(u(rng), u(rng) * 0.5);
+  for (int i = 0; i < 300; ++i) pts.emplace_back(3.0 + 0.01 * (i % 10), 3.0);  // a dense spot
+  auto zones = ZonesFromKeyframes(pts, {.cell_size_m = 8.0, .max_keyframes = 100,
+                                        .margin_m = 0.5});
+  REQUIRE_MESSAGE(zones.ok(), zones.status().ToString());
+  std::vector<int> count(zones->size(), 0);
+  for (const auto& p : pts) {
+    int inside = 0;
+    for (std::size_t z = 0; z < zones->size(); ++z) {
+      const auto& ring = (*zones)[z].polygon;
+      if (PointInPolygon(ring, p) || DistanceToBoundary(ring, p) < 1e-6) {
+        ++count[z];
+        ++inside;
+      }
+    }
+    CHECK(inside >= 1);
+    CHECK(inside <= 2);  // only points exactly on a shared cut may touch two
+  }
+  for (std::size_t z = 0; z < zones->size(); ++z) {
+    CHECK(count[z] <= 100 + 2);
+    CHECK(SignedArea((*zones)[z].polygon) > 0.0);
+  }
+  CHECK(zones->size() >= 12);
+
+  CHECK_FALSE(ZonesFromKeyframes(pts, {.cell_size_m = 0.0}).ok());
+  std::vector<Eigen::Vector2d> same(5, Eigen::Vector2d(1.0, 1.0));
+  CHECK_FALSE(ZonesFromKeyframes(same, {.max_keyframes = 2}).ok());
+}
+
+TEST_CASE("segments holding too many keyframes are split until each fits") {
+  cv::Mat truth;
+  const OccupancyGrid grid = SyntheticFloor(&truth);
+  auto seg = SegmentRooms(grid);
+  REQUIRE(seg.ok());
+  // 60 keyframes along the corridor (y = 6.2 m), 10 in the first room.
+  std::vector<Eigen::Vector2d> kf;
+  for (int i = 0; i < 60; ++i) kf.emplace_back(1.2 + 0.19 * i, 6.2);
+  for (int i = 0; i < 10; ++i) kf.emplace_back(2.0 + 0.2 * i, 3.0);
+  const std::size_t before = seg->segments.size();
+  REQUIRE(SplitOversizeSegments(grid, kf, 16, &*seg).ok());
+  CHECK(seg->segments.size() == before + 3);  // corridor 60 -> 4 parts of 15
+  std::map<int, int> per_label;
+  for (const auto& p : kf) {
+    int col = 0, row = 0;
+    REQUIRE(grid.CellOf(p, &col, &row));
+    ++per_label[seg->labels.at<int>(row, col)];
+  }
+  for (const auto& [label, n] : per_label) {
+    CHECK(label > 0);
+    CHECK(n <= 16);
+  }
+  CHECK_FALSE(SplitOversizeSegments(grid, kf, 0, &*seg).ok());
+}
+
+}  // namespace
+}  // namespace zm
