@@ -245,6 +245,10 @@ Result<std::unique_ptr<MapDb>> MapDb::Open(const std::string& path, MapDbOptions
   ZM_ASSIGN_OR_RETURN(impl->db, sqlite::Open(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX));
   sqlite3* db = impl->db.get();
   ZM_RETURN_IF_ERROR(CheckSchema(db, path));
+  if (options.mmap_bytes > 0) {
+    ZM_RETURN_IF_ERROR(sqlite::Exec(db, "PRAGMA mmap_size=" + std::to_string(options.mmap_bytes),
+                                    "setting mmap_size on " + path));
+  }
 
   ZM_ASSIGN_OR_RETURN(impl->begin, Prepare(db, "BEGIN"));
   ZM_ASSIGN_OR_RETURN(impl->commit, Prepare(db, "COMMIT"));

@@ -125,6 +125,9 @@ class KeyframeSource {
 struct MapDbOptions {
   bool verify_checksums = true;  // CRC-check each payload as it lands in its slot
   std::int64_t sqlite_heap_limit_bytes = 0;  // sqlite3_hard_heap_limit64; 0 = none
+  // PRAGMA mmap_size: read pages through a memory map instead of read() calls; 0 = off. Faster
+  // loads, but a file truncated by another process while mapped raises SIGBUS, so off by default.
+  std::int64_t mmap_bytes = 0;
 };
 
 // Read-only access for the run-time. Move-only; closing is RAII.

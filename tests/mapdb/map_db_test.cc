@@ -121,6 +121,23 @@ TEST_CASE("zone load lands exact payload bytes in slots, one query and one trans
   }
 }
 
+TEST_CASE("memory-mapped reads (MapDbOptions::mmap_bytes) land the same bytes") {
+  TempDir dir;
+  const std::string path = dir.File("map.db");
+  auto built = BuildMap(path);
+  auto db = MapDb::Open(path, MapDbOptions{.verify_checksums = true, .sqlite_heap_limit_bytes = 0,
+                                           .mmap_bytes = 1 << 20});
+  REQUIRE(db.ok());
+  Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
+  RecordingSink sink;
+  REQUIRE((*db)->LoadZone(ZoneId{2}, arena, sink).ok());
+  REQUIRE(sink.loaded().size() == 4);
+  for (const auto& e : sink.loaded()) {
+    const auto& want = built.payloads.at(e.id.value);
+    CHECK(std::memcmp(arena.Slot(e.slot).data(), want.data(), want.size()) == 0);
+  }
+}
+
 TEST_CASE("overlapping zones: resident members are skipped, not read twice") {
   TempDir dir;
   const std::string path = dir.File("map.db");
