@@ -40,7 +40,7 @@ TEST_CASE("grid lookup agrees with brute force on random rooms and points") {
     } else {
       poly = Rect(x, y, x + w, y + h);
     }
-    zones.push_back(MakeZone("z" + std::to_string(i), poly, i % 2, i % 2 ? 1.5 : -1.5,
+    zones.push_back(MakeZone(test::Numbered("z", i), poly, i % 2, i % 2 ? 1.5 : -1.5,
                              i % 2 ? 4.5 : 1.5));
   }
   const ZoneSet set = MakeSet(zones);
@@ -119,7 +119,7 @@ TEST_CASE("GetZone and Lookup allocate nothing") {
   std::vector<Zone> zones;
   for (int i = 0; i < 100; ++i) {
     const double x = 5.0 * (i % 10), y = 5.0 * (i / 10);
-    zones.push_back(MakeZone("r" + std::to_string(i), Rect(x, y, x + 5, y + 5)));
+    zones.push_back(MakeZone(test::Numbered("r", i), Rect(x, y, x + 5, y + 5)));
   }
   const ZoneSet set = MakeSet(zones);
   const ZoneIndex index(set);

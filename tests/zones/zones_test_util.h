@@ -15,6 +15,13 @@ inline std::vector<Eigen::Vector2d> Rect(double x0, double y0, double x1, double
   return {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
 }
 
+// "r7": built by append, since GCC 12's -Wrestrict misfires on `"r" + std::to_string(i)` at -O3.
+inline std::string Numbered(const char* prefix, int i) {
+  std::string s = prefix;
+  s += std::to_string(i);
+  return s;
+}
+
 inline Zone MakeZone(std::string name, std::vector<Eigen::Vector2d> polygon, int floor = 0,
                      double z_min = -kUnboundedZM, double z_max = kUnboundedZM) {
   Zone z;
