@@ -85,6 +85,7 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
       report["score"] = {{"precision", score->precision},
                          {"recall", score->recall},
                          {"mean_iou", score->mean_iou},
+                         {"mean_iou_full", score->mean_iou_full},
                          {"gt_rooms", score->gt_rooms},
                          {"segments", score->predicted_segments}};
     }
@@ -116,10 +117,11 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
               zones.size(), rooms, corridors, o.out.c_str(), report["total_ms"].get<double>());
   if (report.contains("score")) {
     const auto& s = report["score"];
-    std::printf("score: precision %.1f %% recall %.1f %% mean IoU %.1f %% (%d GT rooms, %d "
-                "segments, segmentation %.0f ms)\n",
+    std::printf("score: precision %.1f %% recall %.1f %% mean IoU %.1f %% (all cells %.1f %%) "
+                "(%d GT rooms, %d segments, segmentation %.0f ms)\n",
                 100.0 * s["precision"].get<double>(), 100.0 * s["recall"].get<double>(),
-                100.0 * s["mean_iou"].get<double>(), s["gt_rooms"].get<int>(),
+                100.0 * s["mean_iou"].get<double>(), 100.0 * s["mean_iou_full"].get<double>(),
+                s["gt_rooms"].get<int>(),
                 s["segments"].get<int>(), report["segment_ms"].get<double>());
   }
 }

@@ -771,14 +771,15 @@ Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::
   const int cols = std::min(predicted.cols, ground_truth.cols);
   std::map<std::pair<int, int>, std::int64_t> overlap;  // (pred, gt) -> cells
   std::map<int, std::int64_t> pred_area, gt_area;       // restricted to cells in both
+  std::map<int, std::int64_t> gt_full, pred_full;  // every cell
   std::map<int, bool> gt_present, pred_present;
   std::int64_t total = 0;
   for (int r = 0; r < rows; ++r) {
     const int* p = predicted.ptr<int>(r);
     const int* g = ground_truth.ptr<int>(r);
     for (int c = 0; c < cols; ++c) {
-      if (g[c] > 0) gt_present[g[c]] = true;
-      if (p[c] > 0) pred_present[p[c]] = true;
+      if (g[c] > 0) gt_present[g[c]] = true, ++gt_full[g[c]];
+      if (p[c] > 0) pred_present[p[c]] = true, ++pred_full[p[c]];
       if (p[c] <= 0 || g[c] <= 0) continue;
       ++overlap[{p[c], g[c]}];
       ++pred_area[p[c]];
@@ -791,13 +792,16 @@ Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::
   score.predicted_segments = static_cast<int>(pred_present.size());
   if (total == 0) return score;
   std::map<int, std::int64_t> best_for_pred, best_for_gt;
-  std::map<int, double> best_iou;
+  std::map<int, double> best_iou, best_iou_full;
   for (const auto& [key, n] : overlap) {
     const auto [p, g] = key;
     best_for_pred[p] = std::max(best_for_pred[p], n);
     best_for_gt[g] = std::max(best_for_gt[g], n);
     const double iou = static_cast<double>(n) / static_cast<double>(pred_area[p] + gt_area[g] - n);
     best_iou[g] = std::max(best_iou[g], iou);
+    const double full =
+        static_cast<double>(n) / static_cast<double>(pred_full[p] + gt_full[g] - n);
+    best_iou_full[g] = std::max(best_iou_full[g], full);
   }
   std::int64_t sum_p = 0, sum_g = 0;
   for (const auto& [p, n] : best_for_pred) sum_p += n;
@@ -807,6 +811,9 @@ Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::
   double iou_sum = 0.0;
   for (const auto& [g, iou] : best_iou) iou_sum += iou;
   score.mean_iou = score.gt_rooms > 0 ? iou_sum / score.gt_rooms : 0.0;
+  double full_sum = 0.0;
+  for (const auto& [g, iou] : best_iou_full) full_sum += iou;
+  score.mean_iou_full = score.gt_rooms > 0 ? full_sum / score.gt_rooms : 0.0;
   return score;
 }
 
