@@ -28,6 +28,7 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddImportCommand(app, ctx);
   AddEvalCommand(app, ctx);
   AddZonesSegmentCommand(app, ctx);
+  AddZonesAnnotateCommand(app, ctx);
 }
 
 }  // namespace zm::app

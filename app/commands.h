@@ -28,5 +28,6 @@ void AddArenaCommand(CLI::App& app, CommandContext& ctx);
 void AddImportCommand(CLI::App& app, CommandContext& ctx);
 void AddEvalCommand(CLI::App& app, CommandContext& ctx);
 void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx);
+void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx);
 
 }  // namespace zm::app
