@@ -29,6 +29,7 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddEvalCommand(app, ctx);
   AddZonesSegmentCommand(app, ctx);
   AddZonesAnnotateCommand(app, ctx);
+  AddSimCommand(app, ctx);
 }
 
 }  // namespace zm::app

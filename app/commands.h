@@ -29,5 +29,6 @@ void AddImportCommand(CLI::App& app, CommandContext& ctx);
 void AddEvalCommand(CLI::App& app, CommandContext& ctx);
 void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx);
 void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx);
+void AddSimCommand(CLI::App& app, CommandContext& ctx);
 
 }  // namespace zm::app

@@ -1,0 +1,639 @@
+// Scenario generation: mapping run -> map.db, patrol -> frames.bin, plus ground truth, zones and
+// metadata (see scenario.h). Work is done in chunks; inside a chunk items are independent (each
+// keyframe/frame has its own Rng stream), so worker threads never change the output.
+#include "sim/scenario.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <optional>
+#include <thread>
+
+#include "geometry/trajectory.h"
+#include "localization/camera.h"
+#include "mapdb/map_db.h"
+#include "sim/frames_file.h"
+#include "sim/progress.h"
+#include "zones/annotate.h"
+#include "zones/zone_set.h"
+
+namespace zm::sim {
+namespace {
+
+constexpr std::uint64_t kStreamMappingRoute = 11;
+constexpr std::uint64_t kStreamPatrol = 12;
+constexpr std::uint64_t kStreamOdometry = 13;
+constexpr std::uint64_t kStreamKeyframe = 1'000'000;
+constexpr std::uint64_t kStreamFrame = 50'000'000;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+// Runs fn(i) for i in [0, n) on up to `threads` threads.
+template <class Fn>
+void ParallelFor(std::size_t n, int threads, Fn&& fn) {
+  const std::size_t workers = std::min<std::size_t>(n, static_cast<std::size_t>(std::max(1, threads)));
+  if (workers <= 1) {
+    for (std::size_t i = 0; i < n; ++i) fn(i);
+    return;
+  }
+  std::atomic<std::size_t> next{0};
+  std::vector<std::thread> pool;
+  pool.reserve(workers);
+  for (std::size_t w = 0; w < workers; ++w) {
+    pool.emplace_back([&] {
+      for (std::size_t i = next.fetch_add(1); i < n; i = next.fetch_add(1)) fn(i);
+    });
+  }
+  for (auto& t : pool) t.join();
+}
+
+struct Planners {
+  std::vector<Planner> per_floor;
+  Planners(const Building& b, double radius) {
+    per_floor.reserve(b.floors.size());
+    for (const FloorMap& f : b.floors) per_floor.emplace_back(f.grid, radius);
+  }
+};
+
+// Drives from the current position to zone `goal`, through the elevator when it is on another
+// floor. Returns false (and moves nowhere) if the goal cannot be reached.
+bool GoTo(const Building& b, Planners& planners, TrajectoryBuilder& tb, int goal) {
+  const ZoneDef& z = b.zones[static_cast<std::size_t>(goal)];
+  int floor = tb.floor();
+  if (z.floor != floor) {
+    if (b.elevator_zone.empty()) return false;
+    const ZoneDef& here = b.zones[static_cast<std::size_t>(b.elevator_zone[static_cast<std::size_t>(floor)])];
+    const ZoneDef& there = b.zones[static_cast<std::size_t>(b.elevator_zone[static_cast<std::size_t>(z.floor)])];
+    auto& p0 = planners.per_floor[static_cast<std::size_t>(floor)];
+    auto& p1 = planners.per_floor[static_cast<std::size_t>(z.floor)];
+    if (!p0.Connected(tb.position(), here.viewpoint) || !p1.Connected(there.viewpoint, z.viewpoint)) {
+      return false;
+    }
+    tb.Drive(p0.Plan(tb.position(), here.viewpoint));
+    tb.ChangeFloor(z.floor);
+    floor = z.floor;
+  }
+  auto& planner = planners.per_floor[static_cast<std::size_t>(floor)];
+  const auto path = planner.Plan(tb.position(), z.viewpoint);
+  if (path.empty()) return false;
+  tb.Drive(path);
+  return true;
+}
+
+double PathLength(const std::vector<PoseSample>& s) {
+  double len = 0.0;
+  for (std::size_t i = 1; i < s.size(); ++i) len += std::hypot(s[i].x - s[i - 1].x, s[i].y - s[i - 1].y);
+  return len;
+}
+
+// Odometry poses for the frames (see DriftOptions).
+std::vector<Pose3> Odometry(const std::vector<PoseSample>& truth, const DriftOptions& o, std::uint64_t seed) {
+  Rng rng(seed, kStreamOdometry);
+  std::vector<Pose3> odom;
+  odom.reserve(truth.size());
+  if (truth.empty()) return odom;
+  double x = truth[0].x, y = truth[0].y, yaw = truth[0].yaw;
+  odom.push_back(PoseFromXYYaw(x, y, yaw, truth[0].z));
+  for (std::size_t i = 1; i < truth.size(); ++i) {
+    const PoseSample& a = truth[i - 1];
+    const PoseSample& b = truth[i];
+    // True step in a's body frame.
+    const double c = std::cos(a.yaw), s = std::sin(a.yaw);
+    const double dxw = b.x - a.x, dyw = b.y - a.y;
+    double fwd = c * dxw + s * dyw, lat = -s * dxw + c * dyw;
+    double dyaw = std::remainder(b.yaw - a.yaw, 2.0 * std::numbers::pi);
+    const double d = std::hypot(fwd, lat);
+    fwd += o.trans_bias * d + rng.Normal(0.0, o.trans_noise_per_m * d);
+    lat += rng.Normal(0.0, 0.5 * o.trans_noise_per_m * d);
+    dyaw += (o.heading_bias_deg_per_m * d + rng.Normal(0.0, o.heading_noise_deg_per_m * d)) * kDeg +
+            o.rot_bias * dyaw + rng.Normal(0.0, o.rot_noise * std::abs(dyaw));
+    x += std::cos(yaw) * fwd - std::sin(yaw) * lat;
+    y += std::sin(yaw) * fwd + std::cos(yaw) * lat;
+    yaw = std::remainder(yaw + dyaw, 2.0 * std::numbers::pi);
+    odom.push_back(PoseFromXYYaw(x, y, yaw, b.z));
+  }
+  return odom;
+}
+
+Status WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) return IoError("cannot create " + path);
+  out << text;
+  if (!out) return IoError("cannot write " + path);
+  return Status::Ok();
+}
+
+Result<ZoneSet> ToZoneSet(const Building& b) {
+  ZoneSet set;
+  for (const ZoneDef& z : b.zones) {
+    Zone zone;
+    zone.name = z.name;
+    zone.kind = z.kind;
+    zone.floor = z.floor;
+    zone.z_min_m = z.floor * b.floor_height_m - 1.0;
+    zone.z_max_m = (z.floor + 1) * b.floor_height_m - 1.0;
+    zone.polygon = z.polygon;
+    ZM_RETURN_IF_ERROR(set.Add(std::move(zone), {}, "zone " + z.name));
+  }
+  return set;
+}
+
+// One rendered keyframe.
+struct KeyframeOut {
+  std::vector<std::byte> payload;
+  std::uint32_t features = 0;
+  Status status;
+};
+
+}  // namespace
+
+Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o, const std::string& dir) {
+  if (b.zones.empty() || b.floors.empty()) return InvalidArgument("the building has no zones");
+  if (!(o.rate_hz > 0.0 && o.rate_hz <= 100.0)) {
+    return InvalidArgument("frame rate " + std::to_string(o.rate_hz) + " Hz is outside (0, 100]");
+  }
+  if (o.tasks < 1 || o.tasks > 100000) return InvalidArgument("tasks must be in [1, 100000]");
+  if (o.keyframe_bytes_max != 0 && o.keyframe_bytes_min >= o.keyframe_bytes_max) {
+    return InvalidArgument("keyframe byte range " + std::to_string(o.keyframe_bytes_min) + ":" +
+                           std::to_string(o.keyframe_bytes_max) + " is empty");
+  }
+  if (o.noise.max_features < 1 || o.noise.max_features > kMaxFeaturesPerKeyframe) {
+    return InvalidArgument("max features must be in [1, " + std::to_string(kMaxFeaturesPerKeyframe) + "]");
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return IoError("cannot create output folder " + dir + ": " + ec.message());
+
+  ScenarioReport report;
+  report.zones = b.zones.size();
+  const LandmarkMap landmarks = LandmarkMap::Generate(b, o.landmarks, o.seed);
+  report.landmarks = landmarks.landmarks().size();
+  Planners planners(b, o.robot_radius_m);
+
+  // --- Mapping run: visit every reachable zone, nearest first, floor by floor; spin in rooms.
+  const ZoneDef& start = b.zones[static_cast<std::size_t>(b.start_zone)];
+  if (!planners.per_floor[static_cast<std::size_t>(start.floor)].Clear(start.viewpoint)) {
+    return FailedPrecondition("the start zone " + start.name + " has no room for a robot of radius " +
+                              std::to_string(o.robot_radius_m) + " m");
+  }
+  std::vector<bool> reachable(b.zones.size(), false);
+  for (std::size_t i = 0; i < b.zones.size(); ++i) {
+    const ZoneDef& z = b.zones[i];
+    if (z.floor == start.floor) {
+      reachable[i] = planners.per_floor[static_cast<std::size_t>(z.floor)].Connected(start.viewpoint, z.viewpoint);
+    } else if (!b.elevator_zone.empty()) {
+      const ZoneDef& e0 = b.zones[static_cast<std::size_t>(b.elevator_zone[static_cast<std::size_t>(start.floor)])];
+      const ZoneDef& e1 = b.zones[static_cast<std::size_t>(b.elevator_zone[static_cast<std::size_t>(z.floor)])];
+      reachable[i] = planners.per_floor[static_cast<std::size_t>(start.floor)].Connected(start.viewpoint, e0.viewpoint) &&
+                     planners.per_floor[static_cast<std::size_t>(z.floor)].Connected(e1.viewpoint, z.viewpoint);
+    }
+    if (!reachable[i]) ++report.unreachable_zones;
+  }
+  TrajectoryBuilder mapping(o.motion, 0.1, o.camera.height_m, b.floor_height_m);
+  {
+    Rng rng(o.seed, kStreamMappingRoute);
+    mapping.Start(start.floor, start.viewpoint, rng.Uniform(-std::numbers::pi, std::numbers::pi));
+    mapping.Spin(2.0 * std::numbers::pi);
+    std::vector<bool> done(b.zones.size(), false);
+    done[static_cast<std::size_t>(b.start_zone)] = true;
+    for (std::size_t f = 0; f < b.floors.size(); ++f) {
+      const int floor = static_cast<int>((static_cast<std::size_t>(start.floor) + f) % b.floors.size());
+      while (true) {
+        int best = -1;
+        double best_d = 1e18;
+        for (std::size_t i = 0; i < b.zones.size(); ++i) {
+          if (done[i] || !reachable[i] || b.zones[i].floor != floor) continue;
+          const double d = (b.zones[i].viewpoint - mapping.position()).squaredNorm() +
+                           (mapping.floor() == floor ? 0.0 : 1e12);
+          if (d < best_d) {
+            best_d = d;
+            best = static_cast<int>(i);
+          }
+        }
+        if (best < 0) break;
+        done[static_cast<std::size_t>(best)] = true;
+        if (!GoTo(b, planners, mapping, best)) continue;
+        if (b.zones[static_cast<std::size_t>(best)].kind != "corridor") mapping.Spin(2.0 * std::numbers::pi);
+      }
+    }
+  }
+  // Keyframes every keyframe_distance_m or keyframe_angle_deg (or a floor change).
+  std::vector<PoseSample> kf_samples;
+  for (const PoseSample& s : mapping.samples()) {
+    if (!kf_samples.empty()) {
+      const PoseSample& last = kf_samples.back();
+      const double moved = std::hypot(s.x - last.x, s.y - last.y);
+      const double turned = std::abs(std::remainder(s.yaw - last.yaw, 2.0 * std::numbers::pi));
+      if (moved < o.keyframe_distance_m && turned < o.keyframe_angle_deg * kDeg &&
+          std::abs(s.z - last.z) < 0.5) {
+        continue;
+      }
+    }
+    kf_samples.push_back(s);
+  }
+  report.keyframes = kf_samples.size();
+  report.mapping_length_m = PathLength(mapping.samples());
+
+  // --- Render keyframes and write the database.
+  const std::string db_path = dir + "/map.db";
+  std::filesystem::remove(db_path, ec);
+  std::filesystem::remove(db_path + "-wal", ec);
+  std::filesystem::remove(db_path + "-shm", ec);
+  ZM_ASSIGN_OR_RETURN(auto writer, MapDbWriter::Create(db_path, /*overwrite=*/true));
+  ZM_RETURN_IF_ERROR(writer->SetCamera(o.camera.intrinsics));
+  ZM_RETURN_IF_ERROR(writer->SetSource(o.source.empty() ? "sim " + b.kind + " seed=" + std::to_string(o.seed) : o.source));
+
+  // Dense scale: with a byte range, calibrate on the first keyframe so most land inside at once.
+  const double aspect = static_cast<double>(o.depth.height) / o.depth.width;
+  const auto render = [&](std::size_t i, double scale0, KeyframeOut* out) {
+    const PoseSample& s = kf_samples[i];
+    const Pose3 pose = s.pose();
+    Rng rng(o.seed, kStreamKeyframe + i);
+    std::vector<VisibleLandmark> visible;
+    landmarks.Visible(b, s.floor, pose, o.camera, &visible);
+    FeatureSet fs;
+    MakeFeatures(landmarks, visible, pose, o.camera, o.noise, /*with_points=*/true, rng, &fs);
+    out->features = static_cast<std::uint32_t>(fs.descriptors.size());
+    const std::uint64_t depth_seed = rng.Next();
+    double scale = scale0;
+    std::vector<std::byte> png;
+    for (int attempt = 0; attempt < 8; ++attempt) {
+      DepthOptions d = o.depth;
+      d.width = static_cast<std::uint32_t>(std::clamp(std::lround(o.depth.width * scale), 8L, 4096L));
+      d.height = static_cast<std::uint32_t>(std::clamp(std::lround(d.width * aspect), 8L, 4096L));
+      Rng depth_rng(depth_seed, static_cast<std::uint64_t>(attempt));
+      out->status = RenderDepthPng(b, s.floor, pose, o.camera, d, depth_rng, &png);
+      if (!out->status.ok()) return;
+      const std::size_t total = PayloadSize(out->features, static_cast<std::uint32_t>(png.size()));
+      if (o.keyframe_bytes_max == 0) break;
+      if (total >= o.keyframe_bytes_min && total <= o.keyframe_bytes_max) break;
+      const double fixed = static_cast<double>(total - png.size());
+      const double target = 0.5 * (o.keyframe_bytes_min + o.keyframe_bytes_max) - fixed;
+      if (target <= 64.0) {
+        out->status = OutOfRange("keyframe " + std::to_string(i + 1) + " has " +
+                                 std::to_string(total - png.size()) +
+                                 " bytes of features alone, over the keyframe byte range max " +
+                                 std::to_string(o.keyframe_bytes_max));
+        return;
+      }
+      scale *= std::sqrt(target / std::max<double>(64.0, static_cast<double>(png.size())));
+      if (attempt == 7) {
+        out->status = OutOfRange("keyframe " + std::to_string(i + 1) + " payload of " +
+                                 std::to_string(total) + " bytes could not be brought into the range " +
+                                 std::to_string(o.keyframe_bytes_min) + ":" + std::to_string(o.keyframe_bytes_max));
+        return;
+      }
+    }
+    PayloadParts parts;
+    parts.id = KeyframeId(static_cast<std::int64_t>(i + 1));
+    parts.descriptors = fs.descriptors;
+    parts.points = fs.points;
+    parts.keypoints = fs.keypoints;
+    parts.dense_format = DenseFormat::kPngDepth16;
+    parts.dense = png;
+    auto encoded = EncodePayload(parts);
+    if (!encoded.ok()) {
+      out->status = encoded.status();
+      return;
+    }
+    out->payload = std::move(encoded).value();
+  };
+  double scale0 = 1.0;
+  if (o.keyframe_bytes_max != 0 && !kf_samples.empty()) {
+    KeyframeOut probe;
+    render(0, 1.0, &probe);
+    ZM_RETURN_IF_ERROR(probe.status);
+    const double fixed = static_cast<double>(PayloadSize(probe.features, 0));
+    const double dense = static_cast<double>(probe.payload.size()) - fixed;
+    const double target = 0.5 * (o.keyframe_bytes_min + o.keyframe_bytes_max) - fixed;
+    if (target > 64.0 && dense > 0.0) scale0 = std::sqrt(target / dense);
+  }
+  std::vector<std::uint32_t> sizes;
+  sizes.reserve(kf_samples.size());
+  std::uint64_t feature_sum = 0;
+  {
+    Progress progress(o.progress, "keyframes", kf_samples.size());
+    constexpr std::size_t kChunk = 128;
+    std::vector<KeyframeOut> chunk;
+    for (std::size_t c0 = 0; c0 < kf_samples.size(); c0 += kChunk) {
+      const std::size_t n = std::min(kChunk, kf_samples.size() - c0);
+      chunk.assign(n, KeyframeOut{});
+      ParallelFor(n, o.threads, [&](std::size_t k) { render(c0 + k, scale0, &chunk[k]); });
+      std::vector<KeyframeRecord> records(n);
+      for (std::size_t k = 0; k < n; ++k) {
+        ZM_RETURN_IF_ERROR(chunk[k].status);
+        const PoseSample& s = kf_samples[c0 + k];
+        records[k].meta.id = KeyframeId(static_cast<std::int64_t>(c0 + k + 1));
+        records[k].meta.stamp_s = s.t_s;
+        records[k].meta.pose = s.pose();
+        records[k].meta.weight = 0;
+        records[k].payload = chunk[k].payload;
+        sizes.push_back(static_cast<std::uint32_t>(chunk[k].payload.size()));
+        feature_sum += chunk[k].features;
+      }
+      ZM_RETURN_IF_ERROR(writer->InsertKeyframes(records));
+      progress.Update(c0 + n);
+    }
+  }
+  {
+    std::vector<LinkRecord> links;
+    for (std::size_t i = 1; i < kf_samples.size(); ++i) {
+      LinkRecord l;
+      l.from = KeyframeId(static_cast<std::int64_t>(i));
+      l.to = KeyframeId(static_cast<std::int64_t>(i + 1));
+      l.type = LinkType::kNeighbor;
+      l.transform = kf_samples[i - 1].pose().inverse() * kf_samples[i].pose();
+      // Odometry-like uncertainty: 2 cm, 0.01 rad.
+      for (int d = 0; d < 6; ++d) l.information[static_cast<std::size_t>(d * 7)] = d < 3 ? 2500.0 : 10000.0;
+      links.push_back(l);
+    }
+    report.links = links.size();
+    ZM_RETURN_IF_ERROR(writer->InsertLinks(links));
+  }
+  ZM_RETURN_IF_ERROR(writer->Finish());
+  writer.reset();
+  if (!sizes.empty()) {
+    std::sort(sizes.begin(), sizes.end());
+    const std::size_t n = sizes.size();
+    report.keyframe_bytes_min = sizes[0];
+    report.keyframe_bytes_max = sizes[n - 1];
+    report.keyframe_bytes_median = sizes[n / 2];
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n; ++i) sum += sizes[i];
+    report.keyframe_bytes_mean = sum / static_cast<double>(n);
+    report.mean_features_per_keyframe = feature_sum / sizes.size();
+  }
+
+  // Zones into the database (membership with the doorway band) and zones.geojson.
+  ZM_ASSIGN_OR_RETURN(ZoneSet zone_set, ToZoneSet(b));
+  {
+    AnnotateOptions ao;
+    ao.band_m = o.annotate_band_m;
+    ZM_ASSIGN_OR_RETURN(auto annotation, AnnotateDatabase(db_path, zone_set, ao));
+    (void)annotation;
+  }
+  ZM_RETURN_IF_ERROR(WriteGeoJson(zone_set, dir + "/zones.geojson"));
+
+  // --- Localization run: a patrol of tasks with revisits.
+  const double period = 1.0 / o.rate_hz;
+  TrajectoryBuilder patrol(o.motion, period, o.camera.height_m, b.floor_height_m);
+  std::vector<int> goals;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> task_frames;
+  {
+    Rng rng(o.seed, kStreamPatrol);
+    std::vector<int> candidates;
+    for (std::size_t i = 0; i < b.zones.size(); ++i) {
+      if (reachable[i] && b.zones[i].kind != "corridor" && b.zones[i].kind != "elevator") {
+        candidates.push_back(static_cast<int>(i));
+      }
+    }
+    if (candidates.empty()) {
+      for (std::size_t i = 0; i < b.zones.size(); ++i) {
+        if (reachable[i]) candidates.push_back(static_cast<int>(i));
+      }
+    }
+    patrol.Start(start.floor, start.viewpoint, rng.Uniform(-std::numbers::pi, std::numbers::pi));
+    int current = b.start_zone;
+    std::vector<int> visited;
+    for (int t = 0; t < o.tasks; ++t) {
+      int goal = -1;
+      for (int tries = 0; tries < 16 && (goal < 0 || goal == current); ++tries) {
+        if (!visited.empty() && rng.Bernoulli(o.revisit_probability)) {
+          goal = visited[rng.Below(visited.size())];
+        } else {
+          goal = candidates[rng.Below(candidates.size())];
+        }
+      }
+      if (goal == current && candidates.size() > 1) continue;
+      const std::uint64_t first = patrol.samples().size() - 1;
+      if (!GoTo(b, planners, patrol, goal)) continue;
+      task_frames.emplace_back(first, patrol.samples().size() - 1);
+      goals.push_back(goal);
+      if (std::find(visited.begin(), visited.end(), goal) == visited.end()) visited.push_back(goal);
+      current = goal;
+    }
+  }
+  const std::vector<PoseSample>& truth = patrol.samples();
+  report.frames = truth.size();
+  report.tasks = goals.size();
+  report.localization_length_m = PathLength(truth);
+  report.localization_duration_s = truth.empty() ? 0.0 : truth.back().t_s;
+  const std::vector<Pose3> odom = Odometry(truth, o.drift, o.seed);
+  {
+    ZM_ASSIGN_OR_RETURN(FrameWriter fw, FrameWriter::Create(dir + "/frames.bin", o.camera.intrinsics, o.rate_hz));
+    Progress progress(o.progress, "frames", truth.size());
+    constexpr std::size_t kChunk = 512;
+    std::vector<Frame> chunk;
+    std::uint64_t feature_total = 0;
+    for (std::size_t c0 = 0; c0 < truth.size(); c0 += kChunk) {
+      const std::size_t n = std::min(kChunk, truth.size() - c0);
+      chunk.assign(n, Frame{});
+      ParallelFor(n, o.threads, [&](std::size_t k) {
+        const std::size_t i = c0 + k;
+        const Pose3 pose = truth[i].pose();
+        Rng rng(o.seed, kStreamFrame + i);
+        std::vector<VisibleLandmark> visible;
+        landmarks.Visible(b, truth[i].floor, pose, o.camera, &visible);
+        FeatureSet fs;
+        MakeFeatures(landmarks, visible, pose, o.camera, o.noise, /*with_points=*/false, rng, &fs);
+        Frame& f = chunk[k];
+        f.index = i;
+        f.stamp_s = truth[i].t_s;
+        f.odom = odom[i];
+        f.descriptors = std::move(fs.descriptors);
+        f.keypoints = std::move(fs.keypoints);
+      });
+      for (const Frame& f : chunk) {
+        ZM_RETURN_IF_ERROR(fw.Append(f));
+        feature_total += f.feature_count();
+      }
+      progress.Update(c0 + n);
+    }
+    ZM_RETURN_IF_ERROR(fw.Finish());
+    if (!truth.empty()) report.mean_features_per_frame = feature_total / truth.size();
+  }
+
+  // --- Ground truth, grids, route, metadata.
+  {
+    Trajectory t;
+    for (const PoseSample& s : kf_samples) t.Add(s.t_s, s.pose());
+    ZM_RETURN_IF_ERROR(WriteTrajectory(dir + "/mapping_gt.tum", t, TrajectoryFormat::kTum));
+    Trajectory l;
+    for (const PoseSample& s : truth) l.Add(s.t_s, s.pose());
+    ZM_RETURN_IF_ERROR(WriteTrajectory(dir + "/localization_gt.tum", l, TrajectoryFormat::kTum));
+  }
+  for (std::size_t f = 0; f < b.floors.size(); ++f) {
+    ZM_RETURN_IF_ERROR(WriteRosMap(b.floors[f].grid, dir, f == 0 ? "map" : "map_f" + std::to_string(f)));
+  }
+  {
+    nlohmann::ordered_json route;
+    route["format"] = "zonemap route";
+    route["version"] = 1;
+    nlohmann::ordered_json tasks = nlohmann::ordered_json::array();
+    for (std::size_t i = 0; i < goals.size(); ++i) {
+      tasks.push_back({{"goal_zone", b.zones[static_cast<std::size_t>(goals[i])].name},
+                       {"start_frame", task_frames[i].first},
+                       {"end_frame", task_frames[i].second}});
+    }
+    route["tasks"] = tasks;
+    // The zones the patrol passes through, in order (a frame outside every zone keeps the last).
+    nlohmann::ordered_json visits = nlohmann::ordered_json::array();
+    int last = -1;
+    std::uint64_t first_frame = 0;
+    for (std::size_t i = 0; i <= truth.size(); ++i) {
+      int z = -1;
+      if (i < truth.size()) {
+        z = ZoneAt(b, truth[i].floor, Eigen::Vector2d(truth[i].x, truth[i].y));
+        if (z < 0) z = last;
+      }
+      if (i == truth.size() || z != last) {
+        if (last >= 0) {
+          visits.push_back({{"zone", b.zones[static_cast<std::size_t>(last)].name},
+                            {"first_frame", first_frame},
+                            {"last_frame", i - 1}});
+        }
+        last = z;
+        first_frame = i;
+      }
+    }
+    route["zones"] = visits;
+    ZM_RETURN_IF_ERROR(WriteText(dir + "/route.json", route.dump(1) + "\n"));
+  }
+  {
+    const CameraIntrinsics& k = o.camera.intrinsics;
+    nlohmann::ordered_json j;
+    j["format"] = "zonemap scenario";
+    j["version"] = 1;
+    j["kind"] = b.kind;
+    j["seed"] = o.seed;
+    j["source"] = o.source.empty() ? "sim " + b.kind + " seed=" + std::to_string(o.seed) : o.source;
+    j["area_m2"] = b.area_m2;
+    j["floors"] = b.floors.size();
+    j["floor_height_m"] = b.floor_height_m;
+    j["resolution_m"] = b.floors[0].grid.resolution_m;
+    j["counts"] = {{"zones", report.zones},         {"unreachable_zones", report.unreachable_zones},
+                   {"landmarks", report.landmarks}, {"keyframes", report.keyframes},
+                   {"links", report.links},         {"frames", report.frames},
+                   {"tasks", report.tasks}};
+    j["camera"] = {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"width", k.width},
+                   {"height", k.height}, {"hfov_deg", o.hfov_deg}, {"range_m", o.camera.range_m},
+                   {"height_m", o.camera.height_m}};
+    j["dense"] = {{"format", "png_depth16_mm"}, {"width", o.depth.width}, {"height", o.depth.height},
+                  {"range_m", o.depth.range_m}};
+    j["keyframe_bytes"] = {{"min", report.keyframe_bytes_min}, {"median", report.keyframe_bytes_median},
+                           {"max", report.keyframe_bytes_max}, {"mean", report.keyframe_bytes_mean},
+                           {"range_min", o.keyframe_bytes_min}, {"range_max", o.keyframe_bytes_max}};
+    j["features"] = {{"max_per_view", o.noise.max_features},
+                     {"mean_per_keyframe", report.mean_features_per_keyframe},
+                     {"mean_per_frame", report.mean_features_per_frame},
+                     {"bit_flip_probability", o.noise.bit_flip_probability},
+                     {"pixel_sigma", o.noise.pixel_sigma},
+                     {"outlier_ratio", o.noise.outlier_ratio}};
+    j["mapping"] = {{"keyframe_distance_m", o.keyframe_distance_m},
+                    {"keyframe_angle_deg", o.keyframe_angle_deg},
+                    {"length_m", report.mapping_length_m}};
+    j["localization"] = {{"rate_hz", o.rate_hz},
+                         {"tasks", report.tasks},
+                         {"revisit_probability", o.revisit_probability},
+                         {"length_m", report.localization_length_m},
+                         {"duration_s", report.localization_duration_s}};
+    j["motion"] = {{"speed_mps", o.motion.speed_mps}, {"turn_rate_dps", o.motion.turn_rate_dps},
+                   {"robot_radius_m", o.robot_radius_m}};
+    j["drift"] = {{"trans_noise_per_m", o.drift.trans_noise_per_m},
+                  {"trans_bias", o.drift.trans_bias},
+                  {"heading_noise_deg_per_m", o.drift.heading_noise_deg_per_m},
+                  {"heading_bias_deg_per_m", o.drift.heading_bias_deg_per_m},
+                  {"rot_noise", o.drift.rot_noise},
+                  {"rot_bias", o.drift.rot_bias}};
+    j["files"] = {{"map_db", "map.db"},
+                  {"zones", "zones.geojson"},
+                  {"map_yaml", "map.yaml"},
+                  {"mapping_gt", "mapping_gt.tum"},
+                  {"localization_gt", "localization_gt.tum"},
+                  {"frames", "frames.bin"},
+                  {"route", "route.json"}};
+    ZM_RETURN_IF_ERROR(WriteText(dir + "/scenario.json", j.dump(2) + "\n"));
+  }
+  return report;
+}
+
+namespace {
+
+Result<nlohmann::json> ReadJson(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return NotFound("cannot open " + path);
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    return InvalidArgument(path + " is not valid JSON: " + e.what());
+  }
+}
+
+}  // namespace
+
+Result<ScenarioInfo> LoadScenario(const std::string& dir) {
+  const std::string path = dir + "/scenario.json";
+  ZM_ASSIGN_OR_RETURN(nlohmann::json j, ReadJson(path));
+  try {
+    if (j.value("format", "") != "zonemap scenario") return InvalidArgument(path + " is not a zonemap scenario file");
+    if (j.value("version", 0) != 1) {
+      return FailedPrecondition(path + " has version " + std::to_string(j.value("version", 0)) + ", expected 1");
+    }
+    ScenarioInfo s;
+    s.dir = dir;
+    s.kind = j.at("kind").get<std::string>();
+    s.seed = j.at("seed").get<std::uint64_t>();
+    s.floors = j.at("floors").get<int>();
+    s.area_m2 = j.at("area_m2").get<double>();
+    const auto& c = j.at("counts");
+    s.keyframes = c.at("keyframes").get<std::uint64_t>();
+    s.frames = c.at("frames").get<std::uint64_t>();
+    s.zones = c.at("zones").get<std::uint64_t>();
+    s.rate_hz = j.at("localization").at("rate_hz").get<double>();
+    const auto& cam = j.at("camera");
+    s.camera.fx = cam.at("fx").get<double>();
+    s.camera.fy = cam.at("fy").get<double>();
+    s.camera.cx = cam.at("cx").get<double>();
+    s.camera.cy = cam.at("cy").get<double>();
+    s.camera.width = cam.at("width").get<std::uint32_t>();
+    s.camera.height = cam.at("height").get<std::uint32_t>();
+    s.keyframe_bytes_max = j.at("keyframe_bytes").at("max").get<std::uint32_t>();
+    const auto& f = j.at("files");
+    const auto file = [&](const char* key) { return dir + "/" + f.at(key).get<std::string>(); };
+    s.map_db = file("map_db");
+    s.zones_geojson = file("zones");
+    s.frames_bin = file("frames");
+    s.mapping_gt = file("mapping_gt");
+    s.localization_gt = file("localization_gt");
+    s.route_json = file("route");
+    s.map_yaml = file("map_yaml");
+    return s;
+  } catch (const nlohmann::json::exception& e) {
+    return InvalidArgument(path + ": missing or mistyped field: " + e.what());
+  }
+}
+
+Result<Route> LoadRoute(const std::string& path) {
+  ZM_ASSIGN_OR_RETURN(nlohmann::json j, ReadJson(path));
+  try {
+    if (j.value("format", "") != "zonemap route") return InvalidArgument(path + " is not a zonemap route file");
+    Route r;
+    for (const auto& t : j.at("tasks")) {
+      r.tasks.push_back({t.at("goal_zone").get<std::string>(), t.at("start_frame").get<std::uint64_t>(),
+                         t.at("end_frame").get<std::uint64_t>()});
+    }
+    for (const auto& z : j.at("zones")) {
+      r.zones.push_back({z.at("zone").get<std::string>(), z.at("first_frame").get<std::uint64_t>(),
+                         z.at("last_frame").get<std::uint64_t>()});
+    }
+    return r;
+  } catch (const nlohmann::json::exception& e) {
+    return InvalidArgument(path + ": missing or mistyped field: " + e.what());
+  }
+}
+
+}  // namespace zm::sim
