@@ -283,7 +283,8 @@ int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
 // the border (the largest clearance on it, `saddle`) is at least `ratio` of the smaller of the
 // two segments' own largest clearance (`peak`). Doors are narrow against both rooms; a split
 // through the middle of one open room is not. Labels stay in 1..label_count (some unused).
-void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, double ratio) {
+void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, double ratio,
+                      float min_saddle) {
   if (ratio <= 0.0 || label_count < 2) return;
   std::vector<float> peak(Idx(label_count) + 1, 0.0f);
   std::map<std::pair<int, int>, float> saddle;
@@ -329,7 +330,7 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
     for (const auto& [key, s] : current) {
       const float lo = std::min(peak[Idx(key.first)], peak[Idx(key.second)]);
       const double q = lo > 0.0f ? static_cast<double>(s / lo) : 0.0;
-      if (q >= ratio && q > best) best = q, best_pair = key;
+      if (q >= ratio && s >= min_saddle && q > best) best = q, best_pair = key;
     }
     if (best_pair.first == 0) break;
     parent[Idx(best_pair.second)] = best_pair.first;
@@ -427,7 +428,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         }
       }
       const int label_count = seed_count + std::max(0, n_extra - 1);
-      MergeOpenBorders(&labels, dt, label_count, options.merge_open_border_ratio);
+      MergeOpenBorders(&labels, dt, label_count, options.merge_open_border_ratio,
+                       static_cast<float>(0.5 * options.merge_min_opening_m / res));
       const int min_area = static_cast<int>(options.min_room_area_m2 / (res * res));
       const int count = MergeSmallSegments(&labels, label_count, min_area);
       Describe(labels, dt, count, res, options, &seg.segments);

@@ -8,7 +8,9 @@
 // by its children at a higher level only when at least two of them are room-sized (so each
 // doorway is cut at its own level, not at one global threshold); seeds grow back over free
 // space by a priority flood on the distance transform (a watershed, so borders settle on the
-// narrowest place, the door); segments smaller than `min_room_area_m2` merge into the neighbour
+// narrowest place, the door); neighbours whose shared border is an opening wider than any door
+// (`merge_min_opening_m`) and not a constriction relative to them (`merge_open_border_ratio`)
+// merge (one open room cut in two by clutter); segments smaller than `min_room_area_m2` merge into the neighbour
 // sharing the longest border; each segment is labelled corridor when long and narrow, else room.
 //
 // Invariants of a Segmentation: labels is CV_32SC1 of the grid's size; 0 = no zone, 1..N =
@@ -37,8 +39,9 @@ struct SegmentOptions {
   double seed_max_level_m = 3.0;      // highest level tried
   double seed_min_area_m2 = 0.6;      // a child at a level counts when at least this big...
   double seed_min_persistence_m = 0.3;  // ...and rises this far above the level it split at
-  double merge_open_border_ratio = 0.55;  // neighbours merge when their border's clearance is
+  double merge_open_border_ratio = 0.45;  // neighbours merge when their border's clearance is
                                          // >= this x the smaller one's peak clearance (0 = off)
+  double merge_min_opening_m = 1.8;   // ...and the opening is at least this wide (no door)
   double min_room_area_m2 = 2.0;      // smaller segments merge into a neighbour
   double corridor_elongation = 4.0;   // length / width at or above this = corridor
   double corridor_max_width_m = 3.5;  // corridors are at most this wide
