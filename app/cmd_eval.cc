@@ -20,9 +20,10 @@ nlohmann::json StatsJson(const ErrorStats& s) {
 
 void PrintStats(const char* title, const char* unit, const ErrorStats& s) {
   std::printf("%s (%zu pairs, %s)\n", title, s.count, unit);
-  std::printf("  rmse   %.6f\n  mean   %.6f\n  median %.6f\n  std    %.6f\n"
-              "  min    %.6f\n  max    %.6f\n  sse    %.6f\n",
-              s.rmse, s.mean, s.median, s.std, s.min, s.max, s.sse);
+  std::printf(
+      "  rmse   %.6f\n  mean   %.6f\n  median %.6f\n  std    %.6f\n"
+      "  min    %.6f\n  max    %.6f\n  sse    %.6f\n",
+      s.rmse, s.mean, s.median, s.std, s.min, s.max, s.sse);
 }
 
 }  // namespace
@@ -35,12 +36,14 @@ void AddEvalCommand(CLI::App& app, CommandContext& ctx) {
     bool json = false;
   };
   auto o = std::make_shared<Opts>();
-  auto* cmd = app.add_subcommand("eval", "APE and RPE of an estimated trajectory (evo conventions)");
+  auto* cmd =
+      app.add_subcommand("eval", "APE and RPE of an estimated trajectory (evo conventions)");
   cmd->add_option("REF", o->ref, "reference (ground truth) trajectory")->required();
   cmd->add_option("EST", o->est, "estimated trajectory")->required();
   cmd->add_option("--align", o->align, "none | se3 | sim3 (Umeyama)")->capture_default_str();
   cmd->add_option("--format", o->format, "tum | kitti (both files)")->capture_default_str();
-  cmd->add_option("--max-dt", o->max_dt_s, "association tolerance in seconds")->capture_default_str();
+  cmd->add_option("--max-dt", o->max_dt_s, "association tolerance in seconds")
+      ->capture_default_str();
   cmd->add_option("--delta", o->delta, "RPE delta in frames")->capture_default_str();
   cmd->add_flag("--json", o->json, "print JSON");
   cmd->callback([o, &ctx] {

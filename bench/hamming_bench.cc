@@ -37,8 +37,9 @@ void BM_OneToMany(benchmark::State& state) {
     benchmark::DoNotOptimize(out.data());
     benchmark::ClobberMemory();
   }
-  state.counters["cmp_per_s"] = benchmark::Counter(
-      static_cast<double>(state.iterations()) * static_cast<double>(n), benchmark::Counter::kIsRate);
+  state.counters["cmp_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * static_cast<double>(n),
+                         benchmark::Counter::kIsRate);
 }
 
 template <void (*Fn)(const std::uint8_t*, std::size_t, const std::uint8_t*, std::size_t, BestTwo*)>
@@ -57,10 +58,18 @@ void BM_BestTwo(benchmark::State& state) {
                          benchmark::Counter::kIsRate);
 }
 
-BENCHMARK(BM_OneToMany<zm::simd::scalar::HammingOneToMany>)->Name("one_to_many/scalar")->Arg(500)->Arg(4096);
+BENCHMARK(BM_OneToMany<zm::simd::scalar::HammingOneToMany>)
+    ->Name("one_to_many/scalar")
+    ->Arg(500)
+    ->Arg(4096);
 BENCHMARK(BM_OneToMany<zm::simd::popcnt::HammingOneToMany>)
-    ->Name("one_to_many/popcnt")->Arg(500)->Arg(4096);
-BENCHMARK(BM_OneToMany<zm::simd::active::HammingOneToMany>)->Name("one_to_many/active")->Arg(500)->Arg(4096);
+    ->Name("one_to_many/popcnt")
+    ->Arg(500)
+    ->Arg(4096);
+BENCHMARK(BM_OneToMany<zm::simd::active::HammingOneToMany>)
+    ->Name("one_to_many/active")
+    ->Arg(500)
+    ->Arg(4096);
 BENCHMARK(BM_BestTwo<zm::simd::scalar::BestTwoMatches>)->Name("best_two/scalar")->Arg(500);
 BENCHMARK(BM_BestTwo<zm::simd::popcnt::BestTwoMatches>)->Name("best_two/popcnt")->Arg(500);
 BENCHMARK(BM_BestTwo<zm::simd::active::BestTwoMatches>)->Name("best_two/active")->Arg(500);

@@ -15,8 +15,8 @@ Result<Association> Associate(const Trajectory& ref, const Trajectory& est, doub
     // KITTI: no stamps, evo requires equal lengths and pairs by index.
     if (ref.size() != est.size()) {
       return InvalidArgument("trajectories without stamps (KITTI) must have equal lengths: ref " +
-                             std::to_string(ref.size()) + " vs est " +
-                             std::to_string(est.size()) + " poses");
+                             std::to_string(ref.size()) + " vs est " + std::to_string(est.size()) +
+                             " poses");
     }
     a.ref_index.reserve(ref.size());
     a.est_index.reserve(ref.size());
@@ -74,9 +74,12 @@ Result<AlignMode> ParseAlignMode(std::string_view name) {
 
 const char* AlignModeName(AlignMode mode) {
   switch (mode) {
-    case AlignMode::kNone: return "none";
-    case AlignMode::kSe3: return "se3";
-    case AlignMode::kSim3: return "sim3";
+    case AlignMode::kNone:
+      return "none";
+    case AlignMode::kSe3:
+      return "se3";
+    case AlignMode::kSim3:
+      return "sim3";
   }
   return "?";
 }

@@ -119,8 +119,8 @@ std::string FormatTrajectory(const Trajectory& traj, TrajectoryFormat format) {
       const Eigen::Matrix3d& r = p.linear();
       n = std::snprintf(buf, sizeof buf,
                         "%.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e\n", r(0, 0),
-                        r(0, 1), r(0, 2), t.x(), r(1, 0), r(1, 1), r(1, 2), t.y(), r(2, 0),
-                        r(2, 1), r(2, 2), t.z());
+                        r(0, 1), r(0, 2), t.x(), r(1, 0), r(1, 1), r(1, 2), t.y(), r(2, 0), r(2, 1),
+                        r(2, 2), t.z());
     }
     if (n > 0) out.append(buf, static_cast<std::size_t>(n));
   }

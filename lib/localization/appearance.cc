@@ -19,8 +19,7 @@ inline bool Test(const std::vector<std::uint64_t>& s, std::uint32_t w) {
 
 }  // namespace
 
-AppearanceScorer::AppearanceScorer()
-    : set_a_(kWordSpace / 64, 0), set_b_(kWordSpace / 64, 0) {}
+AppearanceScorer::AppearanceScorer() : set_a_(kWordSpace / 64, 0), set_b_(kWordSpace / 64, 0) {}
 
 void AppearanceScorer::SetQuery(const std::uint8_t* descriptors, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {

@@ -38,14 +38,16 @@ Status ValidateLocalizerConfig(const LocalizerConfig& c, const CameraIntrinsics&
   if (c.appearance_candidates > c.max_candidates) {
     return InvalidArgument("localizer appearance_candidates must be <= max_candidates");
   }
-  if (!(c.ratio > 0.0f && c.ratio <= 1.0f)) return InvalidArgument("localizer ratio must be in (0, 1]");
+  if (!(c.ratio > 0.0f && c.ratio <= 1.0f))
+    return InvalidArgument("localizer ratio must be in (0, 1]");
   if (c.max_hamming > 256) return InvalidArgument("localizer max_hamming must be <= 256");
   if (c.min_inliers < 6) return InvalidArgument("localizer min_inliers must be >= 6");
   if (!(c.ransac_reprojection_px > 0.0) || c.ransac_iterations <= 0 ||
       !(c.ransac_confidence > 0.0 && c.ransac_confidence < 1.0)) {
     return InvalidArgument("localizer RANSAC parameters out of range");
   }
-  if (!(c.max_correction_m >= 0.0)) return InvalidArgument("localizer max_correction_m must be >= 0");
+  if (!(c.max_correction_m >= 0.0))
+    return InvalidArgument("localizer max_correction_m must be >= 0");
   if (!(k.fx > 0.0 && k.fy > 0.0) || k.width == 0 || k.height == 0) {
     return InvalidArgument("camera intrinsics must have fx, fy > 0 and a non-empty image");
   }
@@ -129,16 +131,16 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
   const double predicted_yaw = Yaw(predicted_map_pose);
   for (std::size_t i = 0; i < resident.size(); ++i) {
     const double dist = (resident[i].pose.translation() - predicted_t).norm();
-    const bool in_gate = dist <= config_.radius_m &&
-                         HeadingDiff(Yaw(resident[i].pose), predicted_yaw) <=
-                             config_.max_heading_diff_rad;
+    const bool in_gate =
+        dist <= config_.radius_m &&
+        HeadingDiff(Yaw(resident[i].pose), predicted_yaw) <= config_.max_heading_diff_rad;
     bool in_global = false;
     for (std::uint32_t g = 0; g < global_size; ++g) in_global = in_global || global[g].index == i;
     if (!in_gate && !in_global) continue;
     if (config_.use_appearance && scores_[i] < config_.min_appearance_score) continue;
     const double key = config_.use_appearance ? static_cast<double>(scores_[i]) : -dist;
-    Offer({static_cast<std::uint32_t>(i), key, resident[i].id.value}, config_.max_candidates,
-          &list, &list_size);
+    Offer({static_cast<std::uint32_t>(i), key, resident[i].id.value}, config_.max_candidates, &list,
+          &list_size);
   }
 
   // 3. Match and verify, best candidate first, until one is accepted.

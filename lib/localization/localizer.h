@@ -30,10 +30,9 @@
 
 #include <array>
 #include <cstdint>
+#include <opencv2/core/types.hpp>
 #include <span>
 #include <vector>
-
-#include <opencv2/core/types.hpp>
 
 #include "common/ids.h"
 #include "common/status.h"
@@ -58,21 +57,21 @@ struct ResidentKeyframe {
 inline constexpr std::uint32_t kMaxLocalizerCandidates = 16;
 
 struct LocalizerConfig {
-  double radius_m = 10.0;                  // pose gate: 3-D distance to the predicted pose
-  double max_heading_diff_rad = 1.5708;    // pose gate: |yaw difference| (90 degrees)
-  std::uint32_t max_candidates = 3;        // tried per tick, <= kMaxLocalizerCandidates
-  std::uint32_t appearance_candidates = 1; // top appearance keyframes admitted outside the gate
-  bool use_appearance = true;              // false: pose gate only, nearest first
-  std::uint32_t min_appearance_score = 10; // below: not a hypothesis, not a candidate
-  float ratio = 0.8f;                      // Lowe ratio test
-  std::uint32_t max_hamming = 64;          // absolute descriptor gate (bits of 256)
-  std::uint32_t min_inliers = 20;          // accept a closure at this many PnP inliers
+  double radius_m = 10.0;                   // pose gate: 3-D distance to the predicted pose
+  double max_heading_diff_rad = 1.5708;     // pose gate: |yaw difference| (90 degrees)
+  std::uint32_t max_candidates = 3;         // tried per tick, <= kMaxLocalizerCandidates
+  std::uint32_t appearance_candidates = 1;  // top appearance keyframes admitted outside the gate
+  bool use_appearance = true;               // false: pose gate only, nearest first
+  std::uint32_t min_appearance_score = 10;  // below: not a hypothesis, not a candidate
+  float ratio = 0.8f;                       // Lowe ratio test
+  std::uint32_t max_hamming = 64;           // absolute descriptor gate (bits of 256)
+  std::uint32_t min_inliers = 20;           // accept a closure at this many PnP inliers
   double ransac_reprojection_px = 4.0;
   int ransac_iterations = 100;
   double ransac_confidence = 0.99;
-  bool refine = true;                      // LM refinement on the inliers
-  double max_correction_m = 0.0;           // reject a pose this far from the prediction; 0 = off
-  std::uint32_t reserve_features = 2048;   // scratch sizes: no allocation below these
+  bool refine = true;                     // LM refinement on the inliers
+  double max_correction_m = 0.0;          // reject a pose this far from the prediction; 0 = off
+  std::uint32_t reserve_features = 2048;  // scratch sizes: no allocation below these
   std::uint32_t reserve_keyframes = 4096;
 };
 
@@ -85,15 +84,15 @@ struct LocalizeResult {
   KeyframeId matched;             // keyframe that closed the loop (0 when none)
   KeyframeId highest_hypothesis;  // best appearance among resident keyframes (0 when none)
   std::uint32_t highest_score = 0;
-  std::uint32_t inliers = 0;      // PnP inliers of the accepted candidate
-  std::uint32_t matches = 0;      // descriptor matches of the accepted (or last tried) candidate
+  std::uint32_t inliers = 0;  // PnP inliers of the accepted candidate
+  std::uint32_t matches = 0;  // descriptor matches of the accepted (or last tried) candidate
   Pose3 t_map_cam = Pose3::Identity();   // camera pose in the map (valid when accepted)
   Pose3 t_map_body = Pose3::Identity();  // body pose in the map (valid when accepted)
   std::uint32_t candidates_examined = 0;
-  std::uint32_t closures_accepted = 0;   // 0 or 1 this tick
-  std::uint32_t closures_rejected = 0;   // candidates examined and not accepted this tick
-  std::uint32_t pnp_errors = 0;          // OpenCV exceptions turned into rejections
-  bool bad_frame = false;                // keypoints.size() != 2 * descriptors.size()
+  std::uint32_t closures_accepted = 0;  // 0 or 1 this tick
+  std::uint32_t closures_rejected = 0;  // candidates examined and not accepted this tick
+  std::uint32_t pnp_errors = 0;         // OpenCV exceptions turned into rejections
+  bool bad_frame = false;               // keypoints.size() != 2 * descriptors.size()
 };
 
 // Totals since construction, for telemetry and the run summary.

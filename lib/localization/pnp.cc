@@ -27,8 +27,7 @@ Result<PnpSolution> PnpRansac::Solve(std::span<const cv::Point3f> object,
   PnpSolution sol;
   if (object.size() != image.size() || object.size() < 6) {
     return InvalidArgument("PnP needs matching point counts >= 6, got " +
-                           std::to_string(object.size()) + " and " +
-                           std::to_string(image.size()));
+                           std::to_string(object.size()) + " and " + std::to_string(image.size()));
   }
   const int n = static_cast<int>(object.size());
   // Headers over the caller's arrays (no copy); OpenCV reads them as 1-column point sets.
@@ -36,10 +35,10 @@ Result<PnpSolution> PnpRansac::Solve(std::span<const cv::Point3f> object,
   const cv::Mat img(n, 1, CV_32FC2, const_cast<cv::Point2f*>(image.data()));
   try {
     inliers_.clear();
-    const bool ok = cv::solvePnPRansac(obj, img, camera_matrix_, cv::noArray(), rvec_, tvec_,
-                                       false, params_.iterations,
-                                       static_cast<float>(params_.reprojection_px),
-                                       params_.confidence, inliers_, cv::SOLVEPNP_EPNP);
+    const bool ok =
+        cv::solvePnPRansac(obj, img, camera_matrix_, cv::noArray(), rvec_, tvec_, false,
+                           params_.iterations, static_cast<float>(params_.reprojection_px),
+                           params_.confidence, inliers_, cv::SOLVEPNP_EPNP);
     if (!ok || inliers_.size() < 4) return sol;
     if (params_.refine && inliers_.size() >= 6) {
       inlier_object_.clear();

@@ -14,10 +14,9 @@
 #pragma once
 
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <span>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "common/status.h"
 #include "geometry/pose.h"
@@ -29,11 +28,11 @@ struct PnpParams {
   double reprojection_px = 4.0;  // RANSAC inlier threshold
   int iterations = 100;          // RANSAC iterations
   double confidence = 0.99;
-  bool refine = true;            // Levenberg-Marquardt on the inliers after RANSAC
+  bool refine = true;  // Levenberg-Marquardt on the inliers after RANSAC
 };
 
 struct PnpSolution {
-  bool found = false;       // RANSAC produced a model
+  bool found = false;  // RANSAC produced a model
   std::uint32_t inliers = 0;
   Pose3 t_cam_map = Pose3::Identity();
 };

@@ -26,9 +26,9 @@
 
 namespace zm::simd {
 
-inline constexpr std::size_t kHammingBytes = 32;               // 256-bit descriptors
-inline constexpr std::uint32_t kNoMatch = 0xFFFFFFFFu;          // best_index without trains
-inline constexpr std::uint16_t kNoSecond = 0xFFFFu;             // distance that does not exist
+inline constexpr std::size_t kHammingBytes = 32;        // 256-bit descriptors
+inline constexpr std::uint32_t kNoMatch = 0xFFFFFFFFu;  // best_index without trains
+inline constexpr std::uint16_t kNoSecond = 0xFFFFu;     // distance that does not exist
 
 struct BestTwo {
   std::uint32_t best_index = kNoMatch;      // train index of the best match
@@ -37,7 +37,7 @@ struct BestTwo {
 };
 
 struct RatioTestParams {
-  float ratio = 0.8f;              // Lowe's ratio: best < ratio * second
+  float ratio = 0.8f;               // Lowe's ratio: best < ratio * second
   std::uint32_t max_distance = 64;  // absolute gate on the best distance (bits of 256)
 };
 
@@ -55,21 +55,21 @@ struct DescriptorMatch {
 }
 
 // The same declarations in each kernel namespace.
-#define ZM_SIMD_DECLARE_HAMMING_KERNELS                                                         \
-  /* "scalar" or "neon": which implementation this namespace is. */                             \
-  [[nodiscard]] const char* KernelName();                                                       \
-  /* out[i] = popcount(query XOR train[i]) for i < n. */                                         \
-  void HammingOneToMany(const std::uint8_t* query, const std::uint8_t* train, std::size_t n,     \
-                        std::uint16_t* out);                                                    \
-  void HammingOneToMany(const std::uint8_t* query, const std::uint8_t* train, std::size_t n,     \
-                        std::uint32_t* out);                                                    \
-  /* For each of nq queries, the best two trains among nt (out has nq entries). */               \
-  void BestTwoMatches(const std::uint8_t* queries, std::size_t nq, const std::uint8_t* train,    \
-                      std::size_t nt, BestTwo* out);                                            \
-  /* Writes the queries that pass the ratio test to out (capacity >= nq), in query order; */    \
-  /* returns how many. */                                                                       \
-  [[nodiscard]] std::size_t MatchRatioTest(const std::uint8_t* queries, std::size_t nq,         \
-                                           const std::uint8_t* train, std::size_t nt,           \
+#define ZM_SIMD_DECLARE_HAMMING_KERNELS                                                       \
+  /* "scalar" or "neon": which implementation this namespace is. */                           \
+  [[nodiscard]] const char* KernelName();                                                     \
+  /* out[i] = popcount(query XOR train[i]) for i < n. */                                      \
+  void HammingOneToMany(const std::uint8_t* query, const std::uint8_t* train, std::size_t n,  \
+                        std::uint16_t* out);                                                  \
+  void HammingOneToMany(const std::uint8_t* query, const std::uint8_t* train, std::size_t n,  \
+                        std::uint32_t* out);                                                  \
+  /* For each of nq queries, the best two trains among nt (out has nq entries). */            \
+  void BestTwoMatches(const std::uint8_t* queries, std::size_t nq, const std::uint8_t* train, \
+                      std::size_t nt, BestTwo* out);                                          \
+  /* Writes the queries that pass the ratio test to out (capacity >= nq), in query order; */  \
+  /* returns how many. */                                                                     \
+  [[nodiscard]] std::size_t MatchRatioTest(const std::uint8_t* queries, std::size_t nq,       \
+                                           const std::uint8_t* train, std::size_t nt,         \
                                            const RatioTestParams& params, DescriptorMatch* out);
 
 namespace scalar {

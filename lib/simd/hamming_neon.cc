@@ -47,8 +47,8 @@ inline std::uint16_t Distance1(uint8x16_t q0, uint8x16_t q1, const std::uint8_t*
 }
 
 // The scalar reference's update rule, applied in train order (identical ties).
-inline void Update(std::uint32_t d, std::uint32_t index, std::uint32_t* best,
-                   std::uint32_t* second, std::uint32_t* best_index) {
+inline void Update(std::uint32_t d, std::uint32_t index, std::uint32_t* best, std::uint32_t* second,
+                   std::uint32_t* best_index) {
   if (d < *best) {
     *second = *best;
     *best = d;
@@ -107,8 +107,8 @@ void BestTwoMatches(const std::uint8_t* queries, std::size_t nq, const std::uint
       Update(Distance1(q0, q1, train + t * kHammingBytes), static_cast<std::uint32_t>(t), &best,
              &second, &best_index);
     }
-    out[q] = BestTwo{best_index, static_cast<std::uint16_t>(best),
-                     static_cast<std::uint16_t>(second)};
+    out[q] =
+        BestTwo{best_index, static_cast<std::uint16_t>(best), static_cast<std::uint16_t>(second)};
   }
 }
 

@@ -55,8 +55,8 @@ void BestTwoMatches(const std::uint8_t* queries, std::size_t nq, const std::uint
         second = d;
       }
     }
-    out[q] = BestTwo{best_index, static_cast<std::uint16_t>(best),
-                     static_cast<std::uint16_t>(second)};
+    out[q] =
+        BestTwo{best_index, static_cast<std::uint16_t>(best), static_cast<std::uint16_t>(second)};
   }
 }
 

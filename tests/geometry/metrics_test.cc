@@ -1,12 +1,12 @@
 // evo-exact metrics: the reference values of docs/evaluation.md on TUM fr1/xyz, plus synthetic
 // checks of association, Umeyama (incl. the reflection case) and RPE.
+#include "geometry/metrics.h"
+
 #include <doctest/doctest.h>
 
 #include <cmath>
 #include <random>
 #include <string>
-
-#include "geometry/metrics.h"
 
 namespace zm {
 namespace {

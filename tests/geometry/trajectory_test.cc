@@ -1,10 +1,10 @@
 // TUM/KITTI parsing and round trips.
+#include "geometry/trajectory.h"
+
 #include <doctest/doctest.h>
 
 #include <cmath>
 #include <string>
-
-#include "geometry/trajectory.h"
 
 namespace zm {
 namespace {
@@ -47,8 +47,10 @@ TEST_CASE("TUM and KITTI round trip") {
     CHECK(back->has_stamps == (f == TrajectoryFormat::kTum));
     for (std::size_t i = 0; i < t.size(); ++i) {
       CHECK((back->poses[i].matrix() - t.poses[i].matrix()).cwiseAbs().maxCoeff() < 1e-8);
-      if (f == TrajectoryFormat::kTum) CHECK(back->stamps_s[i] == doctest::Approx(t.stamps_s[i]));
-      else CHECK(back->stamps_s[i] == static_cast<double>(i));
+      if (f == TrajectoryFormat::kTum)
+        CHECK(back->stamps_s[i] == doctest::Approx(t.stamps_s[i]));
+      else
+        CHECK(back->stamps_s[i] == static_cast<double>(i));
     }
   }
   CHECK_FALSE(ParseTrajectoryFormat("csv").ok());

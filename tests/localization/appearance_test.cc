@@ -1,11 +1,12 @@
 // Bag-of-binary-words score: a revisit scores high, an unrelated keyframe low, and the query
 // sets are empty again after ClearQuery (no state leaks between frames), without allocating.
+#include "localization/appearance.h"
+
 #include <doctest/doctest.h>
 
 #include <random>
 #include <vector>
 
-#include "localization/appearance.h"
 #include "mapdb/keyframe_payload.h"
 #include "support/counting_allocator.h"
 

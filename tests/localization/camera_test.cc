@@ -1,8 +1,9 @@
 // The camera convention the simulator shares: body x forward / y left / z up, camera x right /
 // y down / z forward, pinhole projection.
+#include "localization/camera.h"
+
 #include <doctest/doctest.h>
 
-#include "localization/camera.h"
 #include "localization/localizer.h"
 
 namespace zm {
@@ -23,10 +24,10 @@ TEST_CASE("body to camera: ahead is the image centre, left is u < cx, up is v < 
   REQUIRE(Project(kCam, BodyPointInCamera(body, {5, 1, 0}), &uv));
   CHECK(uv.x() == doctest::Approx(320.0 - 100.0));  // left of the robot: left in the image
   REQUIRE(Project(kCam, BodyPointInCamera(body, {5, 0, 1}), &uv));
-  CHECK(uv.y() == doctest::Approx(240.0 - 100.0));  // above: up in the image
-  CHECK_FALSE(Project(kCam, BodyPointInCamera(body, {-5, 0, 0}), &uv));   // behind
-  CHECK_FALSE(Project(kCam, BodyPointInCamera(body, {0.05, 0, 0}), &uv)); // too close
-  CHECK_FALSE(Project(kCam, BodyPointInCamera(body, {1, 5, 0}), &uv));    // outside the image
+  CHECK(uv.y() == doctest::Approx(240.0 - 100.0));                         // above: up in the image
+  CHECK_FALSE(Project(kCam, BodyPointInCamera(body, {-5, 0, 0}), &uv));    // behind
+  CHECK_FALSE(Project(kCam, BodyPointInCamera(body, {0.05, 0, 0}), &uv));  // too close
+  CHECK_FALSE(Project(kCam, BodyPointInCamera(body, {1, 5, 0}), &uv));     // outside the image
   CHECK(BodyToCamera().linear().determinant() == doctest::Approx(1.0));
 }
 

@@ -3,6 +3,8 @@
 // tick. With every keyframe resident the localized ATE stays far below odometry's; with the
 // keyframes of the later corridor non-resident no closure happens there and drift grows
 // (invariant 4: only what is resident can close a loop).
+#include "localization/localizer.h"
+
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -12,7 +14,6 @@
 
 #include "geometry/metrics.h"
 #include "localization/camera.h"
-#include "localization/localizer.h"
 #include "support/counting_allocator.h"
 #include "synthetic_world.h"
 

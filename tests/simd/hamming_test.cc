@@ -2,6 +2,8 @@
 // against the scalar reference on seeded random inputs, lengths around the vector width, every
 // misalignment and the edge cases; and a check that an aarch64 build did not silently fall back
 // to scalar (invariant 6, docs/style.md §7).
+#include "simd/hamming.h"
+
 #include <doctest/doctest.h>
 
 #include <cstring>
@@ -9,8 +11,6 @@
 #include <random>
 #include <string>
 #include <vector>
-
-#include "simd/hamming.h"
 
 #ifndef ZM_FORCE_SCALAR
 #error "the build passes ZM_FORCE_SCALAR=0/1 to this test"
@@ -31,21 +31,20 @@ struct Kernel {
       ratio;
 };
 
-#define ZM_KERNEL(ns)                                                                         \
-  Kernel {                                                                                    \
-    ns::KernelName(),                                                                         \
-        [](const std::uint8_t* q, const std::uint8_t* t, std::size_t n, std::uint16_t* o) {   \
-          ns::HammingOneToMany(q, t, n, o);                                                   \
-        },                                                                                    \
-        [](const std::uint8_t* q, const std::uint8_t* t, std::size_t n, std::uint32_t* o) {   \
-          ns::HammingOneToMany(q, t, n, o);                                                   \
-        },                                                                                    \
-        [](const std::uint8_t* q, std::size_t nq, const std::uint8_t* t, std::size_t nt,      \
-           BestTwo* o) { ns::BestTwoMatches(q, nq, t, nt, o); },                              \
-        [](const std::uint8_t* q, std::size_t nq, const std::uint8_t* t, std::size_t nt,      \
-           const RatioTestParams& p, DescriptorMatch* o) {                                    \
-          return ns::MatchRatioTest(q, nq, t, nt, p, o);                                      \
-        }                                                                                     \
+#define ZM_KERNEL(ns)                                                                       \
+  Kernel {                                                                                  \
+    ns::KernelName(),                                                                       \
+        [](const std::uint8_t* q, const std::uint8_t* t, std::size_t n, std::uint16_t* o) { \
+          ns::HammingOneToMany(q, t, n, o);                                                 \
+        },                                                                                  \
+        [](const std::uint8_t* q, const std::uint8_t* t, std::size_t n, std::uint32_t* o) { \
+          ns::HammingOneToMany(q, t, n, o);                                                 \
+        },                                                                                  \
+        [](const std::uint8_t* q, std::size_t nq, const std::uint8_t* t, std::size_t nt,    \
+           BestTwo* o) { ns::BestTwoMatches(q, nq, t, nt, o); },                            \
+        [](const std::uint8_t* q, std::size_t nq, const std::uint8_t* t, std::size_t nt,    \
+           const RatioTestParams& p,                                                        \
+           DescriptorMatch* o) { return ns::MatchRatioTest(q, nq, t, nt, p, o); }           \
   }
 
 std::vector<Kernel> Kernels() {
@@ -106,7 +105,8 @@ BestTwo OracleBestTwo(const std::uint8_t* q, const std::uint8_t* t, std::size_t 
   for (std::size_t i = 0; i < nt; ++i) d[i] = OracleDistance(q, t + i * kHammingBytes);
   if (nt == 0) return b;
   std::size_t bi = 0;
-  for (std::size_t i = 1; i < nt; ++i) if (d[i] < d[bi]) bi = i;
+  for (std::size_t i = 1; i < nt; ++i)
+    if (d[i] < d[bi]) bi = i;
   b.best_index = static_cast<std::uint32_t>(bi);
   b.best_distance = static_cast<std::uint16_t>(d[bi]);
   for (std::size_t i = 0; i < nt; ++i) {
@@ -120,8 +120,8 @@ bool Same(const BestTwo& a, const BestTwo& b) {
          a.second_distance == b.second_distance;
 }
 
-const std::vector<std::size_t> kLengths{0,  1,  2,  3,  4,  5,  6,  7,  8,  9,  10, 11,
-                                        12, 13, 14, 15, 16, 17, 31, 32, 33, 257};
+const std::vector<std::size_t> kLengths{0,  1,  2,  3,  4,  5,  6,  7,  8,  9,  10,
+                                        11, 12, 13, 14, 15, 16, 17, 31, 32, 33, 257};
 
 TEST_CASE("the active kernel is the one the build promised (no silent scalar on aarch64)") {
   const std::string active = ActiveHammingKernel();
@@ -160,7 +160,8 @@ TEST_CASE("one-to-many: every kernel equals the oracle, all lengths, all misalig
         k.one16(q.ptr, t.ptr, n, d16.data());
         k.one32(q.ptr, t.ptr, n, d32.data());
         bool ok = d16[n] == 0xBEEF && d32[n] == 0xDEADBEEF;
-        for (std::size_t i = 0; i < n; ++i) ok = ok && d16[i] == expected[i] && d32[i] == expected[i];
+        for (std::size_t i = 0; i < n; ++i)
+          ok = ok && d16[i] == expected[i] && d32[i] == expected[i];
         CHECK_MESSAGE(ok, k.name << " n=" << n << " offset=" << off);
       }
     }
@@ -205,8 +206,8 @@ TEST_CASE("best-two and ratio test: every kernel equals the oracle, all lengths,
             }
           }
           ok = ok && count == expected_count;
-          CHECK_MESSAGE(ok, k.name << " nt=" << nt << " offset=" << off
-                                   << " clustered=" << clustered);
+          CHECK_MESSAGE(ok,
+                        k.name << " nt=" << nt << " offset=" << off << " clustered=" << clustered);
         }
       }
     }
