@@ -1,0 +1,39 @@
+// A replay on a simulated device: the profile's memory split, a device ledger shared with the
+// co-tenant stand-in, and the map process's own charge updated every tick. What `zonemap run`
+// and `zonemap bench` call; summary.json gains `cotenant` and `device` sections.
+//
+// Ledger tenants: "os" (the profile's OS/JetPack reserve), "map" (arena reservation for the
+// bounded policies, whose budget is reserved up front; resident slots for basic/unbounded, whose
+// memory grows like RTAB-Map's heap; plus the process overhead) and the co-tenant. A map update
+// the device cannot hold is refused and counted as an out-of-memory event.
+#pragma once
+
+#include <atomic>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "common/status.h"
+#include "runtime/profile.h"
+#include "runtime/run.h"
+
+namespace zm {
+
+// Converts a profile (after overrides) into the loop's configuration.
+[[nodiscard]] Result<LoopConfig> LoopConfigFromProfile(const Profile& profile);
+
+struct DeviceRunRequest {
+  std::string scenario_dir;
+  std::string out_dir;
+  Profile profile;
+  bool with_cotenant = false;
+  double cotenant_scale = 1.0;    // weights multiplier (tests, CI); the report states it
+  std::uint64_t max_ticks = 0;
+  bool verify_checksums = false;
+};
+
+[[nodiscard]] Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request,
+                                                 const std::atomic<bool>* stop = nullptr);
+
+}  // namespace zm

@@ -1,0 +1,36 @@
+// One replay of a scenario through the tick loop: what `zonemap run` and the evaluation matrix
+// call. Opens the scenario's database and frames, runs every tick, writes RUNDIR/ticks.jsonl,
+// RUNDIR/estimate.tum and RUNDIR/summary.json (the keys of docs/design.md), and returns the
+// summary. Deterministic: the same inputs give the same decisions and the same summary, timings
+// aside.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "common/status.h"
+#include "runtime/tick_loop.h"
+
+namespace zm {
+
+struct RunRequest {
+  std::string scenario_dir;
+  std::string out_dir;
+  LoopConfig loop;
+  std::string profile_name;  // for the summary only
+  // Called after every tick with the loop (device ledger, co-tenant bookkeeping); may be empty.
+  std::function<void(const TickLoop&)> on_tick;
+};
+
+// Runs the replay. `stop` (may be null) ends it early at a tick boundary (SIGINT/SIGTERM); the
+// telemetry is flushed and the summary written for the ticks done.
+[[nodiscard]] Result<nlohmann::json> RunScenario(const RunRequest& request,
+                                                 const std::atomic<bool>* stop = nullptr);
+
+// p in [0, 100] of `values` (nearest-rank on a sorted copy); 0 for an empty list.
+[[nodiscard]] double Percentile(std::vector<double> values, double p);
+
+}  // namespace zm

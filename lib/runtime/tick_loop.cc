@@ -1,0 +1,311 @@
+// The tick loop. See tick_loop.h for the step order and the allocation contract.
+#include "runtime/tick_loop.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "zones/adjacency.h"
+
+namespace zm {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double MsSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+bool IsBoundedPolicy(const std::string& name) {
+  return name != "basic" && name != "unbounded";
+}
+
+}  // namespace
+
+TickLoop::TickLoop(const LoopConfig& config, MapDb& db, FrameSource& frames,
+                   TelemetryWriter* telemetry, Arena arena, MapIndex index)
+    : config_(config),
+      db_(db),
+      frames_(frames),
+      telemetry_(telemetry),
+      arena_(std::move(arena)),
+      map_index_(std::move(index)) {}
+
+TickLoop::~TickLoop() = default;
+
+Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, MapDb& db,
+                                                   FrameSource& frames, TelemetryWriter* telemetry,
+                                                   std::vector<ZoneId> route,
+                                                   std::vector<ZoneId> oracle_future,
+                                                   double frame_rate_hz) {
+  const MapMetadata& meta = db.metadata();
+  if (meta.keyframe_count == 0) return InvalidArgument("the map database has no keyframes");
+
+  // Metadata only: no payload is read to decide anything.
+  ZM_ASSIGN_OR_RETURN(std::vector<KeyframeMeta> keyframes, db.Keyframes());
+  ZM_ASSIGN_OR_RETURN(std::vector<LinkRecord> links, db.Links());
+  ZM_ASSIGN_OR_RETURN(std::vector<ZoneRecord> zone_records, db.Zones());
+  ZM_ASSIGN_OR_RETURN(std::vector<ZoneMember> members, db.ZoneMembers());
+  if (zone_records.empty()) {
+    return FailedPrecondition(
+        "the map database has no zones: run `zonemap zones annotate DB ZONES.geojson` first");
+  }
+  ZM_ASSIGN_OR_RETURN(ZoneSet zone_set, ZoneSetFromRecords(zone_records, members));
+  const ZoneGraph graph = BuildAdjacency(zone_set, members, links);
+
+  MapIndexInput input;
+  input.keyframes = keyframes;
+  input.links = links;
+  input.members = members;
+  input.zone_count = static_cast<std::int32_t>(zone_records.size());
+  input.zone_adjacency.resize(zone_records.size());
+  for (std::size_t z = 0; z < zone_records.size(); ++z) {
+    const auto nb = graph.Neighbours(ZoneId{static_cast<std::int32_t>(z)});
+    input.zone_adjacency[z].assign(nb.begin(), nb.end());
+  }
+  ZM_ASSIGN_OR_RETURN(MapIndex index, MapIndex::Build(input));
+
+  // K_max = min(count, bytes / slot_bytes); slot_bytes from the database's largest payload.
+  const std::uint64_t slot_bytes =
+      config.slot_bytes != 0 ? config.slot_bytes : meta.largest_payload_bytes;
+  if (slot_bytes < meta.largest_payload_bytes) {
+    return OutOfRange("slot_bytes " + std::to_string(slot_bytes) +
+                      " is smaller than the largest keyframe payload (" +
+                      std::to_string(meta.largest_payload_bytes) + " bytes)");
+  }
+  auto plan_or = PlanArena({.memory_thr_keyframes = config.memory_thr_keyframes,
+                            .budget_bytes = config.memory_thr_bytes,
+                            .slot_bytes = slot_bytes});
+  const bool unbounded_budget = config.memory_thr_keyframes == 0 && config.memory_thr_bytes == 0;
+  std::uint32_t k_max = static_cast<std::uint32_t>(meta.keyframe_count);
+  if (!unbounded_budget) {
+    if (auto* err = std::get_if<ArenaError>(&plan_or)) return InvalidArgument(err->message);
+    k_max = std::min<std::uint32_t>(std::get<ArenaPlan>(plan_or).slots,
+                                    static_cast<std::uint32_t>(meta.keyframe_count));
+  }
+  // The bounded policies get an arena of exactly K_max slots: exceeding the budget is then
+  // physically impossible. basic and unbounded model RTAB-Map's heap, which grows: their arena
+  // holds the whole map and the over-budget flag measures by how much they exceed MemoryThr.
+  const bool bounded = IsBoundedPolicy(config.policy.policy) && !unbounded_budget;
+  const std::uint64_t arena_slots = bounded ? k_max : meta.keyframe_count;
+  auto arena_or = Arena::Create({.memory_thr_keyframes = arena_slots,
+                                 .budget_bytes = 0,
+                                 .slot_bytes = slot_bytes,
+                                 .lock = config.lock_arena,
+                                 .prefault = config.prefault_arena});
+  if (auto* err = std::get_if<ArenaError>(&arena_or)) return ResourceExhausted(err->message);
+
+  std::unique_ptr<TickLoop> loop(new TickLoop(config, db, frames, telemetry,
+                                              std::move(std::get<Arena>(arena_or)),
+                                              std::move(index)));
+  loop->k_max_ = k_max;
+  loop->bounded_ = bounded;
+  loop->zone_set_ = std::move(zone_set);
+  loop->zone_index_ = ZoneIndex(loop->zone_set_, config.zones);
+  loop->route_ = std::move(route);
+
+  PolicyOptions popt = config.policy;
+  popt.k_max = k_max;
+  popt.semantic.k_max = k_max;
+  popt.radius.k_max = k_max;
+  popt.predictive.k_max = k_max;
+  popt.oracle.k_max = k_max;
+  popt.oracle.future = std::move(oracle_future);
+  popt.basic.memory_thr = unbounded_budget ? 0 : k_max;
+  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt));
+  loop->working_set_ = std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, db, k_max);
+
+  LocalizerConfig lc = config.localizer;
+  lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes,
+                                                 static_cast<std::uint32_t>(arena_slots));
+  lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, frames.max_features());
+  ZM_RETURN_IF_ERROR(ValidateLocalizerConfig(lc, meta.camera));
+  loop->localizer_ = std::make_unique<Localizer>(lc, meta.camera);
+
+  loop->frame_.Reserve(std::max<std::uint32_t>(frames.max_features(), 1));
+  loop->plan_.Reserve(loop->map_index_);
+  loop->resident_views_.reserve(arena_slots);
+  loop->frame_period_s_ = frame_rate_hz > 0 ? 1.0 / frame_rate_hz : 1.0;
+  // Keyframe body poses in MapIndex order (ascending id), for the localizer's heading gate.
+  std::sort(keyframes.begin(), keyframes.end(),
+            [](const KeyframeMeta& a, const KeyframeMeta& b) { return a.id < b.id; });
+  loop->keyframe_poses_.reserve(keyframes.size());
+  for (const KeyframeMeta& k : keyframes) loop->keyframe_poses_.push_back(k.pose);
+  // Per-tick series: reserved for the whole replay so that pushing a tick never allocates.
+  const std::size_t expected = std::max<std::uint64_t>(config.expected_ticks, 1024);
+  loop->tick_ms_.reserve(expected);
+  loop->estimate_.stamps_s.reserve(expected);
+  loop->estimate_.poses.reserve(expected);
+  loop->ctx_.route = loop->route_;
+  return loop;
+}
+
+Status TickLoop::Start() { return Status::Ok(); }
+
+void TickLoop::NoteError(const Status& s) {
+  ++totals_.step_errors;
+  if (totals_.first_error.empty()) totals_.first_error = s.ToString();
+  record_.stalled = true;
+}
+
+void TickLoop::Account(const TickTelemetry& t) {
+  totals_.keyframes_loaded += t.keyframes_loaded;
+  totals_.keyframes_unloaded += t.keyframes_unloaded;
+  totals_.zone_loads += t.zones_loaded;
+  totals_.db_transactions += t.db_transactions;
+  totals_.db_queries += t.db_queries;
+  totals_.search_queries += t.search_queries;
+  totals_.db_bytes_read += t.db_bytes_read;
+  totals_.load_ms += t.load_ms;
+  totals_.unload_ms += t.unload_ms;
+  totals_.peak_resident_keyframes =
+      std::max(totals_.peak_resident_keyframes, t.peak_resident_keyframes);
+}
+
+Result<bool> TickLoop::Tick() {
+  if (config_.max_ticks != 0 && totals_.ticks >= config_.max_ticks) return false;
+  const Clock::time_point t_tick = Clock::now();
+  record_ = TickRecord{};
+  tel_ = TickTelemetry{};
+
+  // 1. Read a frame.
+  Clock::time_point t0 = Clock::now();
+  auto next = frames_.Next(&frame_);
+  if (!next.ok()) return next.status();
+  if (!next.value()) return false;
+  record_.step_ms[static_cast<int>(TickStep::kReadFrame)] = MsSince(t0);
+
+  // 2. Update the pose: odometry composed with the current correction.
+  t0 = Clock::now();
+  const Pose3 predicted = t_map_odom_ * frame_.odom;
+  bool small = false;
+  if (have_kept_pose_) {
+    const Pose3 delta = last_kept_pose_.inverse() * predicted;
+    const double angle = Eigen::AngleAxisd(delta.linear()).angle();
+    small = delta.translation().norm() < config_.small_displacement_m &&
+            angle < config_.small_displacement_rad;
+  }
+  if (!small) {
+    last_kept_pose_ = predicted;
+    have_kept_pose_ = true;
+  }
+  record_.step_ms[static_cast<int>(TickStep::kPoseUpdate)] = MsSince(t0);
+
+  // 3. Look up the zone (constant time, hysteresis, own floor only).
+  t0 = Clock::now();
+  zone_ = zone_index_.GetZone(predicted, zone_);
+  record_.step_ms[static_cast<int>(TickStep::kZoneLookup)] = MsSince(t0);
+
+  ctx_.tick = totals_.ticks;
+  ctx_.now_s = frame_.stamp_s;
+  ctx_.pose = predicted;
+  ctx_.zone = zone_;
+  ctx_.small_displacement = small;
+  ctx_.highest_hypothesis = KeyframeId{0};
+  ctx_.localized_on = KeyframeId{0};
+  ctx_.load_ms_per_keyframe = working_set_->load_ms_per_keyframe();
+
+  // 4. The policy plans: unload, then load (start-up load on the first tick).
+  t0 = Clock::now();
+  plan_.Clear();
+  if (totals_.ticks == 0) {
+    policy_->Start(ctx_, &plan_);
+  } else {
+    policy_->PlanBeforeLocalize(ctx_, &plan_);
+  }
+  record_.step_ms[static_cast<int>(TickStep::kPlan)] = MsSince(t0);
+
+  // 5. Apply the plan.
+  t0 = Clock::now();
+  if (!plan_.empty()) {
+    const Status s = working_set_->Apply(plan_, &tel_);
+    if (!s.ok()) NoteError(s);
+  }
+  record_.step_ms[static_cast<int>(TickStep::kApply)] = MsSince(t0);
+
+  // 6. Localize on the resident set only, then the after-localization plan (basic).
+  t0 = Clock::now();
+  resident_views_.clear();
+  for (const WorkingSet::Resident& r : working_set_->resident()) {
+    auto view = DecodePayload(arena_.Slot(r.slot), {.verify_crc = false}, /*blob_is_slot=*/true);
+    if (!view.ok()) continue;  // cannot happen for a slot the loader validated
+    resident_views_.push_back({r.id, keyframe_poses_[r.index], view.value()});
+  }
+  const LocalizeResult loc = localizer_->Localize(frame_, predicted, resident_views_);
+  Pose3 estimate = predicted;
+  if (loc.accepted) {
+    t_map_odom_ = MapFromOdomCorrection(loc.t_map_cam, frame_.odom);  // used from next tick
+    estimate = loc.t_map_body;
+    ++totals_.loop_closures;
+  }
+  totals_.closures_rejected += loc.closures_rejected;
+  ctx_.highest_hypothesis = loc.highest_hypothesis;
+  ctx_.localized_on = loc.accepted ? loc.matched : KeyframeId{0};
+  plan_.Clear();
+  policy_->PlanAfterLocalize(ctx_, &plan_);
+  if (!plan_.empty()) {
+    const Status s = working_set_->Apply(plan_, &tel_);
+    if (!s.ok()) NoteError(s);
+  }
+  record_.step_ms[static_cast<int>(TickStep::kLocalize)] = MsSince(t0);
+
+  // 7. Telemetry.
+  t0 = Clock::now();
+  Account(tel_);
+  const std::uint32_t resident = working_set_->resident_count();
+  const std::uint64_t resident_bytes = working_set_->resident_bytes();
+  totals_.peak_resident_keyframes = std::max(totals_.peak_resident_keyframes, resident);
+  totals_.peak_resident_bytes = std::max(totals_.peak_resident_bytes, resident_bytes);
+  const std::uint32_t tick_peak = std::max(tel_.peak_resident_keyframes, resident);
+  const bool over = tick_peak > k_max_;
+  if (over) {
+    ++totals_.over_budget_ticks;
+    totals_.max_over_budget_keyframes =
+        std::max(totals_.max_over_budget_keyframes, tick_peak - k_max_);
+    totals_.longest_over_budget_run = std::max(totals_.longest_over_budget_run, ++over_budget_run_);
+  } else {
+    over_budget_run_ = 0;
+  }
+  if (record_.stalled) ++totals_.stalled_ticks;
+  estimate_.stamps_s.push_back(frame_.stamp_s);
+  estimate_.poses.push_back(estimate);
+
+  record_.tick = totals_.ticks;
+  record_.stamp_s = frame_.stamp_s;
+  record_.x_m = estimate.translation().x();
+  record_.y_m = estimate.translation().y();
+  record_.yaw_rad = Yaw(estimate);
+  record_.zone = zone_;
+  record_.resident_keyframes = resident;
+  record_.resident_bytes = resident_bytes;
+  record_.keyframes_loaded = tel_.keyframes_loaded;
+  record_.keyframes_unloaded = tel_.keyframes_unloaded;
+  record_.db_transactions = tel_.db_transactions;
+  record_.db_queries = tel_.db_queries + tel_.search_queries;
+  record_.db_bytes_read = tel_.db_bytes_read;
+  record_.load_ms = tel_.load_ms;
+  record_.unload_ms = tel_.unload_ms;
+  record_.over_budget = over;
+  record_.refused_acquisitions = arena_.stats().refused;
+  record_.loop_closure = loc.accepted;
+  record_.matched_keyframe = loc.matched.value;
+  record_.inliers = loc.inliers;
+  record_.highest_hypothesis = loc.highest_hypothesis.value;
+  record_.candidates = loc.candidates_examined;
+  record_.step_ms[static_cast<int>(TickStep::kTelemetry)] = MsSince(t0);
+  record_.tick_ms = MsSince(t_tick);
+  if (telemetry_ != nullptr) {
+    telemetry_->Write(record_);
+    if (config_.telemetry_flush_ticks != 0 &&
+        (totals_.ticks + 1) % config_.telemetry_flush_ticks == 0) {
+      telemetry_->Flush();
+    }
+  }
+  tick_ms_.push_back(record_.tick_ms);
+  totals_.simulated_s += std::max(frame_period_s_, record_.tick_ms / 1000.0);
+  ++totals_.ticks;
+  return true;
+}
+
+}  // namespace zm
