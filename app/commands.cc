@@ -30,6 +30,7 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddZonesSegmentCommand(app, ctx);
   AddZonesAnnotateCommand(app, ctx);
   AddSimCommand(app, ctx);
+  AddRunCommand(app, ctx);
 }
 
 }  // namespace zm::app

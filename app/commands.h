@@ -30,5 +30,6 @@ void AddEvalCommand(CLI::App& app, CommandContext& ctx);
 void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx);
 void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx);
 void AddSimCommand(CLI::App& app, CommandContext& ctx);
+void AddRunCommand(CLI::App& app, CommandContext& ctx);
 
 }  // namespace zm::app
