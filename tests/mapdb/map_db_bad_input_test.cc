@@ -75,16 +75,26 @@ std::vector<std::byte> Prepare(Arena& arena, std::uint32_t free_slots) {
   return copy;
 }
 
-// Every slot not reported loaded has exactly its bytes from before the load.
-void CheckUntouched(const Arena& arena, const std::vector<std::byte>& before, const RecordingSink& sink) {
+// Every slot not reported loaded has exactly its bytes from before the load, except that the
+// one slot a rejected payload was read into (then released) may differ in its first
+// `rejected_bytes` bytes: the rejected blob stayed inside its slot. Without arena poisoning
+// (release builds) those bytes are visible; with it they were overwritten by the release pattern.
+void CheckUntouched(const Arena& arena, const std::vector<std::byte>& before, const RecordingSink& sink,
+                    std::size_t rejected_bytes = 0) {
+  int changed = 0;
   for (std::uint32_t i = 0; i < arena.capacity(); ++i) {
     bool loaded = false;
     for (const auto& e : sink.loaded()) loaded |= e.slot == SlotIndex{i};
     if (loaded) continue;
     const auto s = arena.Slot(SlotIndex{i});
+    const std::byte* was = before.data() + std::size_t{i} * arena.slot_bytes();
     INFO("slot " << i);
-    CHECK(std::memcmp(s.data(), before.data() + std::size_t{i} * arena.slot_bytes(), s.size()) == 0);
+    if (std::memcmp(s.data(), was, s.size()) == 0) continue;
+    ++changed;
+    CHECK_FALSE(arena.InUse(SlotIndex{i}));
+    CHECK(std::memcmp(s.data() + rejected_bytes, was + rejected_bytes, s.size() - rejected_bytes) == 0);
   }
+  CHECK(changed <= (rejected_bytes > 0 ? 1 : 0));
 }
 
 struct Fixture {
@@ -126,9 +136,11 @@ TEST_CASE("truncated, corrupt, misplaced and missing payload blobs give clear er
   Fixture f;
   std::string expect;
   std::int64_t bad_id = 7;  // zone 1 holds 5, 6, 7, 8
+  std::size_t bad_bytes = f.built.payloads.at(7).size();
   SUBCASE("truncated") {
     EditPayload(f.path, bad_id, [](auto& b) { b.resize(b.size() - 100); });
     expect = "truncated";
+    bad_bytes -= 100;
   }
   SUBCASE("corrupt body") {
     EditPayload(f.path, bad_id, [](auto& b) { b[200] ^= 0x40; });
@@ -141,6 +153,7 @@ TEST_CASE("truncated, corrupt, misplaced and missing payload blobs give clear er
   SUBCASE("shorter than a header") {
     EditPayload(f.path, bad_id, [](auto& b) { b.resize(10); });
     expect = "shorter than";
+    bad_bytes = 10;
   }
   SUBCASE("another keyframe's payload") {
     EditPayload(f.path, bad_id, [&](auto& b) {
@@ -149,10 +162,12 @@ TEST_CASE("truncated, corrupt, misplaced and missing payload blobs give clear er
                reinterpret_cast<const unsigned char*>(other.data()) + other.size());
     });
     expect = "holds keyframe 6";
+    bad_bytes = f.built.payloads.at(6).size();
   }
   SUBCASE("missing payload row") {
     Sql(f.path, "DELETE FROM payload WHERE keyframe_id=7");
     expect = "no readable payload row";
+    bad_bytes = 0;
   }
   const auto file_before = Snapshot(f.path);
   auto db = MapDb::Open(f.path);
@@ -168,7 +183,7 @@ TEST_CASE("truncated, corrupt, misplaced and missing payload blobs give clear er
   CHECK(Contains(st.status(), expect));
   CHECK(sink.loaded().size() == 2);   // 5 and 6 came before 7
   CHECK(arena.in_use() == 2);         // 7's slot was released
-  CheckUntouched(arena, before, sink);
+  CheckUntouched(arena, before, sink, bad_bytes);
   // The reader is still usable: the failed load ended its transaction.
   auto ok = (*db)->LoadZone(ZoneId{2}, arena, sink);
   CHECK(ok.ok());
@@ -199,60 +214,8 @@ TEST_CASE("a full arena stops the load with ResourceExhausted") {
   CHECK(sink.loaded().size() == 3);
 }
 
-TEST_CASE("bad database files are refused at open with one clear error") {
-  Fixture f;
-  std::string expect;
-  StatusCode code = StatusCode::kCorrupt;
-  std::string path = f.path;
-  SUBCASE("wrong schema version") {
-    Sql(f.path, "PRAGMA user_version=7");
-    code = StatusCode::kFailedPrecondition;
-    expect = "schema version 7; this build reads version 1";
-  }
-  SUBCASE("missing table") {
-    Sql(f.path, "DROP TABLE zone_member");
-    expect = "missing table zone_member";
-  }
-  SUBCASE("missing column") {
-    Sql(f.path, "ALTER TABLE keyframe DROP COLUMN weight");
-    expect = "table keyframe does not have the expected columns";
-  }
-  SUBCASE("meta disagrees with the tables") {
-    Sql(f.path, "UPDATE meta SET value=10 WHERE key='largest_payload_bytes'");
-    expect = "largest payload 10 bytes";
-  }
-  SUBCASE("writer never finished") {
-    Sql(f.path, "DELETE FROM meta WHERE key='keyframe_count'");
-    code = StatusCode::kFailedPrecondition;
-    expect = "not finished";
-  }
-  SUBCASE("not a database") {
-    path = f.dir.File("text.db");
-    std::ofstream(path) << std::string(4096, 'x');
-    expect = "not a valid SQLite database";
-  }
-  SUBCASE("some other SQLite database") {
-    path = f.dir.File("other.db");
-    Sql(path, "CREATE TABLE t(x)");
-    code = StatusCode::kFailedPrecondition;
-    expect = "not a zonemap map database";
-  }
-  SUBCASE("empty file") {
-    path = f.dir.File("empty.db");
-    std::ofstream(path).flush();
-    code = StatusCode::kInvalidArgument;
-    expect = "empty (0 bytes)";
-  }
-  SUBCASE("no such file") {
-    path = f.dir.File("nope.db");
-    code = StatusCode::kNotFound;
-    expect = "does not exist";
-  }
-  SUBCASE("truncated database") {
-    const auto size = std::filesystem::file_size(f.path);
-    std::filesystem::resize_file(f.path, size / 2);
-    expect = "truncated";
-  }
+// Open must fail with `code` and `expect` in the message, without creating or changing the file.
+void ExpectOpenFails(const std::string& path, StatusCode code, const std::string& expect) {
   const bool existed = std::filesystem::exists(path);
   const auto file_before = existed ? Snapshot(path) : std::vector<char>{};
   auto db = MapDb::Open(path);
@@ -262,6 +225,58 @@ TEST_CASE("bad database files are refused at open with one clear error") {
   CHECK(Contains(db.status(), expect));
   CHECK(std::filesystem::exists(path) == existed);
   if (existed) CHECK(Snapshot(path) == file_before);
+}
+
+TEST_CASE("a map with a bad schema or metadata is refused at open with one clear error") {
+  Fixture f;
+  SUBCASE("wrong schema version") {
+    Sql(f.path, "PRAGMA user_version=7");
+    ExpectOpenFails(f.path, StatusCode::kFailedPrecondition, "schema version 7; this build reads version 1");
+  }
+  SUBCASE("missing table") {
+    Sql(f.path, "DROP TABLE zone_member");
+    ExpectOpenFails(f.path, StatusCode::kCorrupt, "missing table zone_member");
+  }
+  SUBCASE("missing column") {
+    Sql(f.path, "ALTER TABLE keyframe DROP COLUMN weight");
+    ExpectOpenFails(f.path, StatusCode::kCorrupt, "table keyframe does not have the expected columns");
+  }
+  SUBCASE("meta disagrees with the tables") {
+    Sql(f.path, "UPDATE meta SET value=10 WHERE key='largest_payload_bytes'");
+    ExpectOpenFails(f.path, StatusCode::kCorrupt, "largest payload 10 bytes");
+  }
+  SUBCASE("writer never finished") {
+    Sql(f.path, "DELETE FROM meta WHERE key='keyframe_count'");
+    ExpectOpenFails(f.path, StatusCode::kFailedPrecondition, "not finished");
+  }
+}
+
+TEST_CASE("files that are not a whole zonemap map are refused at open with one clear error") {
+  TempDir dir;
+  SUBCASE("not a database") {
+    const std::string path = dir.File("text.db");
+    std::ofstream(path) << std::string(4096, 'x');
+    ExpectOpenFails(path, StatusCode::kCorrupt, "not a valid SQLite database");
+  }
+  SUBCASE("some other SQLite database") {
+    const std::string path = dir.File("other.db");
+    Sql(path, "CREATE TABLE t(x)");
+    ExpectOpenFails(path, StatusCode::kFailedPrecondition, "not a zonemap map database");
+  }
+  SUBCASE("empty file") {
+    const std::string path = dir.File("empty.db");
+    std::ofstream(path).flush();
+    ExpectOpenFails(path, StatusCode::kInvalidArgument, "empty (0 bytes)");
+  }
+  SUBCASE("no such file") {
+    ExpectOpenFails(dir.File("nope.db"), StatusCode::kNotFound, "does not exist");
+  }
+  SUBCASE("truncated database") {
+    const std::string path = dir.File("map.db");
+    BuildMap(path);
+    std::filesystem::resize_file(path, std::filesystem::file_size(path) / 2);
+    ExpectOpenFails(path, StatusCode::kCorrupt, "truncated");
+  }
 }
 
 }  // namespace

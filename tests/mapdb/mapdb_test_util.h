@@ -4,6 +4,7 @@
 #pragma once
 
 #include <doctest/doctest.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -23,8 +24,14 @@ namespace zm::test {
 
 class TempDir {
  public:
+  // On tmpfs (/dev/shm) when there is one: the tests make many small databases and their fsyncs
+  // on a shared disk would dominate the run time without testing anything.
   TempDir() {
-    std::string tmpl = (std::filesystem::temp_directory_path() / "zm_mapdb_XXXXXX").string();
+    std::error_code ec;
+    const std::filesystem::path base = std::filesystem::is_directory("/dev/shm", ec) && access("/dev/shm", W_OK) == 0
+                                           ? std::filesystem::path("/dev/shm")
+                                           : std::filesystem::temp_directory_path();
+    std::string tmpl = (base / "zm_mapdb_XXXXXX").string();
     REQUIRE(mkdtemp(tmpl.data()) != nullptr);
     path_ = tmpl;
   }

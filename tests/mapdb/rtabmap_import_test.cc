@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -202,7 +203,9 @@ TEST_CASE("hundreds of pose-only nodes: ids kept, links deduplicated, optimized 
   CHECK(rep2->keyframes == kNodes);  // 302's null pose still skipped
 }
 
-TEST_CASE("damaged RTAB-Map blobs give one clear error and leave no output behind") {
+// Builds a two-node map, lets `damage` break it (returning the error text to expect), and checks
+// the import fails with that text, leaves an existing OUT byte-identical and no OUT.tmp behind.
+void ExpectDamagedImportFails(const std::function<std::string(RtabDb&, const Blob&, const Blob&)>& damage) {
   TempDir dir;
   const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
   std::string expect;
@@ -211,55 +214,8 @@ TEST_CASE("damaged RTAB-Map blobs give one clear error and leave no output behin
     r.AddNode(1, 0, test::PoseBlob(PoseFromXYYaw(0, 0, 0)));
     r.AddNode(2, 0, test::PoseBlob(PoseFromXYYaw(1, 0, 0)));
     r.AddLink(1, 2, 0, test::PoseBlob(PoseFromXYYaw(1, 0, 0)));
-    const Blob ids = test::OptIdsBlob({1, 2});
-    const Blob poses = test::OptPosesBlob({PoseFromXYYaw(0, 0, 0), PoseFromXYYaw(1, 0, 0)});
-    SUBCASE("bad zlib") {
-      Blob bad = poses;
-      bad[0] = bad[1] = std::byte{0};  // no zlib header
-      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, bad);
-      expect = "Admin.opt_poses: zlib data";
-    }
-    SUBCASE("trailer claims more than the data holds") {
-      Blob bad = poses;
-      const std::int32_t cols = 48;
-      std::memcpy(bad.data() + bad.size() - 8, &cols, 4);
-      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, bad);
-      expect = "inflates to 96 bytes";
-    }
-    SUBCASE("trailer claims less than the data holds") {
-      Blob bad = poses;
-      const std::int32_t cols = 12;
-      std::memcpy(bad.data() + bad.size() - 8, &cols, 4);
-      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, bad);
-      expect = "inflates to more";
-    }
-    SUBCASE("shorter than its trailer") {
-      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, Blob(5, std::byte{1}));
-      expect = "shorter than the 12-byte";
-    }
-    SUBCASE("short pose blob") {
-      r.Run("UPDATE Node SET pose=? WHERE id=2", Blob(20, std::byte{1}));
-      expect = "node 2: Node.pose is 20 bytes, expected 48";
-    }
-    SUBCASE("corrupt JPEG") {
-      Blob jpeg = {std::byte{0xFF}, std::byte{0xD8}, std::byte{0xFF}, std::byte{0}, std::byte{1}};
-      r.Run("INSERT INTO Data(id, image) VALUES(1, ?)", jpeg);
-      expect = "node 1: Data.image of 5 bytes";
-    }
-    SUBCASE("truncated RVL depth") {
-      Blob rvl = RvlOf(Depth());
-      rvl.resize(rvl.size() / 2);
-      r.Run("INSERT INTO Data(id, depth) VALUES(2, ?)", rvl);
-      expect = "node 2: Data.depth";
-    }
-    SUBCASE("bad calibration") {
-      r.Run("INSERT INTO Data(id, calibration) VALUES(1, ?)", Blob(50, std::byte{0x7f}));
-      expect = "node 1: Data.calibration";
-    }
-    SUBCASE("bad information matrix") {
-      r.Run("UPDATE Link SET information_matrix=? WHERE from_id=1", Blob(10, std::byte{0}));
-      expect = "link 1->2 (type 0): Link.information_matrix is 10 bytes";
-    }
+    expect = damage(r, test::OptIdsBlob({1, 2}),
+                    test::OptPosesBlob({PoseFromXYYaw(0, 0, 0), PoseFromXYYaw(1, 0, 0)}));
   }
   // An existing output survives a failed import byte for byte (the import writes OUT.tmp).
   test::BuildMap(out);
@@ -275,6 +231,63 @@ TEST_CASE("damaged RTAB-Map blobs give one clear error and leave no output behin
   std::filesystem::remove(out);
   CHECK_FALSE(ImportRtabmap(in, out).ok());
   CHECK_FALSE(std::filesystem::exists(out));
+}
+
+TEST_CASE("damaged optimized poses (zlib + trailer) give one clear error, no output") {
+  const auto opt = [](const std::function<void(Blob&)>& edit, const std::string& expect) {
+    return [=](RtabDb& r, const Blob& ids, const Blob& poses) {
+      Blob bad = poses;
+      edit(bad);
+      r.Run("UPDATE Admin SET opt_ids=?, opt_poses=?", ids, bad);
+      return expect;
+    };
+  };
+  const auto set_cols = [](std::int32_t cols) {
+    return [=](Blob& b) { std::memcpy(b.data() + b.size() - 8, &cols, 4); };
+  };
+  SUBCASE("bad zlib") {
+    ExpectDamagedImportFails(opt([](Blob& b) { b[0] = b[1] = std::byte{0}; }, "Admin.opt_poses: zlib data"));
+  }
+  SUBCASE("trailer claims more than the data holds") {
+    ExpectDamagedImportFails(opt(set_cols(48), "inflates to 96 bytes"));
+  }
+  SUBCASE("trailer claims less than the data holds") {
+    ExpectDamagedImportFails(opt(set_cols(12), "inflates to more"));
+  }
+  SUBCASE("shorter than its trailer") {
+    ExpectDamagedImportFails(opt([](Blob& b) { b.resize(5); }, "shorter than the 12-byte"));
+  }
+}
+
+TEST_CASE("damaged node, data and link blobs give one clear error naming them, no output") {
+  const auto run = [](std::string sql, Blob blob, std::string expect) {
+    return [=](RtabDb& r, const Blob&, const Blob&) {
+      r.Run(sql, blob);
+      return expect;
+    };
+  };
+  SUBCASE("short pose blob") {
+    ExpectDamagedImportFails(run("UPDATE Node SET pose=? WHERE id=2", Blob(20, std::byte{1}),
+                                 "node 2: Node.pose is 20 bytes, expected 48"));
+  }
+  SUBCASE("corrupt JPEG") {
+    ExpectDamagedImportFails(run("INSERT INTO Data(id, image) VALUES(1, ?)",
+                                 {std::byte{0xFF}, std::byte{0xD8}, std::byte{0xFF}, std::byte{0}, std::byte{1}},
+                                 "node 1: Data.image of 5 bytes"));
+  }
+  SUBCASE("truncated RVL depth") {
+    Blob rvl = RvlOf(Depth());
+    rvl.resize(rvl.size() / 2);
+    ExpectDamagedImportFails(run("INSERT INTO Data(id, depth) VALUES(2, ?)", rvl, "node 2: Data.depth"));
+  }
+  SUBCASE("bad calibration") {
+    ExpectDamagedImportFails(run("INSERT INTO Data(id, calibration) VALUES(1, ?)", Blob(50, std::byte{0x7f}),
+                                 "node 1: Data.calibration"));
+  }
+  SUBCASE("bad information matrix") {
+    ExpectDamagedImportFails(run("UPDATE Link SET information_matrix=? WHERE from_id=1", Blob(10, std::byte{0}),
+                                 "link 1->2 (type 0): Link.information_matrix is 10 bytes"));
+  }
 }
 
 TEST_CASE("inputs that are not RTAB-Map databases are refused") {
