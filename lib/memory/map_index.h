@@ -35,7 +35,7 @@ struct MapIndexInput {
   std::span<const LinkRecord> links;        // each edge once or twice; both are fine
   std::span<const ZoneMember> members;      // (zone, keyframe); a keyframe may be in many zones
   std::int32_t zone_count = 0;              // zones are 0..zone_count-1
-  std::vector<std::vector<ZoneId>> zone_adjacency;  // [zone] -> neighbours; empty = unknown
+  std::span<const std::vector<ZoneId>> zone_adjacency;  // [zone] -> neighbours; empty = unknown
   double grid_cell_m = 10.0;                // cell of the static radius-query grid
 };
 

@@ -18,7 +18,7 @@ Harness::Factory Basic(BasicOptions o) {
   return [o](const MapIndex& index) { return std::make_unique<BasicPolicy>(index, o); };
 }
 
-BasicPolicy& Policy(Harness& h) { return *dynamic_cast<BasicPolicy*>(h.policy.get()); }
+BasicPolicy& Policy(Harness& h) { return *static_cast<BasicPolicy*>(h.policy.get()); }
 
 TickContext Ctx(std::uint64_t tick, double now_s, double x, std::int64_t highest = 0,
                 std::int64_t localized = 0) {

@@ -28,7 +28,7 @@ Harness::Factory Predictive(std::uint32_t k_max, std::uint32_t per_tick, bool pr
   };
 }
 
-PredictivePolicy& Policy(Harness& h) { return *dynamic_cast<PredictivePolicy*>(h.policy.get()); }
+PredictivePolicy& Policy(Harness& h) { return *static_cast<PredictivePolicy*>(h.policy.get()); }
 
 std::vector<std::vector<ZoneId>> Chain(int zones) {
   std::vector<std::vector<ZoneId>> adj(static_cast<std::size_t>(zones));

@@ -45,7 +45,7 @@ TEST_CASE("radius: tiles of 20 m around the robot / updated every 20 m") {
   CHECK(t.keyframes_unloaded == 20);
   CHECK(h.ResidentIds() == Range(21, 80));
   CHECK(t.db_queries == 5 * 20);           // tiles are per-keyframe loads
-  CHECK(dynamic_cast<RadiusPolicy*>(h.policy.get())->updates() == 3);
+  CHECK(static_cast<RadiusPolicy*>(h.policy.get())->updates() == 3);
 }
 
 TEST_CASE("radius: never exceeds the budget - the tile that does not fit is taken nearest-first") {

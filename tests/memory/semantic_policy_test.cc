@@ -77,7 +77,7 @@ TEST_CASE("semantic: a pose outside every zone keeps the current zone") {
     CHECK(h.before.empty());
   }
   CHECK(h.ResidentIds() == V{1, 2, 3});
-  auto* p = dynamic_cast<SemanticPolicy*>(h.policy.get());
+  auto* p = static_cast<SemanticPolicy*>(h.policy.get());
   CHECK(p->current_zone() == ZoneId{0});
 }
 
@@ -167,7 +167,7 @@ TEST_CASE("semantic property: random walks / overlaps and budgets never exceed K
       REQUIRE_FALSE(t.over_budget);
       REQUIRE(t.refused_acquisitions == 0);
       // The current zone is resident (whole if it fits).
-      auto* p = dynamic_cast<SemanticPolicy*>(h.policy.get());
+      auto* p = static_cast<SemanticPolicy*>(h.policy.get());
       if (p->current_zone() != kNoZone) {
         const auto members = h.index.ZoneMembers(p->current_zone());
         std::uint32_t in = 0;
