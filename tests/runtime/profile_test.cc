@@ -1,0 +1,195 @@
+// Profiles: every shipped profile loads; unknown keys, wrong types and bad values are errors
+// naming the file and the key; byte sizes, --memory-thr and overrides parse as documented.
+#include "runtime/profile.h"
+
+#include <doctest/doctest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+namespace zm {
+namespace {
+
+const std::string kProfilesDir = ZM_SOURCE_DIR "/profiles";
+
+Status ParseError(const std::string& toml) {
+  Result<Profile> p = ParseProfile(toml, "bad.toml");
+  REQUIRE_FALSE(p.ok());
+  return p.status();
+}
+
+ProfileOverrides Overrides(std::optional<std::string> policy, std::optional<std::string> memory_thr,
+                           std::optional<std::string> cotenant) {
+  ProfileOverrides o;
+  o.policy = std::move(policy);
+  o.memory_thr = std::move(memory_thr);
+  o.cotenant = std::move(cotenant);
+  return o;
+}
+
+bool Contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
+
+TEST_CASE("every shipped profile loads, by path and by name") {
+  int loaded = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kProfilesDir)) {
+    if (entry.path().extension() != ".toml") continue;
+    CAPTURE(entry.path().string());
+    Result<Profile> by_path = LoadProfile(entry.path().string());
+    REQUIRE_MESSAGE(by_path.ok(), by_path.status().ToString());
+    Result<Profile> by_name = LoadProfile(entry.path().stem().string());
+    REQUIRE_MESSAGE(by_name.ok(), by_name.status().ToString());
+    CHECK(by_name->device.memory_bytes == by_path->device.memory_bytes);
+    CHECK(by_path->device.memory_bytes > by_path->device.os_reserve_bytes);
+    Result<std::uint64_t> share = MapShareBytes(*by_path);
+    REQUIRE(share.ok());
+    CHECK(*share > by_path->map.overhead_bytes);
+    ++loaded;
+  }
+  CHECK(loaded >= 3);
+}
+
+TEST_CASE("orin-nano-8gb splits 8 GiB into OS, co-tenant, headroom and the map share") {
+  Result<Profile> p = LoadProfile("orin-nano-8gb");
+  REQUIRE_MESSAGE(p.ok(), p.status().ToString());
+  CHECK(p->device.memory_bytes == 8ULL << 30);
+  CHECK(p->policy.kind == PolicyKind::kSemantic);
+  CHECK(p->policy.basic.stm_size == 10);
+  CHECK(p->cotenant.model == "qwen3-vl-2b");
+  Result<std::uint64_t> share = MapShareBytes(*p);
+  REQUIRE(share.ok());
+  CHECK(*share == (8ULL << 30) - p->device.os_reserve_bytes - 1'900'000'000ULL -
+                      p->map.headroom_bytes);
+  Result<Profile> super = LoadProfile("orin-nano-8gb-super");
+  REQUIRE(super.ok());
+  CHECK(super->device.memory_bytes == p->device.memory_bytes);
+  CHECK(super->device.memory_bandwidth_gbps > p->device.memory_bandwidth_gbps);
+}
+
+TEST_CASE("ZM_PROFILES_DIR is searched first and a missing profile names the search path") {
+  const std::string dir = ZM_BINARY_DIR "/profile-test-dir";
+  std::filesystem::create_directories(dir);
+  std::filesystem::copy_file(kProfilesDir + "/host.toml", dir + "/only-here.toml",
+                             std::filesystem::copy_options::overwrite_existing);
+  setenv("ZM_PROFILES_DIR", dir.c_str(), 1);
+  CHECK(LoadProfile("only-here").ok());
+  unsetenv("ZM_PROFILES_DIR");
+  Result<Profile> missing = LoadProfile("no-such-profile");
+  REQUIRE_FALSE(missing.ok());
+  CHECK(missing.status().code() == StatusCode::kNotFound);
+  CHECK(Contains(missing.status().message(), "no-such-profile"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("unknown keys are errors naming the file and the full key") {
+  Status s = ParseError("[map]\nslot_byte = 3\n");
+  CHECK(Contains(s.message(), "bad.toml"));
+  CHECK(Contains(s.message(), "'map.slot_byte'"));
+  CHECK(Contains(ParseError("[policy.basic]\nstm = 3\n").message(), "'policy.basic.stm'"));
+  CHECK(Contains(ParseError("[gpu]\ncores = 1024\n").message(), "'gpu'"));
+  CHECK(Contains(ParseError("colour = \"red\"\n").message(), "'colour'"));
+}
+
+TEST_CASE("wrong types and bad values are errors naming the key") {
+  CHECK(Contains(ParseError("[map]\nslot_bytes = true\n").message(), "'map.slot_bytes'"));
+  CHECK(Contains(ParseError("[map]\nlock_arena = 1\n").message(), "'map.lock_arena'"));
+  CHECK(Contains(ParseError("[map]\nheadroom_bytes = \"3 parsecs\"\n").message(),
+                 "'map.headroom_bytes'"));
+  CHECK(Contains(ParseError("[map]\nmemory_thr_keyframes = -5\n").message(),
+                 "'map.memory_thr_keyframes'"));
+  CHECK(Contains(ParseError("[policy]\nname = \"greedy\"\n").message(), "'policy.name'"));
+  CHECK(Contains(ParseError("[localization]\nratio = 1.5\n").message(), "'localization.ratio'"));
+  CHECK(Contains(ParseError("[loop]\nrate_hz = 0\n").message(), "'loop.rate_hz'"));
+  CHECK(Contains(ParseError("policy = 3\n").message(), "'policy'"));
+  CHECK(Contains(ParseError("[cotenant]\nmodel = \"gpt-9\"\n").message(), "cotenant.model"));
+  CHECK(Contains(ParseError("[map\n").message(), "bad.toml:1"));  // syntax error, with line
+  // The memory split must add up.
+  CHECK(Contains(ParseError("[device]\nmemory_bytes = \"4GiB\"\nos_reserve_bytes = \"5GiB\"\n")
+                     .message(),
+                 "os_reserve_bytes"));
+  CHECK(Contains(ParseError("[device]\nmemory_bytes = \"4GiB\"\nos_reserve_bytes = \"1GiB\"\n"
+                            "[cotenant]\nmodel = \"gemma3-4b\"\n")
+                     .message(),
+                 "no map share left"));
+}
+
+TEST_CASE("an empty profile is all defaults with no byte limit") {
+  Result<Profile> p = ParseProfile("", "empty.toml");
+  REQUIRE(p.ok());
+  CHECK(p->policy.kind == PolicyKind::kSemantic);
+  CHECK(p->loop.rate_hz == 1.0);
+  CHECK(*MapShareBytes(*p) == 0);
+}
+
+TEST_CASE("byte sizes: binary K/M/G and KiB/MiB/GiB, decimal KB/MB/GB") {
+  CHECK(*ParseBytes("4096") == 4096);
+  CHECK(*ParseBytes("4096B") == 4096);
+  CHECK(*ParseBytes("2K") == 2048);
+  CHECK(*ParseBytes("512MiB") == 512ULL << 20);
+  CHECK(*ParseBytes("1.5GiB") == 3ULL << 29);
+  CHECK(*ParseBytes("1.9GB") == 1'900'000'000ULL);
+  CHECK(*ParseBytes("8G") == 8ULL << 30);
+  CHECK_FALSE(ParseBytes("1.5").ok());
+  CHECK_FALSE(ParseBytes("12 parsecs").ok());
+  CHECK_FALSE(ParseBytes("").ok());
+  CHECK_FALSE(ParseBytes("99999999999T").ok());
+}
+
+TEST_CASE("--memory-thr: a count, bytes, or both") {
+  Result<MemoryThr> count = ParseMemoryThr("300");
+  REQUIRE(count.ok());
+  CHECK(*count->keyframes == 300);
+  CHECK_FALSE(count->bytes.has_value());
+  Result<MemoryThr> bytes = ParseMemoryThr("2GiB");
+  REQUIRE(bytes.ok());
+  CHECK(*bytes->bytes == 2ULL << 30);
+  CHECK_FALSE(bytes->keyframes.has_value());
+  Result<MemoryThr> both = ParseMemoryThr("300,512MiB");
+  REQUIRE(both.ok());
+  CHECK(*both->keyframes == 300);
+  CHECK(*both->bytes == 512ULL << 20);
+  CHECK_FALSE(ParseMemoryThr("0").ok());
+  CHECK_FALSE(ParseMemoryThr("3,4").ok());
+  CHECK_FALSE(ParseMemoryThr("lots").ok());
+}
+
+TEST_CASE("overrides replace profile values and K_max = min(count, bytes / slot)") {
+  Result<Profile> loaded = LoadProfile("orin-nano-8gb");
+  REQUIRE(loaded.ok());
+  Profile p = *loaded;
+  REQUIRE(ApplyOverrides(Overrides("basic", "300,1GiB", {}), p).ok());
+  CHECK(p.policy.kind == PolicyKind::kBasic);
+  CHECK(p.map.memory_thr_keyframes == 300);
+  CHECK(p.map.map_share_bytes == 1ULL << 30);
+  Result<ArenaConfig> cfg = MakeArenaConfig(p, 1 << 20);  // 1 MiB payloads
+  REQUIRE(cfg.ok());
+  CHECK(cfg->budget_bytes == (1ULL << 30) - p.map.overhead_bytes);  // 768 slots of 1 MiB
+  auto plan = PlanArena(*cfg);
+  REQUIRE(std::holds_alternative<ArenaPlan>(plan));
+  CHECK(std::get<ArenaPlan>(plan).slots == 300);  // the count is the tighter limit
+
+  REQUIRE(ApplyOverrides(Overrides({}, "5000", {}), p).ok());
+  plan = PlanArena(*MakeArenaConfig(p, 1 << 20));
+  CHECK(std::get<ArenaPlan>(plan).slots == 768);  // now the bytes are
+
+  CHECK_FALSE(ApplyOverrides(Overrides("greedy", {}, {}), p).ok());
+  CHECK_FALSE(ApplyOverrides(Overrides({}, {}, "gpt-9"), p).ok());
+  CHECK_FALSE(MakeArenaConfig(p, 0).ok());  // slot size unknown: profile says 0, no payload
+}
+
+TEST_CASE("--cotenant changes the model but keeps the planned map share") {
+  Result<Profile> loaded = LoadProfile("orin-nano-8gb");
+  REQUIRE(loaded.ok());
+  Profile p = *loaded;
+  const std::uint64_t share = *MapShareBytes(p);
+  REQUIRE(ApplyOverrides(Overrides({}, {}, "gemma3-4b"), p).ok());
+  CHECK(p.cotenant.model == "gemma3-4b");
+  CHECK(*CotenantWeightsBytes(p) == 3'300'000'000ULL);
+  CHECK(*MapShareBytes(p) == share);
+}
+
+}  // namespace
+}  // namespace zm
