@@ -12,12 +12,14 @@
 //   build/host-release/bench/zm_policy_bench --benchmark_min_time=0.2s
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <vector>
 
+#include "memory/basic_policy.h"
 #include "memory/map_index.h"
 #include "memory/plan.h"
 #include "memory/policy.h"
@@ -104,6 +106,10 @@ void BM_Policy(benchmark::State& state, const char* policy) {
   p.Start(ctx, &plan);
   std::uint64_t tick = 1;
   std::uint64_t moved = 0;
+  // basic only: WM size after retrieval (before its transfer) against MemoryThr.
+  const auto* basic = dynamic_cast<const zm::BasicPolicy*>(&p);
+  std::uint64_t over_ticks = 0, over_sum = 0, ticks = 0;
+  std::uint32_t peak_wm = 0;
   for (auto _ : state) {
     const zm::KfIndex k = kf_at(tick);
     ctx.tick = tick;
@@ -119,7 +125,22 @@ void BM_Policy(benchmark::State& state, const char* policy) {
     p.PlanAfterLocalize(ctx, &plan);
     moved += plan.acquires().size() + plan.releases().size();
     benchmark::DoNotOptimize(plan);
+    if (basic != nullptr) {
+      const auto wm = basic->wm_size() + static_cast<std::uint32_t>(basic->last_tick().transferred.size());
+      peak_wm = std::max(peak_wm, wm);
+      if (wm > kKMax) {
+        ++over_ticks;
+        over_sum += wm - kKMax;
+      }
+    }
+    ++ticks;
     ++tick;
+  }
+  if (basic != nullptr) {
+    state.counters["wm_peak"] = peak_wm;
+    state.counters["over_thr_frac"] = static_cast<double>(over_ticks) / static_cast<double>(ticks);
+    state.counters["over_thr_mean"] =
+        over_ticks == 0 ? 0.0 : static_cast<double>(over_sum) / static_cast<double>(over_ticks);
   }
   state.counters["refs_per_tick"] =
       benchmark::Counter(static_cast<double>(moved), benchmark::Counter::kAvgIterations);
