@@ -91,21 +91,26 @@ cv::Mat FindSeeds(const cv::Mat& dt, const SegmentOptions& o, double res, int* s
   }
   const int min_area = std::max(1, static_cast<int>(o.seed_min_area_m2 / (res * res)));
   const float persistence = static_cast<float>(o.seed_min_persistence_m / res);
-  std::vector<cv::Mat> labels(levels.size());
+  // Only two label images are alive at a time (this level and the one below): memory stays at
+  // a few bytes per cell however many levels there are. Seed levels are relabelled at the end
+  // (connectedComponents is deterministic, so the component numbers match).
+  auto label_level = [&](std::size_t i, cv::Mat* out) {
+    cv::Mat mask = dt > levels[i];
+    return cv::connectedComponents(mask, *out, 4, CV_32S);
+  };
+  cv::Mat below, current;
   std::vector<std::vector<LevelComponent>> comps(levels.size());
   for (std::size_t i = 0; i < levels.size(); ++i) {
-    cv::Mat mask = dt > levels[i];
-    const int n = cv::connectedComponents(mask, labels[i], 4, CV_32S);
+    const int n = label_level(i, &current);
     comps[i].resize(Idx(n));
     if (n <= 1) {
       levels.resize(i + 1);
-      labels.resize(i + 1);
       comps.resize(i + 1);
       break;
     }
     for (int r = 0; r < dt.rows; ++r) {
-      const int* l = labels[i].ptr<int>(r);
-      const int* lp = i > 0 ? labels[i - 1].ptr<int>(r) : nullptr;
+      const int* l = current.ptr<int>(r);
+      const int* lp = i > 0 ? below.ptr<int>(r) : nullptr;
       const float* d = dt.ptr<float>(r);
       for (int c = 0; c < dt.cols; ++c) {
         if (l[c] == 0) continue;
@@ -118,6 +123,7 @@ cv::Mat FindSeeds(const cv::Mat& dt, const SegmentOptions& o, double res, int* s
         }
       }
     }
+    std::swap(below, current);
   }
   // Select(level, comp) -> seeds as (level, comp) pairs.
   std::vector<std::pair<std::size_t, int>> seeds;
@@ -162,8 +168,9 @@ cv::Mat FindSeeds(const cv::Mat& dt, const SegmentOptions& o, double res, int* s
     by_level[seeds[s].first][seeds[s].second] = static_cast<int>(s) + 1;
   }
   for (const auto& [level, ids] : by_level) {
+    label_level(level, &current);
     for (int r = 0; r < dt.rows; ++r) {
-      const int* l = labels[level].ptr<int>(r);
+      const int* l = current.ptr<int>(r);
       int* m = markers.ptr<int>(r);
       for (int c = 0; c < dt.cols; ++c) {
         if (l[c] == 0) continue;
