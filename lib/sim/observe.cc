@@ -61,8 +61,8 @@ LandmarkMap LandmarkMap::Generate(const Building& building, const LandmarkOption
         static constexpr int kDr[4] = {0, 0, 1, -1};
         for (int k = 0; k < 4; ++k) {
           const int nc = c + kDc[k], nr = r + kDr[k];
-          if (!g.InBounds(nc, nr) || g.At(nc, nr) != kCellOccupied) continue;
-          const bool furniture = floor.furniture[g.Index(nc, nr)] != 0;
+          if (g.Free(nc, nr)) continue;  // walls of real maps are often unknown, not occupied
+          const bool furniture = g.InBounds(nc, nr) && floor.furniture[g.Index(nc, nr)] != 0;
           const double span = furniture ? building.furniture_height_m : building.wall_height_m;
           const double lambda =
               (furniture ? options.furniture_density_per_m2 : options.wall_density_per_m2) * res * span;

@@ -1,5 +1,5 @@
-// Landmarks and the camera observation model. Landmarks are 3-D points on the faces of occupied
-// cells next to free cells (walls up to the wall height, furniture up to its height), at random
+// Landmarks and the camera observation model. Landmarks are 3-D points on the faces of non-free
+// cells (occupied, or unknown as real maps draw many walls) next to free cells (walls up to the wall height, furniture up to its height), at random
 // heights, each with a random 256-bit descriptor. A camera (the localization module's pinhole
 // convention, camera.h) sees a landmark when it projects into the image, lies within the range
 // limit, and the straight segment from the camera to it crosses only free cells (LineOfSight on
@@ -38,7 +38,7 @@ struct Landmark {
 };
 
 struct LandmarkOptions {
-  double wall_density_per_m2 = 6.0;  // landmarks per square metre of wall surface
+  double wall_density_per_m2 = 10.0;  // landmarks per square metre of wall surface
   double furniture_density_per_m2 = 12.0;
 };
 

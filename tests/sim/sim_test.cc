@@ -1,0 +1,278 @@
+// The simulator's behaviour: hospital zones partition the building, no landmark is observed
+// through a wall (checked by an independent sampled line of sight), the zones cover every cell the
+// robot reaches, the same seed gives byte-identical scenario files, keyframe payloads respect a
+// configured byte range, and a crop of a real floor plan gives a usable scenario.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <numbers>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "geometry/trajectory.h"
+#include "mapdb/map_db.h"
+#include "sim/building.h"
+#include "sim/frames_file.h"
+#include "sim/observe.h"
+#include "sim/route.h"
+#include "sim/scenario.h"
+
+namespace zm::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string TempDir(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / ("zm_sim_test_" + name);
+  fs::remove_all(p);
+  return p.string();
+}
+
+HospitalOptions SmallHospital(std::uint64_t seed = 7) {
+  HospitalOptions h;
+  h.seed = seed;
+  h.area_m2 = 500.0;
+  h.resolution_m = 0.1;
+  return h;
+}
+
+// Small, fast scenario options (tests run under ASan and qemu).
+ScenarioOptions SmallScenario(std::uint64_t seed = 7) {
+  ScenarioOptions o;
+  o.seed = seed;
+  o.camera.intrinsics = MakeIntrinsics(320, 240, 90.0);
+  o.depth.width = 64;
+  o.depth.height = 48;
+  o.noise.max_features = 120;
+  o.tasks = 3;
+  o.rate_hz = 1.0;
+  o.keyframe_distance_m = 1.0;
+  o.keyframe_angle_deg = 45.0;
+  o.threads = 2;
+  return o;
+}
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Independent line-of-sight check: dense point sampling (not the DDA traversal under test).
+bool SampledLineOfSight(const SimGrid& g, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const double step = g.resolution_m / 20.0;
+  const int n = static_cast<int>(std::ceil((b - a).norm() / step));
+  for (int k = 0; k <= n; ++k) {
+    if (!g.FreeAt(a + (b - a) * (static_cast<double>(k) / std::max(n, 1)))) return false;
+  }
+  return true;
+}
+
+TEST_CASE("hospital: zones partition the building and every zone has room for the robot") {
+  auto b = GenerateHospital(SmallHospital());
+  REQUIRE(b.ok());
+  CHECK(b->zones.size() >= 8);
+  bool has_lobby = false, has_corridor = false, has_room = false;
+  for (const auto& z : b->zones) {
+    has_lobby |= z.kind == "lobby";
+    has_corridor |= z.kind == "corridor";
+    has_room |= z.kind == "room" || z.kind == "ward";
+    CHECK_MESSAGE(z.clearance_m >= 0.3, z.name);
+  }
+  CHECK(has_lobby);
+  CHECK(has_corridor);
+  CHECK(has_room);
+  const SimGrid& g = b->floors[0].grid;
+  std::size_t free_cells = 0;
+  for (int r = 0; r < g.rows; ++r) {
+    for (int c = 0; c < g.cols; ++c) {
+      if (!g.Free(c, r)) continue;
+      ++free_cells;
+      int inside = 0;
+      for (const auto& z : b->zones) inside += InsidePolygon(z.polygon, g.CellCentre(c, r)) ? 1 : 0;
+      REQUIRE(inside == 1);  // exactly one zone
+    }
+  }
+  CHECK(free_cells > 30000);
+  HospitalOptions tiny;
+  tiny.area_m2 = 10.0;
+  CHECK(GenerateHospital(tiny).status().code() == StatusCode::kInvalidArgument);
+}
+
+TEST_CASE("observations: no landmark is seen through a wall") {
+  auto b = GenerateHospital(SmallHospital(3));
+  REQUIRE(b.ok());
+  const LandmarkMap lm = LandmarkMap::Generate(*b, {}, 3);
+  REQUIRE(lm.landmarks().size() > 1000);
+  CameraModel cam{MakeIntrinsics(320, 240, 90.0), 8.0, 1.0};
+  const SimGrid& g = b->floors[0].grid;
+  Rng rng(3, 99);
+  std::vector<VisibleLandmark> vis;
+  std::size_t views = 0, observed = 0, occluded = 0;
+  while (views < 150) {
+    const Eigen::Vector2d p(rng.Uniform(0.0, g.width_m() - 2.0), rng.Uniform(0.0, g.height_m() - 2.0));
+    if (!g.FreeAt(p)) continue;
+    ++views;
+    const Pose3 pose = PoseFromXYYaw(p.x(), p.y(), rng.Uniform(-3.14, 3.14), cam.height_m);
+    lm.Visible(*b, 0, pose, cam, &vis);
+    std::vector<bool> seen(lm.landmarks().size(), false);
+    for (const auto& v : vis) {
+      seen[v.landmark] = true;
+      ++observed;
+      REQUIRE(SampledLineOfSight(g, p, lm.landmarks()[v.landmark].p.head<2>()));
+    }
+    // Landmarks in view and range that were not reported are behind something.
+    for (std::size_t i = 0; i < lm.landmarks().size(); ++i) {
+      const Eigen::Vector2d q = lm.landmarks()[i].p.head<2>();
+      if (seen[i] || (q - p).norm() > 7.0) continue;
+      const Eigen::Vector2d d = q - p;
+      if (std::abs(std::remainder(std::atan2(d.y(), d.x()) - Yaw(pose), 2 * std::numbers::pi)) > 0.5) continue;
+      if (!SampledLineOfSight(g, p, q)) ++occluded;
+    }
+  }
+  CHECK(observed > 20 * views);  // the camera sees plenty
+  CHECK(occluded > 1000);        // and walls hide plenty
+}
+
+TEST_CASE("scenario: same seed gives byte-identical files; zones cover every reached cell") {
+  auto b = GenerateHospital(SmallHospital());
+  REQUIRE(b.ok());
+  const std::string d1 = TempDir("det1"), d2 = TempDir("det2");
+  ScenarioOptions o = SmallScenario();
+  auto r1 = WriteScenario(*b, o, d1);
+  REQUIRE_MESSAGE(r1.ok(), r1.status().ToString());
+  o.threads = 1;  // threads change nothing
+  auto r2 = WriteScenario(*b, o, d2);
+  REQUIRE(r2.ok());
+  for (const char* f : {"map.db", "zones.geojson", "map.pgm", "map.yaml", "mapping_gt.tum",
+                        "localization_gt.tum", "frames.bin", "route.json", "scenario.json"}) {
+    const std::string a = ReadAll(d1 + "/" + f);
+    CHECK_MESSAGE(!a.empty(), f);
+    CHECK_MESSAGE(a == ReadAll(d2 + "/" + f), f);
+  }
+  CHECK(r1->keyframes > 100);
+  CHECK(r1->unreachable_zones == 0);
+
+  // Every pose of both runs, and every cell the planner can reach, lies in a zone.
+  const SimGrid& g = b->floors[0].grid;
+  for (const char* f : {"/mapping_gt.tum", "/localization_gt.tum"}) {
+    auto t = ReadTrajectory(d1 + f, TrajectoryFormat::kTum);
+    REQUIRE(t.ok());
+    for (const Pose3& p : t->poses) REQUIRE(ZoneAt(*b, 0, p.translation().head<2>()) >= 0);
+  }
+  Planner planner(g, o.robot_radius_m);
+  const Eigen::Vector2d start = b->zones[static_cast<std::size_t>(b->start_zone)].viewpoint;
+  std::size_t reached = 0;
+  for (int r = 0; r < g.rows; r += 2) {
+    for (int c = 0; c < g.cols; c += 2) {
+      const Eigen::Vector2d p = g.CellCentre(c, r);
+      if (!planner.Clear(p) || !planner.Connected(start, p)) continue;
+      ++reached;
+      REQUIRE(ZoneAt(*b, 0, p) >= 0);
+    }
+  }
+  CHECK(reached > 1000);
+
+  // The database has the keyframes, links and zones; the readers agree with scenario.json.
+  auto db = MapDb::Open(d1 + "/map.db");
+  REQUIRE(db.ok());
+  CHECK((*db)->metadata().keyframe_count == r1->keyframes);
+  CHECK((*db)->metadata().link_count == r1->keyframes - 1);
+  CHECK((*db)->metadata().zone_count == b->zones.size());
+  auto info = LoadScenario(d1);
+  REQUIRE(info.ok());
+  CHECK(info->frames == r1->frames);
+  auto frames = FrameReader::Open(info->frames_bin);
+  REQUIRE(frames.ok());
+  CHECK(frames->count() == r1->frames);
+  Frame frame;
+  frame.Reserve(frames->max_features());
+  std::uint64_t n = 0, features = 0;
+  for (auto more = frames->Next(&frame); more.ok() && *more; more = frames->Next(&frame)) {
+    ++n;
+    features += frame.feature_count();
+  }
+  CHECK(n == r1->frames);
+  CHECK(features > 20 * n);
+  auto route = LoadRoute(info->route_json);
+  REQUIRE(route.ok());
+  CHECK(route->tasks.size() == r1->tasks);
+  CHECK(route->zones.size() >= route->tasks.size());
+  fs::remove_all(d1);
+  fs::remove_all(d2);
+}
+
+TEST_CASE("scenario: keyframe payloads fall within the configured byte range") {
+  auto b = GenerateHospital(SmallHospital(5));
+  REQUIRE(b.ok());
+  const std::string dir = TempDir("bytes");
+  ScenarioOptions o = SmallScenario(5);
+  o.tasks = 1;
+  o.keyframe_bytes_min = 20000;
+  o.keyframe_bytes_max = 26000;
+  auto r = WriteScenario(*b, o, dir);
+  REQUIRE_MESSAGE(r.ok(), r.status().ToString());
+  CHECK(r->keyframe_bytes_min >= 20000);
+  CHECK(r->keyframe_bytes_max <= 26000);
+  auto db = MapDb::Open(dir + "/map.db");
+  REQUIRE(db.ok());
+  auto kfs = (*db)->Keyframes();
+  REQUIRE(kfs.ok());
+  REQUIRE(kfs->size() == r->keyframes);
+  for (const KeyframeMeta& k : *kfs) {
+    CHECK(k.payload_bytes >= 20000);
+    CHECK(k.payload_bytes <= 26000);
+  }
+  o.keyframe_bytes_min = 100;  // features alone exceed this range: a clear error
+  o.keyframe_bytes_max = 200;
+  auto bad = WriteScenario(*b, o, dir);
+  REQUIRE_FALSE(bad.ok());
+  CHECK(bad.status().code() == StatusCode::kOutOfRange);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("floorplan: a crop of a real map with its ground truth gives a usable scenario") {
+  const std::string src = ZM_SHARED_DIR "/data/floorplans/freiburg_building101_";
+  cv::Mat map = cv::imread(src + "map.png", cv::IMREAD_UNCHANGED);
+  cv::Mat gt = cv::imread(src + "gt.png", cv::IMREAD_UNCHANGED);
+  REQUIRE(!map.empty());
+  REQUIRE(!gt.empty());
+  const std::string dir = TempDir("floorplan");
+  fs::create_directories(dir);
+  const cv::Rect crop(100, 380, 260, 260);  // 13 x 13 m around the lower corridor and rooms
+  cv::imwrite(dir + "/map.png", map(crop));
+  cv::imwrite(dir + "/gt.png", gt(crop));
+  FloorplanOptions fo;
+  fo.map_path = dir + "/map.png";
+  fo.gt_path = dir + "/gt.png";
+  auto b = ImportFloorplan(fo);
+  REQUIRE_MESSAGE(b.ok(), b.status().ToString());
+  CHECK(b->zones.size() >= 3);
+  auto r = WriteScenario(*b, SmallScenario(), dir + "/out");
+  REQUIRE_MESSAGE(r.ok(), r.status().ToString());
+  CHECK(r->keyframes > 30);
+  CHECK(r->frames > 10);
+  CHECK(r->mean_features_per_keyframe > 20);
+  // Every reached free cell is in a zone.
+  const SimGrid& g = b->floors[0].grid;
+  Planner planner(g, 0.25);
+  const Eigen::Vector2d start = b->zones[static_cast<std::size_t>(b->start_zone)].viewpoint;
+  for (int rr = 0; rr < g.rows; ++rr) {
+    for (int c = 0; c < g.cols; ++c) {
+      const Eigen::Vector2d p = g.CellCentre(c, rr);
+      if (!planner.Clear(p) || !planner.Connected(start, p)) continue;
+      REQUIRE(ZoneAt(*b, 0, p) >= 0);
+    }
+  }
+  auto db = MapDb::Open(dir + "/out/map.db");
+  REQUIRE(db.ok());
+  CHECK((*db)->metadata().zone_count == b->zones.size());
+  fo.map_path = dir + "/missing.png";
+  CHECK(ImportFloorplan(fo).status().code() == StatusCode::kNotFound);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace zm::sim
