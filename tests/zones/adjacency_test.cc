@@ -19,7 +19,7 @@ LinkRecord Link(std::int64_t a, std::int64_t b) {
   return l;
 }
 
-TEST_CASE("touching polygons are neighbours; gaps and other floors are not") {
+TEST_CASE("touching polygons are neighbours, gaps and other floors are not") {
   auto ground = [](std::string name, std::vector<Eigen::Vector2d> ring) {
     return MakeZone(std::move(name), std::move(ring), 0, -1.5, 1.5);
   };

@@ -81,7 +81,7 @@ TEST_CASE("budget warning and splitting during annotation") {
   for (std::uint32_t c : split->counts) CHECK(c <= 20);
 }
 
-TEST_CASE("keyframe-list zones use their lists; unknown ids are an error naming file and zone") {
+TEST_CASE("keyframe-list zones use their lists, unknown ids are an error naming file and zone") {
   auto set = ParseZoneJson(R"({"initial_zone":"L1","zones":{"L1":[1,2,3],"H1":[3,4]}})",
                            "paper.json");
   REQUIRE(set.ok());

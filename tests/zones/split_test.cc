@@ -68,7 +68,7 @@ TEST_CASE("an oversize zone is split into parts that each fit, along its long ax
   }
 }
 
-TEST_CASE("keyframe-list zones split their lists; zones that fit are untouched") {
+TEST_CASE("keyframe-list zones split their lists, zones that fit are untouched") {
   auto set = ParseZoneJson(R"({"initial_zone":"L1","zones":{"L1":[1,2,3,4,5],"H1":[6]}})", "p.json");
   REQUIRE(set.ok());
   std::vector<KeyframeMeta> kfs;
