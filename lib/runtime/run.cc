@@ -34,6 +34,49 @@ double Percentile(std::vector<double> values, double p) {
   return values[i];
 }
 
+nlohmann::json LoopSummary(const TickLoop& loop, double frame_rate_hz, bool interrupted) {
+  const LoopTotals& t = loop.totals();
+  nlohmann::json s;
+  s["policy"] = loop.config().policy.policy;
+  s["k_max"] = loop.k_max();
+  s["slot_bytes"] = loop.slot_bytes();
+  s["arena_slots"] = loop.arena().capacity();
+  s["arena_bytes_reserved"] = loop.arena().stats().bytes_reserved;
+  s["ticks"] = t.ticks;
+  s["interrupted"] = interrupted;
+  s["update_rate_hz"] = t.simulated_s > 0 ? static_cast<double>(t.ticks) / t.simulated_s : 0.0;
+  s["frame_rate_hz"] = frame_rate_hz;
+  const std::vector<double>& ms = loop.tick_ms();
+  const double mean = ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
+  s["tick_ms"] = {{"mean", mean},
+                  {"p50", Percentile(ms, 50)},
+                  {"p99", Percentile(ms, 99)},
+                  {"max", ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end())}};
+  s["loop_closures"] = t.loop_closures;
+  s["closures_rejected"] = t.closures_rejected;
+  s["peak_resident_keyframes"] = t.peak_resident_keyframes;
+  s["peak_resident_bytes"] = t.peak_resident_bytes;
+  s["over_budget_ticks"] = t.over_budget_ticks;
+  s["max_over_budget_keyframes"] = t.max_over_budget_keyframes;
+  s["longest_over_budget_run_ticks"] = t.longest_over_budget_run;
+  s["alloc_failures"] = loop.arena().stats().refused;
+  s["stalled_ticks"] = t.stalled_ticks;
+  s["step_errors"] = t.step_errors;
+  if (!t.first_error.empty()) s["first_error"] = t.first_error;
+  s["keyframes_loaded"] = t.keyframes_loaded;
+  s["keyframes_unloaded"] = t.keyframes_unloaded;
+  s["zone_loads"] = t.zone_loads;
+  s["db_transactions"] = t.db_transactions;
+  s["db_queries"] = t.db_queries;
+  s["search_queries"] = t.search_queries;
+  s["db_bytes_read"] = t.db_bytes_read;
+  s["load_ms_total"] = t.load_ms;
+  s["unload_ms_total"] = t.unload_ms;
+  s["malformed_lines"] = loop.malformed_lines();
+
+  return s;
+}
+
 Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<bool>* stop) {
   ZM_ASSIGN_OR_RETURN(sim::ScenarioInfo scenario, sim::LoadScenario(request.scenario_dir));
   std::error_code ec;
@@ -87,46 +130,9 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   const LoopTotals& t = loop->totals();
   ZM_RETURN_IF_ERROR(WriteTrajectory(request.out_dir + "/estimate.tum", loop->estimate(),
                                      TrajectoryFormat::kTum));
-  nlohmann::json s;
-  s["policy"] = config.policy.policy;
+  nlohmann::json s = LoopSummary(*loop, scenario.rate_hz, interrupted);
   s["profile"] = request.profile_name;
   s["scenario"] = scenario.dir;
-  s["k_max"] = loop->k_max();
-  s["slot_bytes"] = loop->slot_bytes();
-  s["arena_slots"] = loop->arena().capacity();
-  s["arena_bytes_reserved"] = loop->arena().stats().bytes_reserved;
-  s["ticks"] = t.ticks;
-  s["interrupted"] = interrupted;
-  s["update_rate_hz"] = t.simulated_s > 0 ? static_cast<double>(t.ticks) / t.simulated_s : 0.0;
-  s["frame_rate_hz"] = scenario.rate_hz;
-  const std::vector<double>& ms = loop->tick_ms();
-  const double mean = ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
-  s["tick_ms"] = {{"mean", mean},
-                  {"p50", Percentile(ms, 50)},
-                  {"p99", Percentile(ms, 99)},
-                  {"max", ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end())}};
-  s["loop_closures"] = t.loop_closures;
-  s["closures_rejected"] = t.closures_rejected;
-  s["peak_resident_keyframes"] = t.peak_resident_keyframes;
-  s["peak_resident_bytes"] = t.peak_resident_bytes;
-  s["over_budget_ticks"] = t.over_budget_ticks;
-  s["max_over_budget_keyframes"] = t.max_over_budget_keyframes;
-  s["longest_over_budget_run_ticks"] = t.longest_over_budget_run;
-  s["alloc_failures"] = loop->arena().stats().refused;
-  s["stalled_ticks"] = t.stalled_ticks;
-  s["step_errors"] = t.step_errors;
-  if (!t.first_error.empty()) s["first_error"] = t.first_error;
-  s["keyframes_loaded"] = t.keyframes_loaded;
-  s["keyframes_unloaded"] = t.keyframes_unloaded;
-  s["zone_loads"] = t.zone_loads;
-  s["db_transactions"] = t.db_transactions;
-  s["db_queries"] = t.db_queries;
-  s["search_queries"] = t.search_queries;
-  s["db_bytes_read"] = t.db_bytes_read;
-  s["load_ms_total"] = t.load_ms;
-  s["unload_ms_total"] = t.unload_ms;
-  s["malformed_lines"] = loop->malformed_lines();
-
   s["ate_rmse_m"] = nullptr;
   s["ate_se3_rmse_m"] = nullptr;
   s["rpe_trans_rmse_m"] = nullptr;

@@ -30,6 +30,10 @@ struct RunRequest {
 [[nodiscard]] Result<nlohmann::json> RunScenario(const RunRequest& request,
                                                  const std::atomic<bool>* stop = nullptr);
 
+// The summary.json keys a loop can fill by itself (everything but trajectory metrics).
+[[nodiscard]] nlohmann::json LoopSummary(const TickLoop& loop, double frame_rate_hz,
+                                         bool interrupted);
+
 // p in [0, 100] of `values` (nearest-rank on a sorted copy); 0 for an empty list.
 [[nodiscard]] double Percentile(std::vector<double> values, double p);
 

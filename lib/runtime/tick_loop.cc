@@ -59,11 +59,12 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   input.links = links;
   input.members = members;
   input.zone_count = static_cast<std::int32_t>(zone_records.size());
-  input.zone_adjacency.resize(zone_records.size());
+  std::vector<std::vector<ZoneId>> adjacency(zone_records.size());
   for (std::size_t z = 0; z < zone_records.size(); ++z) {
     const auto nb = graph.Neighbours(ZoneId{static_cast<std::int32_t>(z)});
-    input.zone_adjacency[z].assign(nb.begin(), nb.end());
+    adjacency[z].assign(nb.begin(), nb.end());
   }
+  input.zone_adjacency = adjacency;
   ZM_ASSIGN_OR_RETURN(MapIndex index, MapIndex::Build(input));
 
   // K_max = min(count, bytes / slot_bytes); slot_bytes from the database's largest payload.

@@ -107,6 +107,7 @@ class TickLoop {
   [[nodiscard]] Result<bool> Tick();
 
   [[nodiscard]] const LoopTotals& totals() const { return totals_; }
+  [[nodiscard]] const LoopConfig& config() const { return config_; }
   [[nodiscard]] const std::vector<double>& tick_ms() const { return tick_ms_; }
   // Estimated body trajectory (map frame), one pose per tick, stamped with the frame stamps.
   [[nodiscard]] const Trajectory& estimate() const { return estimate_; }
