@@ -76,8 +76,9 @@ struct Segmentation {
                                            std::span<const Eigen::Vector2d> positions_m,
                                            int max_keyframes, Segmentation* seg);
 
-// One polygon zone per segment (largest outer contour, simplified, in map-frame metres), named
-// "<kind>_<n>", floor 0. Segments whose simplified outline has < 3 vertices are skipped.
+// One polygon zone per segment (largest outer contour through the boundary cells' centres,
+// simplified, always a simple counter-clockwise ring, in map-frame metres), named
+// "<kind>_<n>", floor 0. Segments whose outline has < 3 vertices are skipped.
 [[nodiscard]] Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg,
                                                             const OccupancyGrid& grid,
                                                             const SegmentOptions& options = {});
