@@ -91,8 +91,15 @@ Eigen::Vector2d PixelToMetres(double col, double row, int rows, double res) {
 // The outline of `mask` (CV_8UC1, 255 inside) as a simple ring in metres: the largest external
 // contour, simplified with growing tolerance until it is simple; the convex hull as a last resort.
 std::vector<Eigen::Vector2d> MaskToRing(const cv::Mat& mask, double res) {
+  // Padded so that a region touching the image edge is outlined outside the edge pixels, whose
+  // centres are then strictly inside the ring.
+  constexpr int kPad = 3;
+  cv::Mat padded;
+  cv::copyMakeBorder(mask, padded, kPad, kPad, kPad, kPad, cv::BORDER_CONSTANT, cv::Scalar(0));
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5));
+  cv::dilate(padded, padded, kernel);
   std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  cv::findContours(padded, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
   if (contours.empty()) return {};
   std::size_t best = 0;
   for (std::size_t i = 1; i < contours.size(); ++i) {
@@ -101,7 +108,7 @@ std::vector<Eigen::Vector2d> MaskToRing(const cv::Mat& mask, double res) {
   const auto to_ring = [&](const std::vector<cv::Point>& pts) {
     std::vector<Eigen::Vector2d> ring;
     ring.reserve(pts.size());
-    for (const auto& p : pts) ring.push_back(PixelToMetres(p.x, p.y, mask.rows, res));
+    for (const auto& p : pts) ring.push_back(PixelToMetres(p.x - kPad, p.y - kPad, mask.rows, res));
     return ring;
   };
   for (const double eps : {0.7, 1.5, 3.0}) {
@@ -263,10 +270,45 @@ Result<Building> ImportFloorplan(const FloorplanOptions& o) {
       filled.at<int>(r, c) = seed_label[static_cast<std::size_t>(voronoi.at<int>(r, c))];
     }
   }
-  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5));
+  // One connected region per label: a stray piece (the Voronoi fill can cut one off) joins the
+  // label that borders it most, so the single outline per zone still covers every pixel.
+  const cv::Mat cross = cv::getStructuringElement(cv::MORPH_CROSS, cv::Size(3, 3));
+  for (int pass = 0; pass < 3; ++pass) {
+    bool changed = false;
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      const int id = static_cast<int>(i + 1);
+      cv::Mat comp, stats, centroids;
+      const int n = cv::connectedComponentsWithStats(filled == id, comp, stats, centroids, 4, CV_32S);
+      if (n <= 2) continue;
+      int largest = 1;
+      for (int k = 2; k < n; ++k) {
+        if (stats.at<int>(k, cv::CC_STAT_AREA) > stats.at<int>(largest, cv::CC_STAT_AREA)) largest = k;
+      }
+      for (int k = 1; k < n; ++k) {
+        if (k == largest) continue;
+        const cv::Mat piece = comp == k;
+        cv::Mat ring;
+        cv::dilate(piece, ring, cross);
+        ring &= ~piece;
+        std::map<int, int> votes;
+        for (int r = 0; r < rows; ++r) {
+          for (int c = 0; c < cols; ++c) {
+            if (ring.at<std::uint8_t>(r, c) == 0) continue;
+            const int l = filled.at<int>(r, c);
+            if (l != id && l != 0) ++votes[l];
+          }
+        }
+        if (votes.empty()) continue;
+        const auto best = std::max_element(votes.begin(), votes.end(),
+                                           [](const auto& a, const auto& b2) { return a.second < b2.second; });
+        filled.setTo(best->first, piece);
+        changed = true;
+      }
+    }
+    if (!changed) break;
+  }
   for (std::size_t i = 0; i < names.size(); ++i) {
     cv::Mat mask = filled == static_cast<int>(i + 1);
-    cv::dilate(mask, mask, kernel);
     ZoneDef z;
     z.name = names[i].first;
     z.kind = names[i].second;
