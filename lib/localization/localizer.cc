@@ -20,7 +20,8 @@ PnpParams PnpParamsFrom(const LocalizerConfig& c) {
   return {.reprojection_px = c.ransac_reprojection_px,
           .iterations = c.ransac_iterations,
           .confidence = c.ransac_confidence,
-          .refine = c.refine};
+          .refine = c.refine,
+          .seed = c.ransac_seed};
 }
 
 }  // namespace
@@ -164,17 +165,17 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
       object_points_.emplace_back(p[0], p[1], p[2]);
       image_points_.emplace_back(uv[0], uv[1]);
     }
-    auto solved = pnp_.Solve(object_points_, image_points_);
-    if (!solved.ok()) {
-      ++r.pnp_errors;
+    const PnpSolution solved = pnp_.Solve(object_points_, image_points_);
+    if (solved.outcome != PnpOutcome::kOk && solved.outcome != PnpOutcome::kNoConsensus) {
+      ++r.pnp_errors;  // bad input or only degenerate samples: not an ordinary failed closure
       ++r.closures_rejected;
       continue;
     }
-    if (!solved->found || solved->inliers < config_.min_inliers) {
+    if (!solved.found || solved.inliers < config_.min_inliers) {
       ++r.closures_rejected;
       continue;
     }
-    const Pose3 t_map_cam = solved->t_cam_map.inverse();
+    const Pose3 t_map_cam = solved.t_cam_map.inverse();
     const Pose3 t_map_body = BodyPoseFromCamera(t_map_cam);
     if (config_.max_correction_m > 0.0 &&
         (t_map_body.translation() - predicted_t).norm() > config_.max_correction_m) {
@@ -183,7 +184,7 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
     }
     r.accepted = true;
     r.matched = kf.id;
-    r.inliers = solved->inliers;
+    r.inliers = solved.inliers;
     r.t_map_cam = t_map_cam;
     r.t_map_body = t_map_body;
     r.closures_accepted = 1;

@@ -19,8 +19,9 @@
 //
 // Allocation: every scratch buffer (scores, matches, correspondences, word sets, PnP buffers) is
 // sized in the constructor from reserve_features / reserve_keyframes; a tick within those sizes
-// allocates nothing in zonemap code. A larger frame or working set grows a buffer once (then it
-// is warm again). OpenCV's solvePnPRansac allocates internally (pnp.h).
+// allocates nothing. A larger frame or working set grows a buffer once (then it is warm again).
+// PnP-RANSAC is our own allocation-free solver (pnp.h), so a warm tick that verifies a candidate
+// allocates nothing either (tests/localization/pnp_test.cc counts it).
 //
 // Pose conventions (camera.h): predicted pose and keyframe poses are BODY poses in the map
 // frame (T_map_body); the PnP result is the CAMERA pose T_map_cam, with T_map_body beside it.
@@ -69,7 +70,8 @@ struct LocalizerConfig {
   double ransac_reprojection_px = 4.0;
   int ransac_iterations = 100;
   double ransac_confidence = 0.99;
-  bool refine = true;                     // LM refinement on the inliers
+  bool refine = true;                            // LM refinement on the inliers
+  std::uint64_t ransac_seed = PnpParams{}.seed;  // PnP RNG seed, reapplied at every solve
   double max_correction_m = 0.0;          // reject a pose this far from the prediction; 0 = off
   std::uint32_t reserve_features = 2048;  // scratch sizes: no allocation below these
   std::uint32_t reserve_keyframes = 4096;
@@ -91,7 +93,7 @@ struct LocalizeResult {
   std::uint32_t candidates_examined = 0;
   std::uint32_t closures_accepted = 0;  // 0 or 1 this tick
   std::uint32_t closures_rejected = 0;  // candidates examined and not accepted this tick
-  std::uint32_t pnp_errors = 0;         // OpenCV exceptions turned into rejections
+  std::uint32_t pnp_errors = 0;         // PnP input errors or all-degenerate samples (rejections)
   bool bad_frame = false;               // keypoints.size() != 2 * descriptors.size()
 };
 
