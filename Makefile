@@ -5,7 +5,7 @@
 JOBS ?= $(shell nproc)
 CTEST_FLAGS ?= -j $(JOBS)
 
-.PHONY: all deps deps-host test test-host test-aarch64 release demo bench format tidy clean
+.PHONY: all deps deps-host test test-host test-aarch64 release demo bench fuzz format tidy clean
 
 all: release
 
@@ -38,6 +38,9 @@ demo: release
 
 bench: release
 	bash scripts/bench.sh
+
+fuzz:  # libFuzzer targets (clang-14), FUZZ_SECONDS per target (docs/reliability.md)
+	bash scripts/fuzz.sh $(FUZZ_SECONDS)
 
 format:
 	git ls-files '*.h' '*.cc' | xargs clang-format -i

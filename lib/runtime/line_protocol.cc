@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 
 namespace zm {
@@ -86,6 +87,12 @@ LineKind ParseFrameLine(std::string_view line, std::size_t max_features, Frame* 
   for (std::uint64_t i = 0; i < n; ++i) {
     double u = 0, w = 0;
     if (!c.Double(&u) || !c.Double(&w)) return Fail(error, "bad keypoint", c.pos());
+    // Keypoints are stored as float: a larger value would be undefined to convert (found by
+    // fuzz/line_protocol_fuzz.cc; fuzz/regressions/line_protocol/).
+    constexpr double kFloatMax = 3.4028234663852886e38;  // FLT_MAX
+    if (std::abs(u) > kFloatMax || std::abs(w) > kFloatMax) {
+      return Fail(error, "keypoint out of float range", c.pos());
+    }
     const std::string_view hex = c.Token();
     if (hex.size() != 2 * kDescriptorBytes) {
       return Fail(error, "descriptor is not 64 hex digits", c.pos());
