@@ -167,14 +167,14 @@ void TickLoop::Account(const TickTelemetry& t) {
 Result<bool> TickLoop::Tick() {
   if (config_.max_ticks != 0 && totals_.ticks >= config_.max_ticks) return false;
   const Clock::time_point t_tick = Clock::now();
-  record_ = TickRecord{};
-  tel_ = TickTelemetry{};
 
-  // 1. Read a frame.
+  // 1. Read a frame. (The previous tick's record stays readable until a frame arrives.)
   Clock::time_point t0 = Clock::now();
   auto next = frames_.Next(&frame_);
   if (!next.ok()) return next.status();
   if (!next.value()) return false;
+  record_ = TickRecord{};
+  tel_ = TickTelemetry{};
   record_.step_ms[static_cast<int>(TickStep::kReadFrame)] = MsSince(t0);
 
   // 2. Update the pose: odometry composed with the current correction.
