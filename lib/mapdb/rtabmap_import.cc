@@ -601,6 +601,13 @@ Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob, con
     return Corrupt(what + ": trailer claims " + std::to_string(want) + " bytes, limit " +
                    std::to_string(kLimit));
   }
+  // Deflate expands at most 1032:1, so a claim beyond that is a lie: refuse it before
+  // allocating (a 12-byte blob could otherwise make us zero-fill 1 GiB; found by
+  // fuzz/rtabmap_blob_fuzz.cc).
+  if (want > std::uint64_t{1032} * (blob.size() - 12)) {
+    return Corrupt(what + ": trailer claims " + std::to_string(want) + " bytes from " +
+                   std::to_string(blob.size() - 12) + " bytes of zlib data (more than zlib's 1032:1)");
+  }
   m.data.resize(static_cast<std::size_t>(want));
   uLongf got = static_cast<uLongf>(want);
   // zlib wants a non-null destination even for an empty matrix.
