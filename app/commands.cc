@@ -31,6 +31,7 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddZonesAnnotateCommand(app, ctx);
   AddSimCommand(app, ctx);
   AddRunCommand(app, ctx);
+  AddBenchCommand(app, ctx);
 }
 
 }  // namespace zm::app

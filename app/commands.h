@@ -31,5 +31,6 @@ void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx);
 void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx);
 void AddSimCommand(CLI::App& app, CommandContext& ctx);
 void AddRunCommand(CLI::App& app, CommandContext& ctx);
+void AddBenchCommand(CLI::App& app, CommandContext& ctx);
 
 }  // namespace zm::app

@@ -1,0 +1,312 @@
+// `zonemap bench`: the evaluation matrix of docs/evaluation.md. Scenarios (the generated
+// hospital and real floor plans) x policies x a MemoryThr sweep x co-tenant models, each a replay
+// through the same tick loop on the same profile, then the paper's tables (markdown, CSV, JSON),
+// ratios measured side by side in this one run, and figures (scripts/plots.py, matplotlib).
+//
+//   zonemap bench --quick --out out/demo      # hospital, semantic vs basic (+ predictive), one
+//                                             # budget, with and without qwen3-vl-2b (stand-in)
+//   zonemap bench --out out/full              # the full matrix
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "commands.h"
+#include "runtime/cotenant.h"
+#include "runtime/device_run.h"
+#include "runtime/profile.h"
+#include "sim/scenario.h"
+
+namespace zm::app {
+
+const std::atomic<bool>* StopFlag();
+void InstallStopHandlers();
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> Split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+std::string SelfExe() {
+  std::error_code ec;
+  auto p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string("zonemap") : p.string();
+}
+
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+// Generates a scenario with this very program (`zonemap sim ...`) unless it is already there.
+Status EnsureScenario(const std::string& spec, const std::string& dir, const std::string& floorplans,
+                      bool quick) {
+  if (fs::exists(dir + "/scenario.json") && fs::exists(dir + "/map.db")) return Status::Ok();
+  std::string cmd = Quote(SelfExe()) + " sim ";
+  if (spec == "hospital") {
+    cmd += "hospital --seed 1 --quiet --out " + Quote(dir);
+    if (quick) cmd += " --area 2000 --tasks 12";
+  } else if (spec.rfind("floorplan:", 0) == 0) {
+    const std::string name = spec.substr(10);
+    const std::string map = floorplans + "/" + name + "_map.png";
+    const std::string gt = floorplans + "/" + name + "_gt.png";
+    if (!fs::exists(map)) return NotFound("floor plan '" + map + "' does not exist");
+    cmd += "floorplan " + Quote(map) + " --gt " + Quote(gt) + " --seed 1 --quiet --out " + Quote(dir);
+    if (quick) cmd += " --tasks 8";
+  } else {
+    return InvalidArgument("unknown scenario '" + spec + "' (hospital or floorplan:NAME)");
+  }
+  std::fprintf(stderr, "bench: generating %s\n", spec.c_str());
+  if (std::system(cmd.c_str()) != 0) return Internal("scenario generation failed: " + cmd);
+  return Status::Ok();
+}
+
+double Num(const nlohmann::json& j, const char* key) {
+  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : std::nan("");
+}
+
+std::string Fmt(double v, int decimals) {
+  if (std::isnan(v)) return "–";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", decimals, v);
+  return b;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Table {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  void Write(const std::string& base, const std::string& title) const {
+    std::ofstream md(base + ".md");
+    md << "### " << title << "\n\n|";
+    for (const auto& h : header) md << ' ' << h << " |";
+    md << "\n|";
+    for (std::size_t i = 0; i < header.size(); ++i) md << "---|";
+    md << '\n';
+    for (const auto& r : rows) {
+      md << '|';
+      for (const auto& c : r) md << ' ' << c << " |";
+      md << '\n';
+    }
+    std::ofstream csv(base + ".csv");
+    for (std::size_t i = 0; i < header.size(); ++i) csv << (i ? "," : "") << header[i];
+    csv << '\n';
+    for (const auto& r : rows) {
+      for (std::size_t i = 0; i < r.size(); ++i) csv << (i ? "," : "") << '"' << r[i] << '"';
+      csv << '\n';
+    }
+  }
+};
+
+}  // namespace
+
+void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
+  struct Opts {
+    std::string out, profile = "orin-nano-8gb";
+    std::string scenarios, policies, models, budgets;
+    std::string floorplans = ZM_DEFAULT_FLOORPLANS_DIR;
+    double cotenant_scale = 1.0;
+    int repeat = 1;
+    bool quick = false, no_plots = false;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* cmd = app.add_subcommand("bench", "Run the evaluation matrix and write the paper's tables and figures");
+  cmd->add_option("--out", o->out, "output directory")->required();
+  cmd->add_flag("--quick", o->quick, "the short default of `make demo`");
+  cmd->add_option("--profile", o->profile, "device profile (default orin-nano-8gb)");
+  cmd->add_option("--scenarios", o->scenarios, "comma list: hospital, floorplan:NAME");
+  cmd->add_option("--policies", o->policies, "comma list of policies");
+  cmd->add_option("--models", o->models, "comma list of co-tenant models ('none' = without)");
+  cmd->add_option("--budgets", o->budgets, "comma list of MemoryThr as fractions of the map (e.g. 1,0.5,0.25) or 'two-zones'");
+  cmd->add_option("--floorplans", o->floorplans, "folder with <name>_map.png and <name>_gt.png");
+  cmd->add_option("--cotenant-scale", o->cotenant_scale, "scale the stand-in's weights");
+  cmd->add_option("--repeat", o->repeat, "runs per cell; timings are medians over them");
+  cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
+  cmd->callback([o, &ctx] {
+    InstallStopHandlers();
+    const bool q = o->quick;
+    const auto scenarios = Split(!o->scenarios.empty() ? o->scenarios
+                                 : q ? "hospital"
+                                     : "hospital,floorplan:freiburg_building52,floorplan:map15");
+    const auto policies = Split(!o->policies.empty() ? o->policies
+                                : q ? "unbounded,basic,semantic,predictive"
+                                    : "unbounded,basic,radius,semantic,predictive,oracle");
+    const auto models = Split(!o->models.empty() ? o->models
+                              : q ? "none,qwen3-vl-2b"
+                                  : "none,qwen3-vl-2b,qwen3-vl-4b,qwen3.5-0.8b,qwen3.5-2b,gemma3-4b");
+    const auto budgets = Split(!o->budgets.empty() ? o->budgets : q ? "0.3" : "1,0.5,0.3,two-zones");
+    fs::create_directories(o->out);
+    nlohmann::json all = nlohmann::json::array();
+
+    for (const std::string& spec : scenarios) {
+      std::string name = spec.substr(spec.find(':') == std::string::npos ? 0 : spec.find(':') + 1);
+      const std::string sdir = o->out + "/scenarios/" + name;
+      if (Status s = EnsureScenario(spec, sdir, o->floorplans, q); !s.ok()) return ctx.Fail("bench", s);
+      auto info = sim::LoadScenario(sdir);
+      if (!info.ok()) return ctx.Fail("bench", info.status());
+      // Budget sweep from metadata: a fraction of the map, or the two largest zones.
+      auto db = MapDb::Open(info->map_db);
+      if (!db.ok()) return ctx.Fail("bench", db.status());
+      auto sizes = db.value()->ZoneSizes();
+      if (!sizes.ok()) return ctx.Fail("bench", sizes.status());
+      std::vector<std::uint32_t> zs = sizes.value();
+      std::sort(zs.rbegin(), zs.rend());
+      const std::uint64_t n = db.value()->metadata().keyframe_count;
+      db.value().reset();
+      for (const std::string& b : budgets) {
+        std::uint64_t k = 0;
+        if (b == "two-zones") {
+          k = zs.size() >= 2 ? zs[0] + zs[1] : n;
+        } else {
+          k = static_cast<std::uint64_t>(std::llround(std::atof(b.c_str()) * static_cast<double>(n)));
+        }
+        k = std::clamp<std::uint64_t>(k, zs.empty() ? 1 : zs[0], n);
+        for (const std::string& model : models) {
+          for (const std::string& policy : policies) {
+            if (model != "none" && policy == "oracle") continue;  // a bound, not a contender
+            const std::string run_name = policy + "-k" + std::to_string(k) + "-" + model;
+            std::vector<double> tick_means;
+            nlohmann::json last;
+            for (int rep = 0; rep < std::max(1, o->repeat); ++rep) {
+              auto profile = LoadProfile(o->profile);
+              if (!profile.ok()) return ctx.Fail("bench", profile.status());
+              ProfileOverrides ov;
+              ov.policy = policy;
+              ov.memory_thr = std::to_string(k);
+              if (model != "none") ov.cotenant = model;
+              if (Status s = ApplyOverrides(ov, profile.value()); !s.ok()) return ctx.Fail("bench", s);
+              DeviceRunRequest req;
+              req.scenario_dir = sdir;
+              req.out_dir = o->out + "/runs/" + name + "/" + run_name;
+              req.profile = profile.value();
+              req.with_cotenant = model != "none";
+              req.cotenant_scale = o->cotenant_scale;
+              std::fprintf(stderr, "bench: %s %s (%d/%d)\n", name.c_str(), run_name.c_str(), rep + 1,
+                           std::max(1, o->repeat));
+              auto r = RunOnDevice(req, StopFlag());
+              if (!r.ok()) return ctx.Fail("bench", r.status().Annotate(run_name));
+              last = r.value();
+              tick_means.push_back(last["tick_ms"]["mean"].get<double>());
+              if (StopFlag()->load()) return ctx.Fail("bench", "interrupted");
+            }
+            last["scenario_name"] = name;
+            last["budget"] = b;
+            last["model"] = model;
+            last["tick_ms_mean_median_of_repeats"] = Median(tick_means);
+            last["repeats"] = std::max(1, o->repeat);
+            all.push_back(last);
+          }
+        }
+      }
+    }
+    std::ofstream(o->out + "/results.json") << all.dump(2) << '\n';
+
+    // Table I analogue, Table II analogue, memory and churn.
+    Table t1{{"scenario", "K_max", "policy", "co-tenant", "update rate (Hz)", "loop closures",
+              "avg tick (ms)", "p99 tick (ms)", "ATE RMSE (m)", "RPE trans RMSE (m)", "RPE rot RMSE (deg)"}, {}};
+    Table t2{{"scenario", "K_max", "model (stand-in)", "policy", "outcome", "TPS", "latency (ms)"}, {}};
+    Table t3{{"scenario", "K_max", "policy", "co-tenant", "peak resident kf", "peak resident MB",
+              "over-budget ticks", "max excess kf", "OOM events", "kf loaded", "kf unloaded",
+              "DB transactions", "DB MB read", "zone loads", "zone loads / oracle"}, {}};
+    std::map<std::string, double> oracle_loads;
+    for (const auto& r : all) {
+      if (r["policy"] == "oracle") {
+        oracle_loads[r["scenario_name"].get<std::string>() + "/" + std::to_string(r["k_max"].get<int>())] =
+            r["zone_loads"].get<double>();
+      }
+    }
+    for (const auto& r : all) {
+      const std::string sc = r["scenario_name"], pol = r["policy"], model = r["model"];
+      const std::string k = std::to_string(r["k_max"].get<int>());
+      t1.rows.push_back({sc, k, pol, model, Fmt(Num(r, "update_rate_hz"), 2),
+                         std::to_string(r["loop_closures"].get<std::uint64_t>()),
+                         Fmt(r["tick_ms_mean_median_of_repeats"].get<double>(), 2),
+                         Fmt(r["tick_ms"]["p99"].get<double>(), 2), Fmt(Num(r, "ate_rmse_m"), 3),
+                         Fmt(Num(r, "rpe_trans_rmse_m"), 3), Fmt(Num(r, "rpe_rot_rmse_deg"), 2)});
+      if (r.contains("cotenant")) {
+        const auto& c = r["cotenant"];
+        t2.rows.push_back({sc, k, c.value("model", model), pol,
+                           c.value("symbol", std::string("?")) + " " + c.value("outcome", std::string()),
+                           Fmt(c.value("tokens_per_s", std::nan("")), 2),
+                           Fmt(c.value("latency_ms", std::nan("")), 0)});
+      }
+      const auto ok = oracle_loads.find(sc + "/" + k);
+      const double zl = r["zone_loads"].get<double>();
+      t3.rows.push_back({sc, k, pol, model,
+                         std::to_string(r["peak_resident_keyframes"].get<std::uint64_t>()),
+                         Fmt(r["peak_resident_bytes"].get<double>() / 1e6, 1),
+                         std::to_string(r["over_budget_ticks"].get<std::uint64_t>()),
+                         std::to_string(r["max_over_budget_keyframes"].get<std::uint64_t>()),
+                         std::to_string(r.value("oom_events", std::uint64_t{0})),
+                         std::to_string(r["keyframes_loaded"].get<std::uint64_t>()),
+                         std::to_string(r["keyframes_unloaded"].get<std::uint64_t>()),
+                         std::to_string(r["db_transactions"].get<std::uint64_t>()),
+                         Fmt(r["db_bytes_read"].get<double>() / 1e6, 1), Fmt(zl, 0),
+                         ok != oracle_loads.end() && ok->second > 0 && zl > 0 ? Fmt(zl / ok->second, 2) : "–"});
+    }
+    // Ratios measured side by side in this run (same scenario, budget and co-tenant).
+    Table t4{{"scenario", "K_max", "co-tenant", "ratio", "avg tick", "kf loaded", "DB transactions",
+              "DB bytes read", "ATE"}, {}};
+    auto find = [&](const std::string& sc, int k, const std::string& model, const std::string& pol) {
+      for (const auto& r : all) {
+        if (r["scenario_name"] == sc && r["k_max"] == k && r["model"] == model && r["policy"] == pol) return &r;
+      }
+      return static_cast<const nlohmann::json*>(nullptr);
+    };
+    auto ratio = [](double a, double b) { return b != 0 ? Fmt(a / b, 2) : std::string("–"); };
+    for (const auto& r : all) {
+      if (r["policy"] != "semantic") continue;
+      const std::string sc = r["scenario_name"], model = r["model"];
+      const int k = r["k_max"];
+      for (auto [num, den] : {std::pair{"semantic", "basic"}, std::pair{"predictive", "semantic"}}) {
+        const auto* a = find(sc, k, model, num);
+        const auto* b = find(sc, k, model, den);
+        if (a == nullptr || b == nullptr) continue;
+        t4.rows.push_back({sc, std::to_string(k), model, std::string(num) + "/" + den,
+                           ratio((*a)["tick_ms_mean_median_of_repeats"], (*b)["tick_ms_mean_median_of_repeats"]),
+                           ratio((*a)["keyframes_loaded"], (*b)["keyframes_loaded"]),
+                           ratio((*a)["db_transactions"], (*b)["db_transactions"]),
+                           ratio((*a)["db_bytes_read"], (*b)["db_bytes_read"]),
+                           ratio(Num(*a, "ate_rmse_m"), Num(*b, "ate_rmse_m"))});
+      }
+    }
+    t1.Write(o->out + "/table1", "Table I analogue: SLAM with and without the co-tenant");
+    t2.Write(o->out + "/table2", "Table II analogue: the co-tenant beside SLAM (stand-in for VLM decoding)");
+    t3.Write(o->out + "/memory", "Memory and churn");
+    t4.Write(o->out + "/ratios", "Ratios measured side by side in this run");
+    {
+      nlohmann::json tables = {{"results", all}};
+      std::ofstream(o->out + "/tables.json") << tables.dump(2) << '\n';
+    }
+    for (const char* f : {"table1", "table2", "memory", "ratios"}) {
+      std::ifstream in(o->out + "/" + f + ".md");
+      std::printf("%s\n", std::string(std::istreambuf_iterator<char>(in), {}).c_str());
+    }
+    std::printf("The co-tenant is a stand-in: %s.\n", std::string(kCotenantNote).c_str());
+    if (!o->no_plots) {
+      const std::string plots = std::string(ZM_SOURCE_DIR_FOR_APP) + "/scripts/plots.py";
+      const std::string c = "python3 " + Quote(plots) + " " + Quote(o->out);
+      if (std::system(c.c_str()) != 0) std::fprintf(stderr, "bench: figures failed (%s)\n", c.c_str());
+    }
+    std::printf("bench: wrote %s/{table1,table2,memory,ratios}.{md,csv}, results.json, figures/\n",
+                o->out.c_str());
+  });
+}
+
+}  // namespace zm::app
