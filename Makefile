@@ -28,6 +28,12 @@ test-aarch64:
 	cmake --preset aarch64-release
 	cmake --build --preset aarch64-release -j $(JOBS)
 	ctest --preset aarch64-release $(CTEST_FLAGS)
+	# NEON forced off: the scalar kernels on aarch64 (the SIMD tests only).
+	cmake --preset aarch64-scalar
+	cmake --build --preset aarch64-scalar -j $(JOBS) --target zm_simd_test
+	qemu-aarch64 -L $${ZM_ARM64_SYSROOT:-/opt/zonemap/sysroot-arm64} build/aarch64-scalar/tests/simd/zm_simd_test
+	# The cross-built zonemapd on a small simulated scenario, under qemu-aarch64.
+	bash scripts/qemu-run.sh
 
 release: deps-host
 	cmake --preset host-release
