@@ -138,6 +138,8 @@ Status CheckSchema(sqlite3* db, const std::string& path) {
 Result<sqlite::Stmt> PrepareOn(sqlite3* db, const std::string& path, std::string_view table,
                                std::string_view sql) {
   auto s = Prepare(db, sql);
+  // Out of memory is not a schema problem (tests/reliability/sqlite_oom_test.cc).
+  if (!s.ok() && s.status().code() == StatusCode::kResourceExhausted) return s.status();
   if (!s.ok()) {
     return Corrupt(path + ": table " + std::string(table) +
                    " does not have the expected columns: " + s.status().message());
@@ -440,6 +442,10 @@ Result<LoadStats> MapDb::LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) {
   sqlite::Blob blob;
   sqlite3_stmt* members = im.zone_members.get();
   const auto MissingPayload = [&](int brc, KeyframeId id) {
+    if ((brc & 0xff) == SQLITE_NOMEM) {  // SQLite's heap limit, not a missing row
+      return ResourceExhausted(Kf(id) + " of zone " + std::to_string(zone.value) + " in " + im.path +
+                               ": SQLite out of memory opening its payload (" + sqlite3_errstr(brc) + ")");
+    }
     return Corrupt(Kf(id) + " of zone " + std::to_string(zone.value) + " in " + im.path +
                    ": no readable payload row (" + sqlite3_errstr(brc) + ": " + sqlite3_errmsg(db) +
                    ")");
