@@ -296,7 +296,9 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     }
     for (const char* f : {"table1", "table2", "memory", "ratios"}) {
       std::ifstream in(o->out + "/" + f + ".md");
-      std::printf("%s\n", std::string(std::istreambuf_iterator<char>(in), {}).c_str());
+      std::ostringstream text;
+      text << in.rdbuf();
+      std::printf("%s\n", text.str().c_str());
     }
     std::printf("The co-tenant is a stand-in: %s.\n", std::string(kCotenantNote).c_str());
     if (!o->no_plots) {
