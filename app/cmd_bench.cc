@@ -123,6 +123,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     std::string floorplans = ZM_DEFAULT_FLOORPLANS_DIR;
     double cotenant_scale = 1.0;
     int repeat = 1;
+    std::uint32_t prompt_tokens = 0, answer_tokens = 0;
     bool quick = false, no_plots = false;
   };
   auto o = std::make_shared<Opts>();
@@ -137,6 +138,8 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--floorplans", o->floorplans, "folder with <name>_map.png and <name>_gt.png");
   cmd->add_option("--cotenant-scale", o->cotenant_scale, "scale the stand-in's weights");
   cmd->add_option("--repeat", o->repeat, "runs per cell; timings are medians over them");
+  cmd->add_option("--prompt-tokens", o->prompt_tokens, "co-tenant prompt length (default: profile; --quick: 128)");
+  cmd->add_option("--answer-tokens", o->answer_tokens, "co-tenant answer length (default: profile; --quick: 32)");
   cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
   cmd->callback([o, &ctx] {
     InstallStopHandlers();
@@ -145,7 +148,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                                  : q ? "hospital"
                                      : "hospital,floorplan:freiburg_building52,floorplan:map15");
     const auto policies = Split(!o->policies.empty() ? o->policies
-                                : q ? "unbounded,basic,semantic,predictive"
+                                : q ? "unbounded,basic,semantic,predictive,oracle"
                                     : "unbounded,basic,radius,semantic,predictive,oracle");
     const auto models = Split(!o->models.empty() ? o->models
                               : q ? "none,qwen3-vl-2b"
@@ -191,6 +194,10 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               ov.memory_thr = std::to_string(k);
               if (model != "none") ov.cotenant = model;
               if (Status s = ApplyOverrides(ov, profile.value()); !s.ok()) return ctx.Fail("bench", s);
+              // Shorter requests in --quick so that several complete within one replay; the
+              // decode rate (tokens/s) does not depend on the request length.
+              if (o->prompt_tokens != 0 || q) profile->cotenant.prompt_tokens = o->prompt_tokens ? o->prompt_tokens : 128;
+              if (o->answer_tokens != 0 || q) profile->cotenant.answer_tokens = o->answer_tokens ? o->answer_tokens : 32;
               DeviceRunRequest req;
               req.scenario_dir = sdir;
               req.out_dir = o->out + "/runs/" + name + "/" + run_name;
@@ -223,7 +230,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     Table t2{{"scenario", "K_max", "model (stand-in)", "policy", "outcome", "TPS", "latency (ms)"}, {}};
     Table t3{{"scenario", "K_max", "policy", "co-tenant", "peak resident kf", "peak resident MB",
               "over-budget ticks", "max excess kf", "OOM events", "kf loaded", "kf unloaded",
-              "DB transactions", "DB MB read", "zone loads", "zone loads / oracle"}, {}};
+              "DB transactions", "DB queries", "DB MB read", "zone loads", "zone loads / oracle"}, {}};
     std::map<std::string, double> oracle_loads;
     for (const auto& r : all) {
       if (r["policy"] == "oracle") {
@@ -257,6 +264,8 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                          std::to_string(r["keyframes_loaded"].get<std::uint64_t>()),
                          std::to_string(r["keyframes_unloaded"].get<std::uint64_t>()),
                          std::to_string(r["db_transactions"].get<std::uint64_t>()),
+                         std::to_string(r["db_queries"].get<std::uint64_t>() +
+                                        r["search_queries"].get<std::uint64_t>()),
                          Fmt(r["db_bytes_read"].get<double>() / 1e6, 1), Fmt(zl, 0),
                          ok != oracle_loads.end() && ok->second > 0 && zl > 0 ? Fmt(zl / ok->second, 2) : "–"});
     }
@@ -303,7 +312,9 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     std::printf("The co-tenant is a stand-in: %s.\n", std::string(kCotenantNote).c_str());
     if (!o->no_plots) {
       const std::string plots = std::string(ZM_SOURCE_DIR_FOR_APP) + "/scripts/plots.py";
-      const std::string c = "python3 " + Quote(plots) + " " + Quote(o->out);
+      // Debian's interpreter has python3-matplotlib; a python3 earlier on PATH may not.
+      const std::string py = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+      const std::string c = py + " " + Quote(plots) + " " + Quote(o->out);
       if (std::system(c.c_str()) != 0) std::fprintf(stderr, "bench: figures failed (%s)\n", c.c_str());
     }
     std::printf("bench: wrote %s/{table1,table2,memory,ratios}.{md,csv}, results.json, figures/\n",

@@ -92,7 +92,8 @@ def plot_memory(out, scenario, runs, fig_dir):
             ys = [t["resident_keyframes"] for t in ticks]
             label = f'{s["policy"]} (peak {s.get("peak_resident_keyframes", max(ys))})'
             ax.plot(xs, ys, color=colour(s["policy"]), lw=1.2, label=label)
-            thr = s.get("k_max", thr)
+            if s["policy"] not in ("unbounded",):
+                thr = s.get("k_max", thr)
         if thr:
             ax.axhline(thr, color="k", ls="--", lw=0.8, label=f"MemoryThr = {thr}")
         ax.set_title(f"{scenario}: resident keyframes, {title}")
