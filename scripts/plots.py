@@ -118,16 +118,18 @@ def plot_trajectories(out, scenario, runs, fig_dir):
     for i, (name, d, s) in enumerate(group):
         ax = axes[i // cols][i % cols]
         if gt:
-            ax.plot([p[1] for p in gt], [p[2] for p in gt], color="k", lw=0.8, label="ground truth")
+            ax.plot([p[1] for p in gt], [p[2] for p in gt], color="k", lw=0.8, zorder=2,
+                    label="ground truth")
         est = read_tum(os.path.join(d, "estimate.tum"))
         if est:
-            ax.plot([p[1] for p in est], [p[2] for p in est], color=colour(s["policy"]), lw=0.8,
+            ax.plot([p[1] for p in est], [p[2] for p in est], color=colour(s["policy"]), lw=0.8, zorder=3,
                     label=f'{s["policy"]} (ATE {s.get("ate_rmse_m", float("nan")):.2f} m)')
         ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
         lc = [(t["x"], t["y"]) for t in ticks if t.get("loop_closure")]
         if lc:
-            ax.scatter([p[0] for p in lc], [p[1] for p in lc], s=8, color="#bcbd22", zorder=3,
-                       label=f"loop closures ({len(lc)})")
+            shown = lc[:: max(1, len(lc) // 150)]  # a mark per stretch, not per tick
+            ax.scatter([p[0] for p in shown], [p[1] for p in shown], s=3, alpha=0.5,
+                       color="#bcbd22", zorder=1, label=f"loop closures ({len(lc)}, subsampled)")
         ax.set_aspect("equal")
         ax.set_title(name, fontsize=9)
         ax.legend(fontsize=7)
