@@ -834,7 +834,9 @@ Status MapDbWriter::ReplaceZones(std::span<const ZoneRecord> zones,
       }
       im.Report("zone members", ++done, members.size());
     }
-    return Status::Ok();
+    // The zone count in meta changes in the same transaction as the zones, so a crash before
+    // Finish() cannot leave zones that disagree with meta (which Open refuses).
+    return im.PutMeta("zone_count", static_cast<sqlite3_int64>(zones.size()));
   });
 }
 

@@ -239,10 +239,11 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
   report.mapping_length_m = PathLength(mapping.samples());
 
   // --- Render keyframes and write the database.
-  const std::string db_path = dir + "/map.db";
-  std::filesystem::remove(db_path, ec);
-  std::filesystem::remove(db_path + "-wal", ec);
-  std::filesystem::remove(db_path + "-shm", ec);
+  // Written (keyframes, links, then zones) as map.db.tmp and renamed over map.db only when
+  // complete, so a crash leaves the previous map.db or none, never a half-written one
+  // (tests/reliability/crash_safety_test.cc).
+  const std::string final_db_path = dir + "/map.db";
+  const std::string db_path = final_db_path + ".tmp";
   ZM_ASSIGN_OR_RETURN(auto writer, MapDbWriter::Create(db_path, /*overwrite=*/true));
   ZM_RETURN_IF_ERROR(writer->SetCamera(o.camera.intrinsics));
   ZM_RETURN_IF_ERROR(writer->SetSource(o.source.empty() ? "sim " + b.kind + " seed=" + std::to_string(o.seed) : o.source));
@@ -376,6 +377,8 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     ZM_ASSIGN_OR_RETURN(auto annotation, AnnotateDatabase(db_path, zone_set, ao));
     (void)annotation;
   }
+  std::filesystem::rename(db_path, final_db_path, ec);
+  if (ec) return IoError("renaming " + db_path + " to " + final_db_path + ": " + ec.message());
   ZM_RETURN_IF_ERROR(WriteGeoJson(zone_set, dir + "/zones.geojson"));
 
   // --- Localization run: a patrol of tasks with revisits.
