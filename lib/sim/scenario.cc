@@ -377,6 +377,8 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     ZM_ASSIGN_OR_RETURN(auto annotation, AnnotateDatabase(db_path, zone_set, ao));
     (void)annotation;
   }
+  // A journal left by an earlier crashed writer of map.db must not be applied to the new file.
+  for (const char* suffix : {"-wal", "-shm", "-journal"}) std::filesystem::remove(final_db_path + suffix, ec);
   std::filesystem::rename(db_path, final_db_path, ec);
   if (ec) return IoError("renaming " + db_path + " to " + final_db_path + ": " + ec.message());
   ZM_RETURN_IF_ERROR(WriteGeoJson(zone_set, dir + "/zones.geojson"));
