@@ -223,7 +223,7 @@ TEST_CASE("reliability: every wrong schema version is refused at open") {
   }
 }
 
-TEST_CASE("reliability: every missing table is refused at open, naming it") {
+TEST_CASE("reliability: every missing table is refused at open naming it") {
   for (const char* table : {"keyframe", "payload", "link", "zone", "zone_member", "meta"}) {
     CAPTURE(table);
     Fixture f;
@@ -278,7 +278,7 @@ void DuplicateRow(const std::string& path, const std::string& table, const std::
                 where + "; DROP TABLE tmp_copy; COMMIT;");
 }
 
-TEST_CASE("reliability: duplicate ids are refused with a clear error, or are harmless") {
+TEST_CASE("reliability: duplicate ids are refused with a clear error or are harmless") {
   Fixture f;
   // Open checks columns, not keys: an exact duplicate row of payload or zone_member (a table
   // rebuilt without its primary key) is not detected. It is harmless: loads read by key, and

@@ -162,7 +162,8 @@ void KillRepeatedly(const char* what, const std::vector<std::string>& args, cons
     const double t = when(rng);
     const RunResult r = Run(args, t);
     killed += r.killed ? 1 : 0;
-    CAPTURE(what);
+    const std::string command = what;
+    CAPTURE(command);
     CAPTURE(t);
     if (!fs::exists(db)) {
       CHECK(old_state.empty());
@@ -262,7 +263,7 @@ TEST_CASE("crash safety: zones annotate killed at random points leaves the old z
                  [&] { CopyDb(base, db); }, 3);
 }
 
-TEST_CASE("crash safety: sim hospital killed at random points leaves no map, the old map or the new one") {
+TEST_CASE("crash safety: sim hospital killed at random points leaves no map or the old map or the new one") {
   if (Skip()) return;
   TempDir dir;
   const std::string out = dir.File("scenario");
