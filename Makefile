@@ -5,7 +5,7 @@
 JOBS ?= $(shell nproc)
 CTEST_FLAGS ?= -j $(JOBS)
 
-.PHONY: all deps deps-host test test-host test-aarch64 release demo bench fuzz format tidy clean
+.PHONY: all deps deps-host test test-host test-aarch64 release demo bench fuzz fuzz-ci format tidy clean
 
 all: release
 
@@ -18,6 +18,7 @@ deps-host:
 test: deps
 	$(MAKE) test-host
 	$(MAKE) test-aarch64
+	$(MAKE) fuzz-ci
 
 test-host:
 	cmake --preset host-debug
@@ -47,6 +48,10 @@ bench: release
 
 fuzz:  # libFuzzer targets (clang-14), FUZZ_SECONDS per target (docs/reliability.md)
 	bash scripts/fuzz.sh $(FUZZ_SECONDS)
+
+fuzz-ci:  # bounded run for `make test`: 15 s a target, about 2.5 min with the clang build
+	bash scripts/install-deps.sh --fuzz
+	bash scripts/fuzz.sh 15
 
 format:
 	git ls-files '*.h' '*.cc' | xargs clang-format -i
