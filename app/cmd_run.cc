@@ -28,7 +28,7 @@ const std::atomic<bool>* StopFlag() { return &g_stop; }
 void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   struct Opts {
     std::string scenario, out, profile = "host", policy, memory_thr, cotenant, process_cap;
-    double cotenant_scale = 1.0;
+    double cotenant_scale = 1.0, pace = 0.0;
     std::uint64_t max_ticks = 0;
     bool verify = false, quiet = false;
   };
@@ -42,6 +42,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--cotenant", o->cotenant, "run the VLM stand-in beside the loop (model name)");
   cmd->add_option("--cotenant-scale", o->cotenant_scale, "scale the stand-in's weights (tests)");
   cmd->add_option("--process-cap", o->process_cap, "cap this process (setrlimit), e.g. 6GiB; 0 = none");
+  cmd->add_option("--pace", o->pace, "pace ticks at this multiple of the frames' clock (1 = real time; 0 = as fast as possible)");
   cmd->add_option("--max-ticks", o->max_ticks, "stop after this many ticks (0 = all)");
   cmd->add_flag("--verify-checksums", o->verify, "CRC-check every payload as it lands in its slot");
   cmd->add_flag("--quiet", o->quiet, "print nothing on success");
@@ -66,6 +67,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
     req.with_cotenant = !o->cotenant.empty();
     req.cotenant_scale = o->cotenant_scale;
     req.max_ticks = o->max_ticks;
+    req.pace_speedup = o->pace;
     req.verify_checksums = o->verify;
     auto s = RunOnDevice(req, StopFlag());
     if (!s.ok()) return ctx.Fail("run", s.status());

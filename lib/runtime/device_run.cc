@@ -96,6 +96,7 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   run.out_dir = request.out_dir;
   run.loop = loop_config;
   run.profile_name = p.source;
+  run.pace_speedup = request.pace_speedup;
   run.on_tick = [&](const TickLoop& loop) {
     if (!map_tenant) return;
     const std::uint64_t slots = loop.bounded() ? loop.arena().capacity()

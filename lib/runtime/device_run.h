@@ -31,6 +31,7 @@ struct DeviceRunRequest {
   double cotenant_scale = 1.0;    // weights multiplier (tests, CI); the report states it
   std::uint64_t max_ticks = 0;
   bool verify_checksums = false;
+  double pace_speedup = 0.0;  // see RunRequest
 };
 
 [[nodiscard]] Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request,

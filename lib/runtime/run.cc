@@ -1,6 +1,8 @@
 #include "runtime/run.h"
 
 #include <algorithm>
+#include <chrono>
+#include <thread>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -113,6 +115,8 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
                                        scenario.rate_hz));
   ZM_RETURN_IF_ERROR(loop->Start());
   bool interrupted = false;
+  const auto wall0 = std::chrono::steady_clock::now();
+  double stamp0 = -1.0;
   for (;;) {
     if (stop != nullptr && stop->load()) {
       interrupted = true;
@@ -121,6 +125,13 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     ZM_ASSIGN_OR_RETURN(bool more, loop->Tick());
     if (!more) break;
     if (request.on_tick) request.on_tick(*loop);
+    if (request.pace_speedup > 0) {
+      const double stamp = loop->last_record().stamp_s;
+      if (stamp0 < 0) stamp0 = stamp;
+      std::this_thread::sleep_until(
+          wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                      std::chrono::duration<double>((stamp - stamp0) / request.pace_speedup)));
+    }
   }
   telemetry.Flush();
   telemetry.Close();
@@ -133,6 +144,7 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   nlohmann::json s = LoopSummary(*loop, scenario.rate_hz, interrupted);
   s["profile"] = request.profile_name;
   s["scenario"] = scenario.dir;
+  s["pace_speedup"] = request.pace_speedup;
   s["ate_rmse_m"] = nullptr;
   s["ate_se3_rmse_m"] = nullptr;
   s["rpe_trans_rmse_m"] = nullptr;

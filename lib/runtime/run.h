@@ -21,6 +21,9 @@ struct RunRequest {
   std::string out_dir;
   LoopConfig loop;
   std::string profile_name;  // for the summary only
+  // > 0: pace ticks on the wall clock at this multiple of the frames' own clock (1 = real
+  // time), as frames arrive on a robot; 0: replay as fast as the loop goes.
+  double pace_speedup = 0.0;
   // Called after every tick with the loop (device ledger, co-tenant bookkeeping); may be empty.
   std::function<void(const TickLoop&)> on_tick;
 };
