@@ -184,8 +184,9 @@ def plot_cotenant(out, scenario, runs, fig_dir):
         if os.path.exists(path):
             with open(path) as f:
                 detail = json.load(f)
-        tps.append(detail.get("request_tokens_per_s") or [ct.get("tokens_per_s", 0.0)])
-        lat.append(detail.get("request_latency_ms") or [ct.get("latency_ms", 0.0)])
+        per = detail.get("per_request") or []
+        tps.append([p[1] for p in per] or [ct.get("tokens_per_s") or 0.0])
+        lat.append([p[2] for p in per] or [ct.get("latency_ms") or 0.0])
     axes[0].boxplot(tps, labels=labels)
     axes[0].set_title("co-tenant tokens/s per request (stand-in)")
     axes[1].boxplot(lat, labels=labels)
@@ -196,12 +197,24 @@ def plot_cotenant(out, scenario, runs, fig_dir):
             continue
         with open(path) as f:
             detail = json.load(f)
-        series = detail.get("timeline", [])
-        if series:
-            axes[2].plot([p[0] for p in series], [p[1] for p in series], color=colour(s["policy"]),
-                         lw=0.8, label=s["policy"])
-    axes[2].set_title("tokens/s along the run (stand-in)")
-    axes[2].set_xlabel("seconds since start")
+        per = detail.get("per_request") or []
+        ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
+        pace = s.get("pace_speedup") or 0.0
+        if not per or not ticks or pace <= 0:
+            continue
+        # Request end (wall seconds) -> frame stamp on the paced clock -> robot position.
+        t0 = ticks[0]["stamp"]
+        xs, ys, cs = [], [], []
+        for end_s, rate, _ in per:
+            stamp = t0 + end_s * pace
+            tick = min(ticks, key=lambda t: abs(t["stamp"] - stamp))
+            xs.append(tick["x"]); ys.append(tick["y"]); cs.append(rate)
+        sc = axes[2].scatter(xs, ys, c=cs, cmap="viridis", s=18, marker="o",
+                             label=s["policy"])
+    axes[2].set_title("tokens/s where each request ended (stand-in)")
+    axes[2].set_xlabel("x (m)")
+    axes[2].set_ylabel("y (m)")
+    axes[2].set_aspect("equal")
     axes[2].legend(fontsize=8)
     for ax in axes[:2]:
         ax.tick_params(axis="x", labelsize=7)

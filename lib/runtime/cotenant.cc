@@ -272,6 +272,10 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
     if (late) ++r.requests_late;
     latency.Add(total_ms);
     tps.Add(decode_ms > 0.0 ? generated * 1000.0 / decode_ms : 0.0);
+    if (r.per_request.size() < keep) {
+      r.per_request.push_back({MsSince(run0) / 1000.0,
+                               decode_ms > 0.0 ? generated * 1000.0 / decode_ms : 0.0, total_ms});
+    }
     prefill_tps.Add(prefill_ms > 0.0 ? config.prompt_tokens * 1000.0 / prefill_ms : 0.0);
     gbps.Add(decode_ms > 0.0
                  ? static_cast<double>(r.weights_bytes) * generated / (decode_ms * 1e6)
@@ -332,6 +336,7 @@ nlohmann::json ToJson(const CotenantResult& r) {
       {"stall_ms", r.stall_ms},
       {"oom_events_seen", r.oom_events_seen},
       {"checksum", r.checksum},
+      {"per_request", r.per_request},
   };
   return j;
 }
@@ -373,6 +378,9 @@ Result<CotenantResult> CotenantResultFromJson(const nlohmann::json& j) {
     r.stall_ms = j.at("stall_ms").get<double>();
     r.oom_events_seen = j.at("oom_events_seen").get<std::uint64_t>();
     r.checksum = j.at("checksum").get<std::uint64_t>();
+    if (j.contains("per_request")) {
+      r.per_request = j.at("per_request").get<std::vector<std::array<double, 3>>>();
+    }
     return r;
   } catch (const nlohmann::json::exception& e) {
     return InvalidArgument(std::string("co-tenant result JSON: ") + e.what());

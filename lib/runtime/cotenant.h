@@ -21,6 +21,7 @@
 
 #include <sys/types.h>
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -95,6 +96,9 @@ struct CotenantResult {
   double stall_ms = 0.0;                  // waited while the device was over-committed
   std::uint64_t oom_events_seen = 0;      // ledger OOM events (any tenant) while running
   std::uint64_t checksum = 0;             // the reduction's result (keeps it from being elided)
+  // Every completed request: {seconds since the first request started, decode tokens/s,
+  // latency ms}; for distributions and for values along the robot's path.
+  std::vector<std::array<double, 3>> per_request;
   std::string note{kCotenantNote};
 };
 
