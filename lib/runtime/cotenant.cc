@@ -179,6 +179,7 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   r.overhead_bytes = Scaled(config.overhead_bytes, config.scale);
 
   Holdings hold;
+  std::uint64_t oom0 = 0;  // ledger OOM events before this tenant existed
   if (!config.ledger_path.empty()) {
     Result<DeviceLedger> ledger = DeviceLedger::Open(config.ledger_path, config.ledger_device_bytes);
     if (!ledger.ok()) {
@@ -186,6 +187,9 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
       return r;
     }
     hold.ledger.emplace(std::move(ledger).value());
+    // Sampled before registering: another tenant may be refused the moment our grant is
+    // visible, before this thread runs again (seen under qemu), and that event is ours to see.
+    oom0 = hold.ledger->oom_events();
     std::string name = config.ledger_name.empty() ? "cotenant:" + config.model : config.ledger_name;
     if (name.size() >= kLedgerNameBytes) name.resize(kLedgerNameBytes - 1);
     Result<LedgerTenant> tenant = hold.ledger->Register(name, r.weights_bytes + r.overhead_bytes);
@@ -195,8 +199,6 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
     }
     hold.tenant = std::move(tenant).value();
   }
-  // From its registration on, the stand-in is running: later OOM events happened beside it.
-  const std::uint64_t oom0 = hold.ledger ? hold.ledger->oom_events() : 0;
   const auto touch0 = Clock::now();
   hold.weights = TryMapBytes(r.weights_bytes);
   if (hold.weights == nullptr) {
