@@ -338,8 +338,12 @@ nlohmann::json ToJson(const CotenantResult& r) {
       {"stall_ms", r.stall_ms},
       {"oom_events_seen", r.oom_events_seen},
       {"checksum", r.checksum},
-      {"per_request", r.per_request},
   };
+  // Built element by element: converting the vector of arrays in one go trips GCC 12's -O3
+  // -Wnull-dereference false positive inside nlohmann's to_json.
+  json per = json::array();
+  for (const auto& q : r.per_request) per.push_back(json::array({q[0], q[1], q[2]}));
+  j["per_request"] = std::move(per);
   return j;
 }
 
@@ -381,7 +385,9 @@ Result<CotenantResult> CotenantResultFromJson(const nlohmann::json& j) {
     r.oom_events_seen = j.at("oom_events_seen").get<std::uint64_t>();
     r.checksum = j.at("checksum").get<std::uint64_t>();
     if (j.contains("per_request")) {
-      r.per_request = j.at("per_request").get<std::vector<std::array<double, 3>>>();
+      for (const auto& q : j.at("per_request")) {
+        r.per_request.push_back({q.at(0).get<double>(), q.at(1).get<double>(), q.at(2).get<double>()});
+      }
     }
     return r;
   } catch (const nlohmann::json::exception& e) {
