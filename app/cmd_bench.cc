@@ -16,15 +16,14 @@
 #include <sstream>
 
 #include "commands.h"
-#include "runtime/cotenant.h"
-#include "runtime/device_run.h"
-#include "runtime/profile.h"
+#include "runtime/stop_signal.h"
+#include "harness/cotenant.h"
+#include "harness/device_run.h"
+#include "harness/experiment_profile.h"
 #include "sim/scenario.h"
 
 namespace zm::app {
 
-const std::atomic<bool>* StopFlag();
-void InstallStopHandlers();
 
 namespace {
 
@@ -144,7 +143,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--pace", o->pace, "runs with a co-tenant are paced at this multiple of the frames' clock (0 = as fast as possible)");
   cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
   cmd->callback([o, &ctx] {
-    InstallStopHandlers();
+    InstallStopSignals();
     const bool q = o->quick;
     const auto scenarios = Split(!o->scenarios.empty() ? o->scenarios
                                  : q ? "hospital"
@@ -189,13 +188,17 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
             std::vector<double> tick_means;
             nlohmann::json last;
             for (int rep = 0; rep < std::max(1, o->repeat); ++rep) {
-              auto profile = LoadProfile(o->profile);
+              auto profile = LoadExperimentProfile(o->profile);
               if (!profile.ok()) return ctx.Fail("bench", profile.status());
               ProfileOverrides ov;
               ov.policy = policy;
               ov.memory_thr = std::to_string(k);
-              if (model != "none") ov.cotenant = model;
-              if (Status s = ApplyOverrides(ov, profile.value()); !s.ok()) return ctx.Fail("bench", s);
+              if (Status s = ApplyOverrides(ov, profile->core); !s.ok()) return ctx.Fail("bench", s);
+              if (model != "none") {
+                if (Status s = ApplyModelOverride(model, profile.value()); !s.ok()) {
+                  return ctx.Fail("bench", s);
+                }
+              }
               // Shorter requests in --quick so that several complete within one replay; the
               // decode rate (tokens/s) does not depend on the request length.
               if (o->prompt_tokens != 0 || q) profile->cotenant.prompt_tokens = o->prompt_tokens ? o->prompt_tokens : 128;

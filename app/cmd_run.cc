@@ -1,29 +1,14 @@
 // `zonemap run`: replays a scenario's localization run through the tick loop under a policy and
 // a device profile, writing RUNDIR/ticks.jsonl, estimate.tum and summary.json.
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <memory>
 
 #include "commands.h"
-#include "runtime/device_run.h"
+#include "harness/device_run.h"
 #include "runtime/memory_cap.h"
+#include "runtime/stop_signal.h"
 
 namespace zm::app {
-namespace {
-std::atomic<bool> g_stop{false};
-extern "C" void OnStopSignal(int) { g_stop.store(true); }
-}  // namespace
-
-void InstallStopHandlers() {
-  struct sigaction sa {};
-  sa.sa_handler = OnStopSignal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-}
-
-const std::atomic<bool>* StopFlag() { return &g_stop; }
 
 void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   struct Opts {
@@ -47,26 +32,30 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_flag("--verify-checksums", o->verify, "CRC-check every payload as it lands in its slot");
   cmd->add_flag("--quiet", o->quiet, "print nothing on success");
   cmd->callback([o, &ctx] {
-    auto profile = LoadProfile(o->profile);
+    auto profile = LoadExperimentProfile(o->profile);
     if (!profile.ok()) return ctx.Fail("run", profile.status());
     ProfileOverrides ov;
     if (!o->policy.empty()) ov.policy = o->policy;
     if (!o->memory_thr.empty()) ov.memory_thr = o->memory_thr;
-    if (!o->cotenant.empty()) ov.cotenant = o->cotenant;
     if (!o->process_cap.empty()) ov.process_cap = o->process_cap;
-    if (Status s = ApplyOverrides(ov, profile.value()); !s.ok()) return ctx.Fail("run", s);
-    if (profile->map.process_cap_bytes != 0) {
-      auto cap = ApplyProcessCap(profile->map.process_cap_bytes);
+    if (Status s = ApplyOverrides(ov, profile->core); !s.ok()) return ctx.Fail("run", s);
+    if (!o->cotenant.empty()) {
+      if (Status s = ApplyModelOverride(o->cotenant, profile.value()); !s.ok()) {
+        return ctx.Fail("run", s);
+      }
+    }
+    profile->core.loop.max_ticks = o->max_ticks;
+    if (profile->core.map.process_cap_bytes != 0) {
+      auto cap = ApplyProcessCap(profile->core.map.process_cap_bytes);
       if (!cap.ok()) return ctx.Fail("run", cap.status());
     }
-    InstallStopHandlers();
+    InstallStopSignals();
     DeviceRunRequest req;
     req.scenario_dir = o->scenario;
     req.out_dir = o->out;
     req.profile = profile.value();
     req.with_cotenant = !o->cotenant.empty();
     req.cotenant_scale = o->cotenant_scale;
-    req.max_ticks = o->max_ticks;
     req.pace_speedup = o->pace;
     req.verify_checksums = o->verify;
     auto s = RunOnDevice(req, StopFlag());

@@ -1,4 +1,4 @@
-// zonemap-cotenant: the co-tenant STAND-IN program (lib/runtime/cotenant.h). It is a stand-in for
+// zonemap-cotenant: the co-tenant STAND-IN program (harness/cotenant.h). It is a stand-in for
 // VLM decoding, not a model: it allocates model-sized weights, registers them in the device
 // ledger, streams all of them once per generated token and reports tokens/s, request latency
 // and the outcome (○ completed, △ stalled, × failed to start).
@@ -6,19 +6,13 @@
 // Exit status: 0 completed, 2 stalled, 3 failed to start, 1 bad arguments. SIGINT/SIGTERM stop
 // it between tokens; it then prints its results like a normal end.
 #include <CLI/CLI.hpp>
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "runtime/cotenant.h"
-#include "runtime/profile.h"
-
-namespace {
-std::atomic<bool> g_stop{false};
-extern "C" void OnSignal(int) { g_stop.store(true); }
-}  // namespace
+#include "harness/cotenant.h"
+#include "harness/experiment_profile.h"
+#include "runtime/stop_signal.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -72,7 +66,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (!profile_name.empty()) {
-    zm::Result<zm::Profile> profile = zm::LoadProfile(profile_name);
+    zm::Result<zm::ExperimentProfile> profile = zm::LoadExperimentProfile(profile_name);
     if (!profile.ok()) return fail(profile.status().message());
     zm::CotenantConfig from = zm::CotenantConfigFromProfile(*profile);
     // Flags given explicitly win over the profile.
@@ -85,7 +79,7 @@ int main(int argc, char** argv) {
     if (weights_text.empty() && app.count("--model") == 0) config.weights_bytes = from.weights_bytes;
     if (overhead_text.empty()) config.overhead_bytes = from.overhead_bytes;
     if (config.ledger_device_bytes == 0 && ledger_device_text.empty()) {
-      config.ledger_device_bytes = profile->device.memory_bytes;
+      config.ledger_device_bytes = profile->core.device.memory_bytes;
     }
   }
   if (!weights_text.empty()) {
@@ -109,9 +103,8 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
-  const zm::CotenantResult r = zm::RunCotenant(config, &g_stop);
+  zm::InstallStopSignals();
+  const zm::CotenantResult r = zm::RunCotenant(config, zm::StopFlag());
 
   if (json) {
     std::printf("%s\n", zm::ToJson(r).dump(2).c_str());

@@ -9,7 +9,8 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 build/host-debug/app/zonemap sim hospital --seed 3 --area 400 --tasks 3 --quiet --out "$work/scenario" >/dev/null
 qemu-aarch64 -L "$sysroot" build/aarch64-release/app/zonemapd --profile host \
-  --scenario "$work/scenario" --memory-thr 150 --max-ticks 60 --out "$work/run"
+  --db "$work/scenario/map.db" --frames "$work/scenario/frames.bin" --memory-thr 150 \
+  --max-ticks 60 --out "$work/run"
 python3 - "$work/run/summary.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))

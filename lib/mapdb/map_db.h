@@ -122,6 +122,18 @@ class KeyframeSource {
                                                         Arena& arena, LoadSink& sink) = 0;
 };
 
+// What the tick loop needs of a map: its metadata (read once at start) and keyframe loads. MapDb
+// is the implementation; tests may fake it.
+class MapReader : public KeyframeSource {
+ public:
+  [[nodiscard]] virtual const MapMetadata& metadata() const = 0;
+  // Metadata queries: read no payload.
+  [[nodiscard]] virtual Result<std::vector<KeyframeMeta>> Keyframes() const = 0;  // by id
+  [[nodiscard]] virtual Result<std::vector<LinkRecord>> Links() const = 0;        // each edge once
+  [[nodiscard]] virtual Result<std::vector<ZoneRecord>> Zones() const = 0;        // by id
+  [[nodiscard]] virtual Result<std::vector<ZoneMember>> ZoneMembers() const = 0;  // zone, keyframe
+};
+
 struct MapDbOptions {
   bool verify_checksums = true;  // CRC-check each payload as it lands in its slot
   std::int64_t sqlite_heap_limit_bytes = 0;  // sqlite3_hard_heap_limit64; 0 = none
@@ -131,20 +143,20 @@ struct MapDbOptions {
 };
 
 // Read-only access for the run-time. Move-only; closing is RAII.
-class MapDb final : public KeyframeSource {
+class MapDb final : public MapReader {
  public:
   // Opens read-only, checks the schema version and every table, prepares every statement.
   [[nodiscard]] static Result<std::unique_ptr<MapDb>> Open(const std::string& path,
                                                            MapDbOptions options = {});
   ~MapDb() override;
 
-  [[nodiscard]] const MapMetadata& metadata() const;
+  [[nodiscard]] const MapMetadata& metadata() const override;
 
   // Metadata queries: read no payload.
-  [[nodiscard]] Result<std::vector<KeyframeMeta>> Keyframes() const;  // ordered by id
-  [[nodiscard]] Result<std::vector<LinkRecord>> Links() const;        // each edge once
-  [[nodiscard]] Result<std::vector<ZoneRecord>> Zones() const;        // ordered by id
-  [[nodiscard]] Result<std::vector<ZoneMember>> ZoneMembers() const;  // by zone, then keyframe
+  [[nodiscard]] Result<std::vector<KeyframeMeta>> Keyframes() const override;  // ordered by id
+  [[nodiscard]] Result<std::vector<LinkRecord>> Links() const override;        // each edge once
+  [[nodiscard]] Result<std::vector<ZoneRecord>> Zones() const override;        // ordered by id
+  [[nodiscard]] Result<std::vector<ZoneMember>> ZoneMembers() const override;  // by zone, then keyframe
   [[nodiscard]] Result<std::vector<std::uint32_t>> ZoneSizes() const;  // index = ZoneId
 
   Result<LoadStats> LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) override;

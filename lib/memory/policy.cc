@@ -11,6 +11,16 @@
 
 namespace zm {
 
+Status ValidatePolicyName(std::string_view name) {
+  for (std::string_view known : {"semantic", "basic", "radius", "predictive", "oracle", "unbounded"}) {
+    if (name == known) return Status::Ok();
+  }
+  return InvalidArgument("unknown memory policy '" + std::string(name) +
+                         "'; expected semantic, basic, radius, predictive, oracle or unbounded");
+}
+
+bool IsBoundedPolicy(std::string_view name) { return name != "basic" && name != "unbounded"; }
+
 Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
                                                  const PolicyOptions& options) {
   const std::string& p = options.policy;

@@ -70,11 +70,15 @@ struct BasicOptions {
   std::vector<KeyframeId> initial_wm;      // the last session's WM when !init_wm_with_all_nodes
 };
 
+// Autoware's dynamic map loading (pointcloud_divider tiles, ndt_scan_matcher's
+// dynamic_map_loading), scaled indoors: Autoware's outdoor defaults are a 20 m grid, a 150 m map
+// radius and a 20 m update distance; a 150 m radius holds a whole hospital floor, so the indoor
+// default radius is 30 m (about three rooms and a corridor either way).
 struct RadiusOptions {
   std::uint32_t k_max = 0;
   double tile_m = 20.0;             // pointcloud_divider grid
-  double map_radius_m = 150.0;      // ndt_scan_matcher dynamic_map_loading.map_radius
-  double update_distance_m = 20.0;  // ndt_scan_matcher dynamic_map_loading.update_distance
+  double map_radius_m = 30.0;       // dynamic_map_loading.map_radius (Autoware: 150 m outdoors)
+  double update_distance_m = 20.0;  // dynamic_map_loading.update_distance
 };
 
 struct PredictiveOptions {
@@ -98,6 +102,13 @@ struct PolicyOptions {
   PredictiveOptions predictive;
   OracleOptions oracle;
 };
+
+// The policy names ("semantic", "basic", "radius", "predictive", "oracle", "unbounded"); an
+// unknown name is an error listing them.
+[[nodiscard]] Status ValidatePolicyName(std::string_view name);
+// Bounded policies never hold more than K_max keyframes (their arena has exactly K_max slots);
+// basic and unbounded model RTAB-Map's growing heap (their arena holds the whole map).
+[[nodiscard]] bool IsBoundedPolicy(std::string_view name);
 
 // Makes the named policy over `index` (which must outlive it). Allocates everything it will
 // ever need here. Errors name the unknown policy or the bad option.

@@ -9,7 +9,7 @@
 #include <cstring>
 #include <string_view>
 
-#include "sim/frames_file.h"
+#include "runtime/frames_file.h"
 
 namespace zm {
 namespace {

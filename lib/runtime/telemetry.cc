@@ -17,7 +17,7 @@ const char* TickStepName(TickStep step) {
     case TickStep::kPlan: return "plan";
     case TickStep::kApply: return "apply";
     case TickStep::kLocalize: return "localize";
-    case TickStep::kTelemetry: return "telemetry";
+    case TickStep::kRecord: return "record";
     case TickStep::kCount: break;
   }
   return "?";
@@ -37,7 +37,7 @@ Status TelemetryWriter::Open(const std::string& path) {
   return Status::Ok();
 }
 
-bool TelemetryWriter::Write(const TickRecord& r) {
+bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
   if (file_ == nullptr) return false;
   int n = std::snprintf(
       line_, sizeof line_,
@@ -45,16 +45,16 @@ bool TelemetryWriter::Write(const TickRecord& r) {
       "\"resident_keyframes\":%u,\"resident_bytes\":%llu,\"loaded\":%u,\"unloaded\":%u,"
       "\"db_transactions\":%u,\"db_queries\":%u,\"db_bytes_read\":%llu,\"load_ms\":%.4f,"
       "\"unload_ms\":%.4f,\"over_budget\":%s,\"refused\":%llu,\"loop_closure\":%s,"
-      "\"matched\":%lld,\"inliers\":%u,\"highest\":%lld,\"candidates\":%u,\"oom_events\":%llu,"
-      "\"stalled\":%s,\"tick_ms\":%.4f,\"steps_ms\":{",
+      "\"matched\":%lld,\"inliers\":%u,\"highest\":%lld,\"candidates\":%u,"
+      "\"startup\":%s,\"stalled\":%s,\"tick_ms\":%.4f,\"steps_ms\":{",
       static_cast<unsigned long long>(r.tick), r.stamp_s, r.x_m, r.y_m, r.yaw_rad, r.zone.value,
       r.resident_keyframes, static_cast<unsigned long long>(r.resident_bytes), r.keyframes_loaded,
       r.keyframes_unloaded, r.db_transactions, r.db_queries,
       static_cast<unsigned long long>(r.db_bytes_read), r.load_ms, r.unload_ms,
       r.over_budget ? "true" : "false", static_cast<unsigned long long>(r.refused_acquisitions),
       r.loop_closure ? "true" : "false", static_cast<long long>(r.matched_keyframe), r.inliers,
-      static_cast<long long>(r.highest_hypothesis), r.candidates,
-      static_cast<unsigned long long>(r.oom_events), r.stalled ? "true" : "false", r.tick_ms);
+      static_cast<long long>(r.highest_hypothesis), r.candidates, r.startup ? "true" : "false",
+      r.stalled ? "true" : "false", r.tick_ms);
   if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_) return false;
   std::size_t used = static_cast<std::size_t>(n);
   for (int s = 0; s < kTickStepCount; ++s) {
@@ -63,8 +63,15 @@ bool TelemetryWriter::Write(const TickRecord& r) {
     if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
     used += static_cast<std::size_t>(n);
   }
-  if (used + 3 > sizeof line_) return false;
+  if (used + 1 > sizeof line_) return false;
   line_[used++] = '}';
+  if (!extra.empty()) {
+    if (used + 1 + extra.size() > sizeof line_) return false;
+    line_[used++] = ',';
+    std::memcpy(line_ + used, extra.data(), extra.size());
+    used += extra.size();
+  }
+  if (used + 2 > sizeof line_) return false;
   line_[used++] = '}';
   line_[used++] = '\n';
   if (std::fwrite(line_, 1, used, file_) != used) return false;

@@ -1,5 +1,5 @@
-// Per-tick telemetry: one fixed-size record per tick, written as one JSON line to
-// RUNDIR/ticks.jsonl. Formatting goes through snprintf into a member buffer and a FILE* whose
+// Per-tick telemetry: one fixed-size record per tick (what TickLoop fills), written as one JSON
+// line to RUNDIR/ticks.jsonl. Formatting goes through snprintf into a member buffer and a FILE* whose
 // buffer is set once at open, so writing a tick never allocates. SIGINT/SIGTERM handling only
 // sets a flag; the loop then flushes and closes the file normally.
 #pragma once
@@ -7,9 +7,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <string>
+#include <string_view>
 
 #include "common/ids.h"
 #include "common/status.h"
+#include "geometry/pose.h"
 
 namespace zm {
 
@@ -21,16 +23,24 @@ enum class TickStep : int {
   kPlan,
   kApply,
   kLocalize,
-  kTelemetry,
+  kRecord,
   kCount
 };
 inline constexpr int kTickStepCount = static_cast<int>(TickStep::kCount);
 [[nodiscard]] const char* TickStepName(TickStep step);
 
+// Telemetry's options ([loop] telemetry_flush_ticks in a profile).
+struct TelemetryOptions {
+  std::uint32_t flush_ticks = 10;  // flush ticks.jsonl every N ticks (and at exit)
+};
+
 struct TickRecord {
   std::uint64_t tick = 0;
   double stamp_s = 0.0;
-  double x_m = 0.0, y_m = 0.0, yaw_rad = 0.0;  // corrected map pose
+  Pose3 pose = Pose3::Identity();        // corrected body pose in the map frame (the estimate)
+  Pose3 correction = Pose3::Identity();  // T_map_odom applied to this frame's odometry
+  double x_m = 0.0, y_m = 0.0, yaw_rad = 0.0;  // the same pose, for plots
+  bool startup = false;                  // this tick carried the start-up load
   ZoneId zone = kNoZone;
   std::uint32_t resident_keyframes = 0;
   std::uint64_t resident_bytes = 0;
@@ -48,8 +58,7 @@ struct TickRecord {
   std::uint32_t inliers = 0;
   std::int64_t highest_hypothesis = 0;
   std::uint32_t candidates = 0;
-  std::uint64_t oom_events = 0;            // cumulative device-ledger / allocation failures
-  bool stalled = false;                    // the tick could not do its work (e.g. OOM)
+  bool stalled = false;                    // a step failed this tick (counted in the totals)
   double step_ms[kTickStepCount] = {};
   double tick_ms = 0.0;
 };
@@ -63,8 +72,11 @@ class TelemetryWriter {
 
   // Opens (truncates) `path`. The stdio buffer is allocated here, once.
   [[nodiscard]] Status Open(const std::string& path);
-  // Appends one JSON line. Never allocates; returns false if the write failed.
-  bool Write(const TickRecord& r);
+  // Appends one JSON line. `extra` (may be empty) is a pre-formatted fragment of further members,
+  // `"key":value,"key2":value2`, appended inside the object: how the evaluation adds its device
+  // samples without the core knowing them. Never allocates; returns false if the write failed or
+  // the line would not fit the fixed buffer.
+  bool Write(const TickRecord& r, std::string_view extra = {});
   void Flush();
   void Close();
   [[nodiscard]] std::uint64_t lines() const { return lines_; }

@@ -17,36 +17,26 @@ double MsSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-bool IsBoundedPolicy(const std::string& name) {
-  return name != "basic" && name != "unbounded";
-}
-
 }  // namespace
 
-TickLoop::TickLoop(const LoopConfig& config, MapDb& db, FrameSource& frames,
-                   TelemetryWriter* telemetry, Arena arena, MapIndex index)
-    : config_(config),
-      db_(db),
-      frames_(frames),
-      telemetry_(telemetry),
-      arena_(std::move(arena)),
-      map_index_(std::move(index)) {}
+TickLoop::TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index)
+    : config_(config), frames_(frames), arena_(std::move(arena)), map_index_(std::move(index)) {}
 
 TickLoop::~TickLoop() = default;
 
-Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, MapDb& db,
-                                                   FrameSource& frames, TelemetryWriter* telemetry,
-                                                   std::vector<ZoneId> route,
-                                                   std::vector<ZoneId> oracle_future,
-                                                   double frame_rate_hz) {
-  const MapMetadata& meta = db.metadata();
+Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, MapReader& map,
+                                                   FrameSource& frames,
+                                                   LoopPlanInputs plan_inputs) {
+  const MapMetadata& meta = map.metadata();
   if (meta.keyframe_count == 0) return InvalidArgument("the map database has no keyframes");
+  ZM_RETURN_IF_ERROR(ValidatePolicyName(config.policy.policy));
+  if (!(config.loop.rate_hz > 0.0)) return InvalidArgument("loop rate_hz must be > 0");
 
   // Metadata only: no payload is read to decide anything.
-  ZM_ASSIGN_OR_RETURN(std::vector<KeyframeMeta> keyframes, db.Keyframes());
-  ZM_ASSIGN_OR_RETURN(std::vector<LinkRecord> links, db.Links());
-  ZM_ASSIGN_OR_RETURN(std::vector<ZoneRecord> zone_records, db.Zones());
-  ZM_ASSIGN_OR_RETURN(std::vector<ZoneMember> members, db.ZoneMembers());
+  ZM_ASSIGN_OR_RETURN(std::vector<KeyframeMeta> keyframes, map.Keyframes());
+  ZM_ASSIGN_OR_RETURN(std::vector<LinkRecord> links, map.Links());
+  ZM_ASSIGN_OR_RETURN(std::vector<ZoneRecord> zone_records, map.Zones());
+  ZM_ASSIGN_OR_RETURN(std::vector<ZoneMember> members, map.ZoneMembers());
   if (zone_records.empty()) {
     return FailedPrecondition(
         "the map database has no zones: run `zonemap zones annotate DB ZONES.geojson` first");
@@ -67,86 +57,76 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   input.zone_adjacency = adjacency;
   ZM_ASSIGN_OR_RETURN(MapIndex index, MapIndex::Build(input));
 
-  // K_max = min(count, bytes / slot_bytes); slot_bytes from the database's largest payload.
-  const std::uint64_t slot_bytes =
-      config.slot_bytes != 0 ? config.slot_bytes : meta.largest_payload_bytes;
-  if (slot_bytes < meta.largest_payload_bytes) {
-    return OutOfRange("slot_bytes " + std::to_string(slot_bytes) +
-                      " is smaller than the largest keyframe payload (" +
-                      std::to_string(meta.largest_payload_bytes) + " bytes)");
-  }
-  auto plan_or = PlanArena({.memory_thr_keyframes = config.memory_thr_keyframes,
-                            .budget_bytes = config.memory_thr_bytes,
-                            .slot_bytes = slot_bytes});
-  const bool unbounded_budget = config.memory_thr_keyframes == 0 && config.memory_thr_bytes == 0;
-  std::uint32_t k_max = static_cast<std::uint32_t>(meta.keyframe_count);
-  if (!unbounded_budget) {
-    if (auto* err = std::get_if<ArenaError>(&plan_or)) return InvalidArgument(err->message);
-    k_max = std::min<std::uint32_t>(std::get<ArenaPlan>(plan_or).slots,
-                                    static_cast<std::uint32_t>(meta.keyframe_count));
-  }
+  // The one derivation of K_max and the arena (budget.h).
+  BudgetInputs budget_in;
+  budget_in.device = config.device;
+  budget_in.model = config.model;
+  budget_in.map = config.map;
+  budget_in.largest_keyframe_bytes = meta.largest_payload_bytes;
+  budget_in.keyframe_count = meta.keyframe_count;
+  budget_in.bounded_policy = IsBoundedPolicy(config.policy.policy);
+  budget_in.unbounded_policy = config.policy.policy == "unbounded";
+  ZM_ASSIGN_OR_RETURN(const Budget budget, DeriveBudget(budget_in));
+
   // The bounded policies get an arena of exactly K_max slots: exceeding the budget is then
   // physically impossible. basic and unbounded model RTAB-Map's heap, which grows: their arena
   // holds the whole map and the over-budget flag measures by how much they exceed MemoryThr.
-  const bool bounded = IsBoundedPolicy(config.policy.policy) && !unbounded_budget;
-  const std::uint64_t arena_slots = bounded ? k_max : meta.keyframe_count;
-  auto arena_or = Arena::Create({.memory_thr_keyframes = arena_slots,
+  auto arena_or = Arena::Create({.memory_thr_keyframes = budget.arena_slots,
                                  .budget_bytes = 0,
-                                 .slot_bytes = slot_bytes,
-                                 .lock = config.lock_arena,
-                                 .prefault = config.prefault_arena});
+                                 .slot_bytes = budget.slot_bytes,
+                                 .lock = config.map.lock_arena,
+                                 .prefault = config.map.prefault_arena});
   if (auto* err = std::get_if<ArenaError>(&arena_or)) return ResourceExhausted(err->message);
 
-  std::unique_ptr<TickLoop> loop(new TickLoop(config, db, frames, telemetry,
-                                              std::move(std::get<Arena>(arena_or)),
-                                              std::move(index)));
-  loop->k_max_ = k_max;
-  loop->bounded_ = bounded;
+  std::unique_ptr<TickLoop> loop(
+      new TickLoop(config, frames, std::move(std::get<Arena>(arena_or)), std::move(index)));
+  loop->budget_ = budget;
   loop->zone_set_ = std::move(zone_set);
   loop->zone_index_ = ZoneIndex(loop->zone_set_, config.zones);
-  loop->route_ = std::move(route);
+  loop->route_ = std::move(plan_inputs.route);
 
   PolicyOptions popt = config.policy;
-  popt.k_max = k_max;
-  popt.semantic.k_max = k_max;
-  popt.radius.k_max = k_max;
-  popt.predictive.k_max = k_max;
-  popt.oracle.k_max = k_max;
-  popt.oracle.future = std::move(oracle_future);
-  popt.basic.memory_thr = unbounded_budget ? 0 : k_max;
+  popt.k_max = budget.k_max;
+  popt.oracle.future = std::move(plan_inputs.oracle_future);
+  if (popt.policy == "basic") {
+    // Memory management is on when MemoryThr is set (RTAB-Map: MemoryThr > 0).
+    const bool any_limit = config.map.memory_thr_keyframes != 0 || budget.map_share_bytes != 0;
+    popt.basic.memory_thr = any_limit ? budget.k_max : 0;
+    popt.k_max = popt.basic.memory_thr;
+    if (!popt.basic.init_wm_with_all_nodes && popt.basic.initial_wm.empty()) {
+      // Mem/InitWMWithAllNodes=false starts from the map's last working memory. A zonemap map
+      // records none: it was built without memory management, so its last working memory is
+      // every node (basic-baseline.md §3.4).
+      popt.basic.initial_wm.reserve(keyframes.size());
+      for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+    }
+  }
   ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt));
-  loop->working_set_ = std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, db, k_max);
+  loop->working_set_ =
+      std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map, budget.k_max);
 
   LocalizerConfig lc = config.localizer;
-  lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes,
-                                                 static_cast<std::uint32_t>(arena_slots));
+  lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes, budget.arena_slots);
   lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, frames.max_features());
   ZM_RETURN_IF_ERROR(ValidateLocalizerConfig(lc, meta.camera));
   loop->localizer_ = std::make_unique<Localizer>(lc, meta.camera);
 
   loop->frame_.Reserve(std::max<std::uint32_t>(frames.max_features(), 1));
   loop->plan_.Reserve(loop->map_index_);
-  loop->resident_views_.reserve(arena_slots);
-  loop->frame_period_s_ = frame_rate_hz > 0 ? 1.0 / frame_rate_hz : 1.0;
+  loop->resident_views_.reserve(budget.arena_slots);
+  loop->frame_period_s_ = 1.0 / config.loop.rate_hz;
   // Keyframe body poses in MapIndex order (ascending id), for the localizer's heading gate.
   std::sort(keyframes.begin(), keyframes.end(),
             [](const KeyframeMeta& a, const KeyframeMeta& b) { return a.id < b.id; });
   loop->keyframe_poses_.reserve(keyframes.size());
   for (const KeyframeMeta& k : keyframes) loop->keyframe_poses_.push_back(k.pose);
-  // Per-tick series: reserved for the whole replay so that pushing a tick never allocates.
-  const std::size_t expected = std::max<std::uint64_t>(config.expected_ticks, 1024);
-  loop->tick_ms_.reserve(expected);
-  loop->estimate_.stamps_s.reserve(expected);
-  loop->estimate_.poses.reserve(expected);
   loop->ctx_.route = loop->route_;
   return loop;
 }
 
-Status TickLoop::Start() { return Status::Ok(); }
-
 void TickLoop::NoteError(const Status& s) {
   ++totals_.step_errors;
-  if (totals_.first_error.empty()) totals_.first_error = s.ToString();
+  if (totals_.first_error.ok()) totals_.first_error = s;
   record_.stalled = true;
 }
 
@@ -165,8 +145,9 @@ void TickLoop::Account(const TickTelemetry& t) {
 }
 
 Result<bool> TickLoop::Tick() {
-  if (config_.max_ticks != 0 && totals_.ticks >= config_.max_ticks) return false;
+  if (config_.loop.max_ticks != 0 && totals_.ticks >= config_.loop.max_ticks) return false;
   const Clock::time_point t_tick = Clock::now();
+  const bool startup = totals_.ticks == 0;
 
   // 1. Read a frame. (The previous tick's record stays readable until a frame arrives.)
   Clock::time_point t0 = Clock::now();
@@ -179,13 +160,14 @@ Result<bool> TickLoop::Tick() {
 
   // 2. Update the pose: odometry composed with the current correction.
   t0 = Clock::now();
-  const Pose3 predicted = t_map_odom_ * frame_.odom;
+  const Pose3 correction = t_map_odom_;
+  const Pose3 predicted = correction * frame_.odom;
   bool small = false;
   if (have_kept_pose_) {
     const Pose3 delta = last_kept_pose_.inverse() * predicted;
     const double angle = Eigen::AngleAxisd(delta.linear()).angle();
-    small = delta.translation().norm() < config_.small_displacement_m &&
-            angle < config_.small_displacement_rad;
+    small = delta.translation().norm() < config_.loop.small_displacement_m &&
+            angle < config_.loop.small_displacement_rad;
   }
   if (!small) {
     last_kept_pose_ = predicted;
@@ -207,10 +189,10 @@ Result<bool> TickLoop::Tick() {
   ctx_.localized_on = KeyframeId{0};
   ctx_.load_ms_per_keyframe = working_set_->load_ms_per_keyframe();
 
-  // 4. The policy plans: unload, then load (start-up load on the first tick).
+  // 4. The policy plans: unload, then load (start-up load on the first frame).
   t0 = Clock::now();
   plan_.Clear();
-  if (totals_.ticks == 0) {
+  if (startup) {
     policy_->Start(ctx_, &plan_);
   } else {
     policy_->PlanBeforeLocalize(ctx_, &plan_);
@@ -224,6 +206,13 @@ Result<bool> TickLoop::Tick() {
     if (!s.ok()) NoteError(s);
   }
   record_.step_ms[static_cast<int>(TickStep::kApply)] = MsSince(t0);
+  if (startup) {
+    totals_.startup.load_ms = tel_.load_ms;
+    totals_.startup.keyframes_loaded = tel_.keyframes_loaded;
+    totals_.startup.bytes_read = tel_.db_bytes_read;
+    totals_.startup.db_transactions = tel_.db_transactions;
+    totals_.startup.db_queries = tel_.db_queries;
+  }
 
   // 6. Localize on the resident set only, then the after-localization plan (basic).
   t0 = Clock::now();
@@ -251,7 +240,7 @@ Result<bool> TickLoop::Tick() {
   }
   record_.step_ms[static_cast<int>(TickStep::kLocalize)] = MsSince(t0);
 
-  // 7. Telemetry.
+  // 7. Record.
   t0 = Clock::now();
   Account(tel_);
   const std::uint32_t resident = working_set_->resident_count();
@@ -259,21 +248,22 @@ Result<bool> TickLoop::Tick() {
   totals_.peak_resident_keyframes = std::max(totals_.peak_resident_keyframes, resident);
   totals_.peak_resident_bytes = std::max(totals_.peak_resident_bytes, resident_bytes);
   const std::uint32_t tick_peak = std::max(tel_.peak_resident_keyframes, resident);
-  const bool over = tick_peak > k_max_;
+  const bool over = tick_peak > budget_.k_max;
   if (over) {
     ++totals_.over_budget_ticks;
     totals_.max_over_budget_keyframes =
-        std::max(totals_.max_over_budget_keyframes, tick_peak - k_max_);
+        std::max(totals_.max_over_budget_keyframes, tick_peak - budget_.k_max);
     totals_.longest_over_budget_run = std::max(totals_.longest_over_budget_run, ++over_budget_run_);
   } else {
     over_budget_run_ = 0;
   }
   if (record_.stalled) ++totals_.stalled_ticks;
-  estimate_.stamps_s.push_back(frame_.stamp_s);
-  estimate_.poses.push_back(estimate);
 
   record_.tick = totals_.ticks;
   record_.stamp_s = frame_.stamp_s;
+  record_.startup = startup;
+  record_.pose = estimate;
+  record_.correction = correction;
   record_.x_m = estimate.translation().x();
   record_.y_m = estimate.translation().y();
   record_.yaw_rad = Yaw(estimate);
@@ -294,16 +284,13 @@ Result<bool> TickLoop::Tick() {
   record_.inliers = loc.inliers;
   record_.highest_hypothesis = loc.highest_hypothesis.value;
   record_.candidates = loc.candidates_examined;
-  record_.step_ms[static_cast<int>(TickStep::kTelemetry)] = MsSince(t0);
+  record_.step_ms[static_cast<int>(TickStep::kRecord)] = MsSince(t0);
   record_.tick_ms = MsSince(t_tick);
-  if (telemetry_ != nullptr) {
-    telemetry_->Write(record_);
-    if (config_.telemetry_flush_ticks != 0 &&
-        (totals_.ticks + 1) % config_.telemetry_flush_ticks == 0) {
-      telemetry_->Flush();
-    }
+  if (startup) {
+    totals_.startup.tick_ms = record_.tick_ms;
+  } else {
+    totals_.tick_ms.Add(record_.tick_ms);
   }
-  tick_ms_.push_back(record_.tick_ms);
   totals_.simulated_s += std::max(frame_period_s_, record_.tick_ms / 1000.0);
   ++totals_.ticks;
   return true;

@@ -1,20 +1,30 @@
-// The tick loop: the single-threaded heart of zonemapd and of `zonemap run`.
+// The tick loop: the single-threaded heart of zonemapd (and of every replay the evaluation runs).
 //
 // One tick, fixed order, a timer around each step (PX4's work-item shape):
 //   1. read a frame                       FrameSource::Next
 //   2. update the pose                    T_map_odom (correction) * odometry
 //   3. look up the zone                   ZoneIndex::GetZone with hysteresis
-//   4. the policy plans                   MemoryPolicy::PlanBeforeLocalize (unload, then load)
-//   5. apply the plan                     WorkingSet::Apply -> MapDb::LoadZone into arena slots
+//   4. the policy plans                   MemoryPolicy::PlanBeforeLocalize (unload, then load);
+//                                         on the first frame MemoryPolicy::Start (start-up load)
+//   5. apply the plan                     WorkingSet::Apply -> KeyframeSource loads into slots
 //   6. localize on the resident set       Localizer::Localize over views of resident slots only;
 //                                         then PlanAfterLocalize + Apply (basic's retrieval and
 //                                         transfer happen here, as in RTAB-Map)
-//   7. write telemetry                    TelemetryWriter (one JSON line)
+//   7. record                             fill the TickRecord and the totals
 //
-// Everything is built in Create(); a warm tick allocates nothing in zonemap code (tested with
-// the semantic policy). Errors never unwind through the loop: each step returns a value, and a
-// failed step marks the tick stalled and is counted. An accepted loop closure changes the pose
-// correction from the NEXT tick.
+// The loop does no output of its own: the caller reads last_record() after each Tick() and
+// writes whatever it writes (telemetry JSONL, the pose line to the robot, a trajectory file).
+// Totals are typed (LoopTotals); JSON exists only at the edges.
+//
+// Start-up: the first frame's tick carries the policy's start-up load (semantic: the first zone;
+// basic: its whole initial working memory). It is reported apart (LoopTotals::startup) and kept
+// out of the tick-time statistics, which describe the steady state.
+//
+// Everything is built in Create(); a warm tick allocates nothing (tested, for every policy).
+// Errors never unwind through the loop: each step returns a value, and a failed step marks the
+// tick stalled and is counted. An accepted loop closure changes the pose correction from the
+// NEXT tick. Statistics are fixed-size (StreamingStats): memory after a month equals memory
+// after a minute.
 //
 // Time: the loop runs on the frames' own clock (stamps), so a replay is deterministic and
 // basic's whole-second ages mean what they mean on a robot running at the frame rate.
@@ -22,7 +32,6 @@
 
 #include <cstdint>
 #include <memory>
-#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -30,7 +39,6 @@
 #include "arena/arena.h"
 #include "common/status.h"
 #include "geometry/pose.h"
-#include "geometry/trajectory.h"
 #include "localization/frame.h"
 #include "localization/localizer.h"
 #include "mapdb/map_db.h"
@@ -38,31 +46,51 @@
 #include "memory/plan.h"
 #include "memory/policy.h"
 #include "memory/working_set.h"
+#include "runtime/budget.h"
 #include "runtime/frame_source.h"
+#include "runtime/streaming_stats.h"
 #include "runtime/telemetry.h"
 #include "zones/zone_index.h"
 #include "zones/zone_set.h"
 
 namespace zm {
 
-struct LoopConfig {
-  PolicyOptions policy;                 // memory policy and its budget (k_max filled by Create)
-  LocalizerConfig localizer;
-  ZoneIndexOptions zones;
-  std::uint64_t memory_thr_keyframes = 0;  // MemoryThr as a count (0 = none)
-  std::uint64_t memory_thr_bytes = 0;      // MemoryThr as bytes (0 = none)
-  std::uint64_t slot_bytes = 0;            // 0 = the database's largest payload
-  bool lock_arena = false;
-  bool prefault_arena = false;
-  bool verify_checksums = false;           // CRC-check payloads as they land (costs ~load time)
-  std::uint32_t telemetry_flush_ticks = 10;
-  std::uint64_t max_ticks = 0;             // 0 = until the source ends
-  std::uint64_t expected_ticks = 0;        // per-tick series are reserved for this many ticks
-  double small_displacement_m = 0.1;       // RGBD/LinearUpdate
-  double small_displacement_rad = 0.1;     // RGBD/AngularUpdate
+// The loop's own options ([loop] in a profile).
+struct LoopOptions {
+  double rate_hz = 1.0;                 // frame rate the robot runs at (Rtabmap/DetectionRate)
+  double small_displacement_m = 0.1;    // RGBD/LinearUpdate
+  double small_displacement_rad = 0.1;  // RGBD/AngularUpdate
+  std::uint64_t max_ticks = 0;          // 0 = until the source ends
 };
 
-// Totals over a run, for summary.json.
+// Everything the loop is built from: the modules' own options, filled once (profile.h).
+struct LoopConfig {
+  DeviceOptions device;
+  ModelOptions model;
+  MapOptions map;
+  PolicyOptions policy;
+  ZoneIndexOptions zones;
+  LocalizerConfig localizer;
+  LoopOptions loop;
+};
+
+// What only a replay knows in advance (the evaluation's planned route and oracle future).
+struct LoopPlanInputs {
+  std::vector<ZoneId> route;          // planned zone sequence (predictive); may be empty
+  std::vector<ZoneId> oracle_future;  // the zone of every tick, from tick 0 (oracle only)
+};
+
+// Start-up, reported apart from the steady state.
+struct StartupTotals {
+  double tick_ms = 0.0;               // the whole first tick
+  double load_ms = 0.0;               // of which loading
+  std::uint32_t keyframes_loaded = 0;
+  std::uint64_t bytes_read = 0;
+  std::uint32_t db_transactions = 0;
+  std::uint32_t db_queries = 0;
+};
+
+// Totals over a run, typed (summary writers turn them into JSON).
 struct LoopTotals {
   std::uint64_t ticks = 0;
   std::uint64_t loop_closures = 0;
@@ -81,37 +109,37 @@ struct LoopTotals {
   std::uint64_t longest_over_budget_run = 0;      // consecutive ticks over budget
   std::uint64_t stalled_ticks = 0;
   std::uint64_t step_errors = 0;
-  std::string first_error;
+  Status first_error;                             // the first step error (Ok when none)
   double load_ms = 0.0;
   double unload_ms = 0.0;
   double simulated_s = 0.0;  // sum over ticks of max(frame period, tick time)
+  StartupTotals startup;
+  StreamingStats tick_ms;    // every tick after the first (the steady state)
 };
 
 class TickLoop {
  public:
-  // Opens nothing itself: the database, frames and telemetry are handed in (they outlive the
-  // loop). `zones` may be empty when the database holds them. Builds the arena, the indexes,
-  // the policy, the working set and the localizer.
-  [[nodiscard]] static Result<std::unique_ptr<TickLoop>> Create(const LoopConfig& config, MapDb& db,
+  // Opens nothing itself: the map and the frames are handed in (they outlive the loop). Reads
+  // the map's metadata only (no payload), derives the budget (DeriveBudget), and builds the
+  // arena, the indexes, the policy, the working set and the localizer.
+  [[nodiscard]] static Result<std::unique_ptr<TickLoop>> Create(const LoopConfig& config,
+                                                                MapReader& map,
                                                                 FrameSource& frames,
-                                                                TelemetryWriter* telemetry,
-                                                                std::vector<ZoneId> route,
-                                                                std::vector<ZoneId> oracle_future,
-                                                                double frame_rate_hz);
+                                                                LoopPlanInputs plan_inputs = {});
   ~TickLoop();
+  TickLoop(const TickLoop&) = delete;
+  TickLoop& operator=(const TickLoop&) = delete;
 
-  // Start-up load (the policy's Start). Call once before Tick().
-  Status Start();
-  // One tick. true: a frame was processed; false: the source ended (or max_ticks reached).
-  // Step failures are counted in totals(), not returned; an error here is fatal (I/O).
+  // One tick. true: a frame was processed (read last_record()); false: the source ended (or
+  // max_ticks was reached). Step failures are counted in totals(), not returned; an error
+  // returned here is fatal (the frame source failed).
   [[nodiscard]] Result<bool> Tick();
 
   [[nodiscard]] const LoopTotals& totals() const { return totals_; }
   [[nodiscard]] const LoopConfig& config() const { return config_; }
-  [[nodiscard]] const std::vector<double>& tick_ms() const { return tick_ms_; }
-  // Estimated body trajectory (map frame), one pose per tick, stamped with the frame stamps.
-  [[nodiscard]] const Trajectory& estimate() const { return estimate_; }
-  [[nodiscard]] std::uint32_t k_max() const { return k_max_; }
+  [[nodiscard]] const Budget& budget() const { return budget_; }
+  [[nodiscard]] std::uint32_t k_max() const { return budget_.k_max; }
+  [[nodiscard]] bool bounded() const { return budget_.bounded; }
   [[nodiscard]] std::uint64_t slot_bytes() const { return arena_.slot_bytes(); }
   [[nodiscard]] const Arena& arena() const { return arena_; }
   [[nodiscard]] const WorkingSet& working_set() const { return *working_set_; }
@@ -119,30 +147,27 @@ class TickLoop {
   [[nodiscard]] const Localizer& localizer() const { return *localizer_; }
   [[nodiscard]] const MapIndex& map_index() const { return map_index_; }
   [[nodiscard]] const ZoneSet& zone_set() const { return zone_set_; }
+  // The record of the last processed frame (valid after Tick() returned true).
   [[nodiscard]] const TickRecord& last_record() const { return record_; }
   [[nodiscard]] std::uint64_t malformed_lines() const { return frames_.malformed_lines(); }
-  [[nodiscard]] bool bounded() const { return bounded_; }
+  [[nodiscard]] double frame_period_s() const { return frame_period_s_; }
 
  private:
-  TickLoop(const LoopConfig& config, MapDb& db, FrameSource& frames, TelemetryWriter* telemetry,
-           Arena arena, MapIndex index);
+  TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index);
   void Account(const TickTelemetry& t);
   void NoteError(const Status& s);
 
   LoopConfig config_;
-  MapDb& db_;
   FrameSource& frames_;
-  TelemetryWriter* telemetry_;
   Arena arena_;
   MapIndex map_index_;
+  Budget budget_;
   ZoneSet zone_set_;
   ZoneIndex zone_index_;
   std::unique_ptr<MemoryPolicy> policy_;
   std::unique_ptr<WorkingSet> working_set_;
   std::unique_ptr<Localizer> localizer_;
   std::vector<ZoneId> route_;
-  std::uint32_t k_max_ = 0;
-  bool bounded_ = true;
   double frame_period_s_ = 1.0;
 
   // Per-tick state, reserved in Create.
@@ -153,8 +178,6 @@ class TickLoop {
   TickRecord record_;
   std::vector<ResidentKeyframe> resident_views_;
   std::vector<Pose3> keyframe_poses_;  // by KfIndex
-  std::vector<double> tick_ms_;
-  Trajectory estimate_;
   Pose3 t_map_odom_ = Pose3::Identity();
   Pose3 last_kept_pose_ = Pose3::Identity();
   bool have_kept_pose_ = false;

@@ -16,7 +16,7 @@
 #include "geometry/trajectory.h"
 #include "localization/camera.h"
 #include "mapdb/map_db.h"
-#include "sim/frames_file.h"
+#include "runtime/frames_file.h"
 #include "sim/progress.h"
 #include "zones/annotate.h"
 #include "zones/zone_set.h"

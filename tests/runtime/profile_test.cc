@@ -4,6 +4,7 @@
 
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <optional>
@@ -20,12 +21,10 @@ Status ParseError(const std::string& toml) {
   return p.status();
 }
 
-ProfileOverrides Overrides(std::optional<std::string> policy, std::optional<std::string> memory_thr,
-                           std::optional<std::string> cotenant) {
+ProfileOverrides Overrides(std::optional<std::string> policy, std::optional<std::string> memory_thr) {
   ProfileOverrides o;
   o.policy = std::move(policy);
   o.memory_thr = std::move(memory_thr);
-  o.cotenant = std::move(cotenant);
   return o;
 }
 
@@ -52,13 +51,14 @@ TEST_CASE("every shipped profile loads, by path and by name") {
   CHECK(loaded >= 3);
 }
 
-TEST_CASE("orin-nano-8gb splits 8 GiB into OS, co-tenant, headroom and the map share") {
+TEST_CASE("orin-nano-8gb splits 8 GiB into OS, model, headroom and the map share") {
   Result<Profile> p = LoadProfile("orin-nano-8gb");
   REQUIRE_MESSAGE(p.ok(), p.status().ToString());
   CHECK(p->device.memory_bytes == 8ULL << 30);
-  CHECK(p->policy.kind == PolicyKind::kSemantic);
-  CHECK(p->policy.basic.stm_size == 10);
-  CHECK(p->cotenant.model == "qwen3-vl-2b");
+  CHECK(p->policy.policy == "semantic");
+  CHECK(p->policy.basic.max_retrieved == 2);
+  CHECK(p->model.name == "qwen3-vl-2b");
+  CHECK(p->model.weights_bytes == 1'900'000'000ULL);
   Result<std::uint64_t> share = MapShareBytes(*p);
   REQUIRE(share.ok());
   CHECK(*share == (8ULL << 30) - p->device.os_reserve_bytes - 1'900'000'000ULL -
@@ -66,7 +66,39 @@ TEST_CASE("orin-nano-8gb splits 8 GiB into OS, co-tenant, headroom and the map s
   Result<Profile> super = LoadProfile("orin-nano-8gb-super");
   REQUIRE(super.ok());
   CHECK(super->device.memory_bytes == p->device.memory_bytes);
-  CHECK(super->device.memory_bandwidth_gbps > p->device.memory_bandwidth_gbps);
+  CHECK(*MapShareBytes(*super) == *share);
+}
+
+TEST_CASE("the profile fills the modules' own options, with their units") {
+  Result<Profile> p = ParseProfile(
+      "[policy]\nhysteresis_m = 0.75\n[policy.radius]\nmap_radius_m = 12.5\n"
+      "[localization]\nmax_heading_deg = 45\nratio = 0.7\nransac_iterations = 42\n"
+      "[loop]\nrate_hz = 2.5\ntelemetry_flush_ticks = 7\n",
+      "units.toml");
+  REQUIRE_MESSAGE(p.ok(), p.status().ToString());
+  CHECK(p->zones.hysteresis_m == doctest::Approx(0.75));
+  CHECK(p->policy.radius.map_radius_m == doctest::Approx(12.5));
+  CHECK(p->localizer.max_heading_diff_rad == doctest::Approx(M_PI / 4));
+  CHECK(p->localizer.ratio == doctest::Approx(0.7f));
+  CHECK(p->localizer.ransac_iterations == 42);
+  CHECK(p->loop.rate_hz == doctest::Approx(2.5));
+  CHECK(p->telemetry.flush_ticks == 7);
+  // Absent keys keep the module's one default (no mirrored copies with other values).
+  const Profile empty = *ParseProfile("", "empty.toml");
+  CHECK(empty.policy.radius.map_radius_m == RadiusOptions{}.map_radius_m);
+  CHECK(empty.policy.predictive.max_keyframes_per_tick ==
+        PredictiveOptions{}.max_keyframes_per_tick);
+  CHECK(empty.localizer.ransac_reprojection_px == LocalizerConfig{}.ransac_reprojection_px);
+  CHECK(empty.zones.hysteresis_m == ZoneIndexOptions{}.hysteresis_m);
+}
+
+TEST_CASE("the core accepts the harness's sections without reading them") {
+  // zonemapd reads the same files as the evaluation: [cotenant] belongs to the harness.
+  CHECK(ParseProfile("[cotenant]\nprompt_tokens = 9\n", "co.toml").ok());
+  // Keys that used to be parsed and then ignored are gone, so they are errors now.
+  CHECK(Contains(ParseError("[policy.basic]\nstm_size = 10\n").message(), "'policy.basic.stm_size'"));
+  CHECK(Contains(ParseError("[loop]\nrealtime = true\n").message(), "'loop.realtime'"));
+  CHECK(Contains(ParseError("[device]\ncpu_max_ghz = 1.5\n").message(), "'device.cpu_max_ghz'"));
 }
 
 TEST_CASE("ZM_PROFILES_DIR is searched first and a missing profile names the search path") {
@@ -104,14 +136,13 @@ TEST_CASE("wrong types and bad values are errors naming the key") {
   CHECK(Contains(ParseError("[localization]\nratio = 1.5\n").message(), "'localization.ratio'"));
   CHECK(Contains(ParseError("[loop]\nrate_hz = 0\n").message(), "'loop.rate_hz'"));
   CHECK(Contains(ParseError("policy = 3\n").message(), "'policy'"));
-  CHECK(Contains(ParseError("[cotenant]\nmodel = \"gpt-9\"\n").message(), "cotenant.model"));
   CHECK(Contains(ParseError("[map\n").message(), "bad.toml:1"));  // syntax error, with line
   // The memory split must add up.
   CHECK(Contains(ParseError("[device]\nmemory_bytes = \"4GiB\"\nos_reserve_bytes = \"5GiB\"\n")
                      .message(),
                  "os_reserve_bytes"));
   CHECK(Contains(ParseError("[device]\nmemory_bytes = \"4GiB\"\nos_reserve_bytes = \"1GiB\"\n"
-                            "[cotenant]\nmodel = \"gemma3-4b\"\n")
+                            "[model]\nweights_bytes = \"3.3GB\"\n")
                      .message(),
                  "no map share left"));
 }
@@ -119,7 +150,7 @@ TEST_CASE("wrong types and bad values are errors naming the key") {
 TEST_CASE("an empty profile is all defaults with no byte limit") {
   Result<Profile> p = ParseProfile("", "empty.toml");
   REQUIRE(p.ok());
-  CHECK(p->policy.kind == PolicyKind::kSemantic);
+  CHECK(p->policy.policy == "semantic");
   CHECK(p->loop.rate_hz == 1.0);
   CHECK(*MapShareBytes(*p) == 0);
 }
@@ -160,35 +191,24 @@ TEST_CASE("overrides replace profile values and K_max = min(count, bytes / slot)
   Result<Profile> loaded = LoadProfile("orin-nano-8gb");
   REQUIRE(loaded.ok());
   Profile p = *loaded;
-  REQUIRE(ApplyOverrides(Overrides("basic", "300,1GiB", {}), p).ok());
-  CHECK(p.policy.kind == PolicyKind::kBasic);
+  REQUIRE(ApplyOverrides(Overrides("basic", "300,1GiB"), p).ok());
+  CHECK(p.policy.policy == "basic");
   CHECK(p.map.memory_thr_keyframes == 300);
   CHECK(p.map.map_share_bytes == 1ULL << 30);
-  Result<ArenaConfig> cfg = MakeArenaConfig(p, 1 << 20);  // 1 MiB payloads
-  REQUIRE(cfg.ok());
-  CHECK(cfg->budget_bytes == (1ULL << 30) - p.map.overhead_bytes);  // 768 slots of 1 MiB
-  auto plan = PlanArena(*cfg);
-  REQUIRE(std::holds_alternative<ArenaPlan>(plan));
-  CHECK(std::get<ArenaPlan>(plan).slots == 300);  // the count is the tighter limit
+  Result<Budget> b = DeriveBudget(p, 1 << 20, 5000);  // 1 MiB keyframes, 5,000 of them
+  REQUIRE(b.ok());
+  CHECK(b->keyframe_bytes == (1ULL << 30) - p.map.overhead_bytes);  // 768 slots of 1 MiB
+  CHECK(b->k_max == 300);  // the count is the tighter limit
+  CHECK(b->arena_slots == 5000);  // basic models RTAB-Map's growing heap
 
-  REQUIRE(ApplyOverrides(Overrides({}, "5000", {}), p).ok());
-  plan = PlanArena(*MakeArenaConfig(p, 1 << 20));
-  CHECK(std::get<ArenaPlan>(plan).slots == 768);  // now the bytes are
+  REQUIRE(ApplyOverrides(Overrides("semantic", "5000"), p).ok());
+  b = DeriveBudget(p, 1 << 20, 5000);
+  REQUIRE(b.ok());
+  CHECK(b->k_max == 768);  // now the bytes are
+  CHECK(b->arena_slots == 768);
 
-  CHECK_FALSE(ApplyOverrides(Overrides("greedy", {}, {}), p).ok());
-  CHECK_FALSE(ApplyOverrides(Overrides({}, {}, "gpt-9"), p).ok());
-  CHECK_FALSE(MakeArenaConfig(p, 0).ok());  // slot size unknown: profile says 0, no payload
-}
-
-TEST_CASE("--cotenant changes the model but keeps the planned map share") {
-  Result<Profile> loaded = LoadProfile("orin-nano-8gb");
-  REQUIRE(loaded.ok());
-  Profile p = *loaded;
-  const std::uint64_t share = *MapShareBytes(p);
-  REQUIRE(ApplyOverrides(Overrides({}, {}, "gemma3-4b"), p).ok());
-  CHECK(p.cotenant.model == "gemma3-4b");
-  CHECK(*CotenantWeightsBytes(p) == 3'300'000'000ULL);
-  CHECK(*MapShareBytes(p) == share);
+  CHECK_FALSE(ApplyOverrides(Overrides("greedy", {}), p).ok());
+  CHECK_FALSE(DeriveBudget(p, 0, 5000).ok());  // slot size unknown: profile says 0, no keyframe size
 }
 
 }  // namespace

@@ -46,6 +46,32 @@ TEST_CASE("each tick is one parseable JSON line and writing allocates nothing") 
   std::filesystem::remove(path);
 }
 
+TEST_CASE("a caller's extra members land inside the same JSON object") {
+  const auto path = std::filesystem::temp_directory_path() / "zm_telemetry_extra_test.jsonl";
+  TelemetryWriter w;
+  REQUIRE(w.Open(path.string()).ok());
+  TickRecord r;
+  r.startup = true;
+  REQUIRE(w.Write(r, "\"oom_kills\":2,\"cgroup_bytes\":123"));
+  REQUIRE(w.Write(r));
+  // A fragment that does not fit the fixed line buffer is refused, never truncated into bad JSON.
+  const std::string huge(4096, 'x');
+  CHECK_FALSE(w.Write(r, huge));
+  w.Close();
+  std::ifstream in(path);
+  std::string line;
+  REQUIRE(std::getline(in, line));
+  auto j = nlohmann::json::parse(line);
+  CHECK(j["oom_kills"] == 2);
+  CHECK(j["cgroup_bytes"] == 123);
+  CHECK(j["startup"] == true);
+  REQUIRE(std::getline(in, line));
+  j = nlohmann::json::parse(line);
+  CHECK_FALSE(j.contains("oom_kills"));
+  CHECK_FALSE(std::getline(in, line));
+  std::filesystem::remove(path);
+}
+
 TEST_CASE("opening an unwritable path is a clear error") {
   TelemetryWriter w;
   const Status s = w.Open("/nonexistent-dir/ticks.jsonl");

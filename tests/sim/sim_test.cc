@@ -14,7 +14,7 @@
 #include "geometry/trajectory.h"
 #include "mapdb/map_db.h"
 #include "sim/building.h"
-#include "sim/frames_file.h"
+#include "runtime/frames_file.h"
 #include "sim/observe.h"
 #include "sim/route.h"
 #include "sim/scenario.h"

@@ -37,7 +37,7 @@
 
 namespace zm {
 
-struct Profile;
+struct ExperimentProfile;
 
 inline constexpr std::string_view kCotenantNote =
     "stand-in for VLM decoding: streams model-sized weights once per generated token "
@@ -74,7 +74,7 @@ struct CotenantConfig {
 };
 
 // The [cotenant] section of a profile (ledger and request count left at their defaults).
-[[nodiscard]] CotenantConfig CotenantConfigFromProfile(const Profile& profile);
+[[nodiscard]] CotenantConfig CotenantConfigFromProfile(const ExperimentProfile& profile);
 
 struct CotenantResult {
   std::string model;

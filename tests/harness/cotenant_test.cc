@@ -1,7 +1,7 @@
 // Co-tenant stand-in: small weights (a few MiB) so it runs in well under a second, even under
 // qemu. Checks the three outcomes (○ completed, △ stalled, × failed to start), the ledger
 // registration, the thread and child-process runners, and that every output says "stand-in".
-#include "runtime/cotenant.h"
+#include "harness/cotenant.h"
 
 #include <doctest/doctest.h>
 #include <unistd.h>
@@ -14,7 +14,7 @@
 #include <string>
 #include <thread>
 
-#include "runtime/device_ledger.h"
+#include "harness/device_ledger.h"
 
 namespace zm {
 namespace {

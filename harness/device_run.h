@@ -9,27 +9,22 @@
 #pragma once
 
 #include <atomic>
-#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "common/status.h"
-#include "runtime/profile.h"
-#include "runtime/run.h"
+#include "harness/experiment_profile.h"
+#include "harness/run.h"
 
 namespace zm {
-
-// Converts a profile (after overrides) into the loop's configuration.
-[[nodiscard]] Result<LoopConfig> LoopConfigFromProfile(const Profile& profile);
 
 struct DeviceRunRequest {
   std::string scenario_dir;
   std::string out_dir;
-  Profile profile;
+  ExperimentProfile profile;
   bool with_cotenant = false;
   double cotenant_scale = 1.0;    // weights multiplier (tests, CI); the report states it
-  std::uint64_t max_ticks = 0;
   bool verify_checksums = false;
   double pace_speedup = 0.0;  // see RunRequest
 };

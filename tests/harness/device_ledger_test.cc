@@ -1,7 +1,7 @@
 // Device ledger: two handles (and a forked process) on one file see the same totals; a grant
 // that would exceed the device is refused and counted as an out-of-memory event; the device is
 // over-committed until the refused demand goes away; dead processes' slots can be reaped.
-#include "runtime/device_ledger.h"
+#include "harness/device_ledger.h"
 
 #include <doctest/doctest.h>
 #include <sys/wait.h>

@@ -8,10 +8,12 @@
 #include <atomic>
 #include <functional>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
 #include "common/status.h"
+#include "runtime/telemetry.h"
 #include "runtime/tick_loop.h"
 
 namespace zm {
@@ -20,24 +22,20 @@ struct RunRequest {
   std::string scenario_dir;
   std::string out_dir;
   LoopConfig loop;
+  TelemetryOptions telemetry;
   std::string profile_name;  // for the summary only
+  bool verify_checksums = false;  // CRC-check payloads as they land (MapDbOptions)
   // > 0: pace ticks on the wall clock at this multiple of the frames' own clock (1 = real
   // time), as frames arrive on a robot; 0: replay as fast as the loop goes.
   double pace_speedup = 0.0;
-  // Called after every tick with the loop (device ledger, co-tenant bookkeeping); may be empty.
-  std::function<void(const TickLoop&)> on_tick;
+  // Called after every tick with the loop (device bookkeeping); may be empty. Whatever it
+  // returns (a `"key":value,...` fragment, or empty) is appended to that tick's telemetry line.
+  std::function<std::string_view(const TickLoop&)> on_tick;
 };
 
 // Runs the replay. `stop` (may be null) ends it early at a tick boundary (SIGINT/SIGTERM); the
 // telemetry is flushed and the summary written for the ticks done.
 [[nodiscard]] Result<nlohmann::json> RunScenario(const RunRequest& request,
                                                  const std::atomic<bool>* stop = nullptr);
-
-// The summary.json keys a loop can fill by itself (everything but trajectory metrics).
-[[nodiscard]] nlohmann::json LoopSummary(const TickLoop& loop, double frame_rate_hz,
-                                         bool interrupted);
-
-// p in [0, 100] of `values` (nearest-rank on a sorted copy); 0 for an empty list.
-[[nodiscard]] double Percentile(std::vector<double> values, double p);
 
 }  // namespace zm

@@ -1,6 +1,6 @@
 // Co-tenant stand-in: model table, the weight-streaming decode loop, outcome rules, and the two
 // ways to run it beside the tick loop (thread, child process). Every output says "stand-in".
-#include "runtime/cotenant.h"
+#include "harness/cotenant.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -18,10 +18,10 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
-#include "runtime/device_ledger.h"
+#include "harness/device_ledger.h"
 #include "runtime/memory_cap.h"
-#include "runtime/profile.h"
-#include "runtime/stats.h"
+#include "harness/experiment_profile.h"
+#include "runtime/streaming_stats.h"
 
 extern char** environ;
 
@@ -145,11 +145,11 @@ std::string_view CotenantOutcomeSymbol(CotenantOutcome o) {
   return "?";
 }
 
-CotenantConfig CotenantConfigFromProfile(const Profile& profile) {
+CotenantConfig CotenantConfigFromProfile(const ExperimentProfile& profile) {
   CotenantConfig c;
-  c.model = profile.cotenant.model;
-  c.weights_bytes = profile.cotenant.weights_bytes;
-  c.overhead_bytes = profile.cotenant.overhead_bytes;
+  c.model = profile.core.model.name;
+  c.weights_bytes = profile.core.model.weights_bytes;
+  c.overhead_bytes = profile.core.model.kv_cache_bytes;
   c.prompt_tokens = profile.cotenant.prompt_tokens;
   c.answer_tokens = profile.cotenant.answer_tokens;
   c.prompt_batch_tokens = profile.cotenant.prompt_batch_tokens;
@@ -225,8 +225,9 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   const std::uint32_t prefill_passes =
       (config.prompt_tokens + config.prompt_batch_tokens - 1) / config.prompt_batch_tokens;
   const double deadline_ms = config.request_deadline_s * 1000.0;
+  // Per-request samples kept for the distributions (the summaries come from StreamingStats).
   const std::size_t keep = config.requests == 0 ? 1024 : config.requests;
-  SampleStats tps(keep), prefill_tps(keep), latency(keep), gbps(keep);
+  StreamingStats tps, prefill_tps, latency, gbps;
   std::uint64_t h = 0;
   bool abandoned = false;
   const auto run0 = Clock::now();
@@ -285,12 +286,11 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   }
   r.checksum = h;
   r.oom_events_seen = hold.ledger ? hold.ledger->oom_events() - oom0 : 0;
-  const SampleSummary lat = latency.Summarize();
-  r.latency_ms_p50 = lat.p50;
-  r.latency_ms_p95 = lat.p95;
-  r.tokens_per_s = tps.Summarize().p50;
-  r.prefill_tokens_per_s = prefill_tps.Summarize().p50;
-  r.stream_gbps = gbps.Summarize().p50;
+  r.latency_ms_p50 = latency.Quantile(0.5);
+  r.latency_ms_p95 = latency.Quantile(0.95);
+  r.tokens_per_s = tps.Quantile(0.5);
+  r.prefill_tokens_per_s = prefill_tps.Quantile(0.5);
+  r.stream_gbps = gbps.Quantile(0.5);
 
   if (r.oom_events_seen > 0) {
     r.outcome = CotenantOutcome::kStalled;

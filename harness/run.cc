@@ -1,4 +1,6 @@
-#include "runtime/run.h"
+#include "harness/run.h"
+
+#include "runtime/summary.h"
 
 #include <algorithm>
 #include <chrono>
@@ -28,57 +30,6 @@ ZoneId FindZone(const ZoneSet& zones, const std::string& name) {
 
 }  // namespace
 
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const double rank = std::ceil(p / 100.0 * static_cast<double>(values.size()));
-  const std::size_t i = static_cast<std::size_t>(std::clamp(rank, 1.0, static_cast<double>(values.size()))) - 1;
-  return values[i];
-}
-
-nlohmann::json LoopSummary(const TickLoop& loop, double frame_rate_hz, bool interrupted) {
-  const LoopTotals& t = loop.totals();
-  nlohmann::json s;
-  s["policy"] = loop.config().policy.policy;
-  s["k_max"] = loop.k_max();
-  s["slot_bytes"] = loop.slot_bytes();
-  s["arena_slots"] = loop.arena().capacity();
-  s["arena_bytes_reserved"] = loop.arena().stats().bytes_reserved;
-  s["ticks"] = t.ticks;
-  s["interrupted"] = interrupted;
-  s["update_rate_hz"] = t.simulated_s > 0 ? static_cast<double>(t.ticks) / t.simulated_s : 0.0;
-  s["frame_rate_hz"] = frame_rate_hz;
-  const std::vector<double>& ms = loop.tick_ms();
-  const double mean = ms.empty() ? 0.0 : std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
-  s["tick_ms"] = {{"mean", mean},
-                  {"p50", Percentile(ms, 50)},
-                  {"p99", Percentile(ms, 99)},
-                  {"max", ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end())}};
-  s["loop_closures"] = t.loop_closures;
-  s["closures_rejected"] = t.closures_rejected;
-  s["peak_resident_keyframes"] = t.peak_resident_keyframes;
-  s["peak_resident_bytes"] = t.peak_resident_bytes;
-  s["over_budget_ticks"] = t.over_budget_ticks;
-  s["max_over_budget_keyframes"] = t.max_over_budget_keyframes;
-  s["longest_over_budget_run_ticks"] = t.longest_over_budget_run;
-  s["alloc_failures"] = loop.arena().stats().refused;
-  s["stalled_ticks"] = t.stalled_ticks;
-  s["step_errors"] = t.step_errors;
-  if (!t.first_error.empty()) s["first_error"] = t.first_error;
-  s["keyframes_loaded"] = t.keyframes_loaded;
-  s["keyframes_unloaded"] = t.keyframes_unloaded;
-  s["zone_loads"] = t.zone_loads;
-  s["db_transactions"] = t.db_transactions;
-  s["db_queries"] = t.db_queries;
-  s["search_queries"] = t.search_queries;
-  s["db_bytes_read"] = t.db_bytes_read;
-  s["load_ms_total"] = t.load_ms;
-  s["unload_ms_total"] = t.unload_ms;
-  s["malformed_lines"] = loop.malformed_lines();
-
-  return s;
-}
-
 Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<bool>* stop) {
   ZM_ASSIGN_OR_RETURN(sim::ScenarioInfo scenario, sim::LoadScenario(request.scenario_dir));
   std::error_code ec;
@@ -86,7 +37,7 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   if (ec) return IoError("cannot create run directory '" + request.out_dir + "': " + ec.message());
 
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<MapDb> db,
-                      MapDb::Open(scenario.map_db, {.verify_checksums = request.loop.verify_checksums}));
+                      MapDb::Open(scenario.map_db, {.verify_checksums = request.verify_checksums}));
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> frames, OpenReplaySource(scenario.frames_bin));
   TelemetryWriter telemetry;
   ZM_RETURN_IF_ERROR(telemetry.Open(request.out_dir + "/ticks.jsonl"));
@@ -109,11 +60,14 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   }
 
   LoopConfig config = request.loop;
-  config.expected_ticks = scenario.frames;
+  config.loop.rate_hz = scenario.rate_hz;  // the recorded frames' own rate
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<TickLoop> loop,
-                      TickLoop::Create(config, *db, *frames, &telemetry, route, future,
-                                       scenario.rate_hz));
-  ZM_RETURN_IF_ERROR(loop->Start());
+                      TickLoop::Create(config, *db, *frames,
+                                       {.route = std::move(route), .oracle_future = std::move(future)}));
+  // The estimate: one pose per processed frame (a replay is finite: reserved for all of them).
+  Trajectory estimate;
+  estimate.stamps_s.reserve(scenario.frames);
+  estimate.poses.reserve(scenario.frames);
   bool interrupted = false;
   const auto wall0 = std::chrono::steady_clock::now();
   double stamp0 = -1.0;
@@ -124,7 +78,14 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     }
     ZM_ASSIGN_OR_RETURN(bool more, loop->Tick());
     if (!more) break;
-    if (request.on_tick) request.on_tick(*loop);
+    const TickRecord& rec = loop->last_record();
+    estimate.stamps_s.push_back(rec.stamp_s);
+    estimate.poses.push_back(rec.pose);
+    const std::string_view extra = request.on_tick ? request.on_tick(*loop) : std::string_view();
+    telemetry.Write(rec, extra);
+    if (request.telemetry.flush_ticks != 0 && (rec.tick + 1) % request.telemetry.flush_ticks == 0) {
+      telemetry.Flush();
+    }
     if (request.pace_speedup > 0) {
       const double stamp = loop->last_record().stamp_s;
       if (stamp0 < 0) stamp0 = stamp;
@@ -139,9 +100,9 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   // Trajectory metrics: the estimate lives in the map frame, so ATE unaligned, and SE(3)-aligned
   // beside it (docs/evaluation.md).
   const LoopTotals& t = loop->totals();
-  ZM_RETURN_IF_ERROR(WriteTrajectory(request.out_dir + "/estimate.tum", loop->estimate(),
+  ZM_RETURN_IF_ERROR(WriteTrajectory(request.out_dir + "/estimate.tum", estimate,
                                      TrajectoryFormat::kTum));
-  nlohmann::json s = LoopSummary(*loop, scenario.rate_hz, interrupted);
+  nlohmann::json s = LoopSummary(*loop, interrupted);
   s["profile"] = request.profile_name;
   s["scenario"] = scenario.dir;
   s["pace_speedup"] = request.pace_speedup;
@@ -151,8 +112,8 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   s["rpe_rot_rmse_deg"] = nullptr;
   if (!scenario.localization_gt.empty() && t.ticks > 2) {
     ZM_ASSIGN_OR_RETURN(Trajectory gt, ReadTrajectory(scenario.localization_gt, TrajectoryFormat::kTum));
-    auto none = Evaluate(gt, loop->estimate(), {.align = AlignMode::kNone});
-    auto se3 = Evaluate(gt, loop->estimate(), {.align = AlignMode::kSe3});
+    auto none = Evaluate(gt, estimate, {.align = AlignMode::kNone});
+    auto se3 = Evaluate(gt, estimate, {.align = AlignMode::kSe3});
     if (none.ok()) {
       s["ate_rmse_m"] = none->ape_trans_m.rmse;
       s["rpe_trans_rmse_m"] = none->rpe_trans_m.rmse;

@@ -2,7 +2,7 @@
 // The file is initialised under an exclusive flock so that two processes opening it at once
 // agree on one header; after that nothing takes a lock: slots are claimed by compare-and-swap
 // on their state, and grants by compare-and-swap on the device-wide sum.
-#include "runtime/device_ledger.h"
+#include "harness/device_ledger.h"
 
 #include <fcntl.h>
 #include <signal.h>

@@ -1,6 +1,6 @@
 // Frames file writer and reader (format in frames_file.h). Byte order is the host's, which must
 // be little-endian (x86-64 and aarch64 both are); a static_assert guards it.
-#include "sim/frames_file.h"
+#include "runtime/frames_file.h"
 
 #include <bit>
 #include <cmath>

@@ -1,5 +1,5 @@
 // Frames file: round trip, refill without allocation, and corrupt files rejected with errors.
-#include "sim/frames_file.h"
+#include "runtime/frames_file.h"
 
 #include <doctest/doctest.h>
 

@@ -1,0 +1,41 @@
+// The evaluation's view of a profile: the core's Profile (runtime/profile.h) plus the sections
+// only the harness reads ([cotenant]: how the VLM stand-in behaves). The same file serves both;
+// zonemapd skips the harness's sections.
+//
+// Invariants: as runtime/profile.h (every key known, every value checked, the memory split adds
+// up); the stand-in's weights and KV cache come from the core's [model], never from a copy.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "common/status.h"
+#include "runtime/profile.h"
+
+namespace zm {
+
+// [cotenant]: the co-tenant stand-in's requests (its memory is [model]'s).
+struct CotenantOptions {
+  std::uint32_t prompt_tokens = 256;
+  std::uint32_t answer_tokens = 64;
+  std::uint32_t prompt_batch_tokens = 64;  // prompt tokens processed per pass over the weights
+  double request_period_s = 0.0;           // start a request every period; 0 = back to back
+  double request_deadline_s = 0.0;         // a request slower than this is a stall; 0 = none
+};
+
+struct ExperimentProfile {
+  Profile core;
+  CotenantOptions cotenant;
+};
+
+[[nodiscard]] Result<ExperimentProfile> LoadExperimentProfile(const std::string& name_or_path);
+[[nodiscard]] Result<ExperimentProfile> ParseExperimentProfile(std::string_view toml_text,
+                                                               const std::string& source);
+
+// --cotenant MODEL: the paper's model by name (cotenant.h's table) becomes [model]. The map share
+// was planned for the profile's model, and the paper keeps MemoryThr fixed while models change,
+// so the derived share is frozen first.
+[[nodiscard]] Status ApplyModelOverride(std::string_view model_name, ExperimentProfile& profile);
+
+}  // namespace zm

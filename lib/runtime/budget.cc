@@ -1,0 +1,86 @@
+// DeriveBudget: the one place K_max comes from.
+#include "runtime/budget.h"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace zm {
+
+std::string FormatBytes(std::uint64_t bytes) {
+  char buf[64];
+  const double b = static_cast<double>(bytes);
+  if (bytes >= 1000000000ULL) {
+    std::snprintf(buf, sizeof buf, "%.2f GB (%.2f GiB)", b / 1e9, b / 1073741824.0);
+  } else if (bytes >= 1000000ULL) {
+    std::snprintf(buf, sizeof buf, "%.2f MB (%.2f MiB)", b / 1e6, b / 1048576.0);
+  } else {
+    std::snprintf(buf, sizeof buf, "%llu B", static_cast<unsigned long long>(bytes));
+  }
+  return buf;
+}
+
+Result<std::uint64_t> MapShareBytes(const DeviceOptions& device, const ModelOptions& model,
+                                    const MapOptions& map) {
+  if (map.map_share_bytes != 0) return map.map_share_bytes;
+  if (device.memory_bytes == 0) return std::uint64_t{0};
+  const std::uint64_t model_bytes = model.weights_bytes + model.kv_cache_bytes;
+  const std::uint64_t taken = device.os_reserve_bytes + model_bytes + map.headroom_bytes;
+  if (taken >= device.memory_bytes) {
+    return InvalidArgument("no map share left on " + device.name + ": OS reserve " +
+                           FormatBytes(device.os_reserve_bytes) + " + model " +
+                           FormatBytes(model_bytes) + " + headroom " +
+                           FormatBytes(map.headroom_bytes) + " >= device memory " +
+                           FormatBytes(device.memory_bytes) +
+                           " (set map.map_share_bytes explicitly or shrink one of them)");
+  }
+  return device.memory_bytes - taken;
+}
+
+Result<Budget> DeriveBudget(const BudgetInputs& in) {
+  if (in.keyframe_count == 0) return InvalidArgument("the map has no keyframes");
+  if (in.keyframe_count > 0xFFFFFFFFull) {
+    return OutOfRange("the map has " + std::to_string(in.keyframe_count) +
+                      " keyframes; at most 4294967295 are supported");
+  }
+  Budget b;
+  b.slot_bytes = in.map.slot_bytes != 0 ? in.map.slot_bytes : in.largest_keyframe_bytes;
+  if (b.slot_bytes == 0) {
+    return InvalidArgument("the slot size is unknown: map.slot_bytes is 0 and the map reports no "
+                           "keyframe size");
+  }
+  if (b.slot_bytes < in.largest_keyframe_bytes) {
+    return OutOfRange("map.slot_bytes " + std::to_string(b.slot_bytes) +
+                      " is smaller than the largest keyframe (" +
+                      std::to_string(in.largest_keyframe_bytes) + " bytes)");
+  }
+  const auto whole_map = static_cast<std::uint32_t>(in.keyframe_count);
+  if (in.unbounded_policy) {
+    b.k_max = whole_map;
+    b.arena_slots = whole_map;
+    b.bounded = false;
+    return b;
+  }
+  ZM_ASSIGN_OR_RETURN(b.map_share_bytes, MapShareBytes(in.device, in.model, in.map));
+  std::uint64_t k = in.keyframe_count;
+  if (in.map.memory_thr_keyframes != 0) k = std::min(k, in.map.memory_thr_keyframes);
+  if (b.map_share_bytes != 0) {
+    if (in.map.overhead_bytes >= b.map_share_bytes) {
+      return OutOfRange("map.overhead_bytes (" + FormatBytes(in.map.overhead_bytes) +
+                        ") leaves nothing of the map share (" + FormatBytes(b.map_share_bytes) +
+                        ") for keyframes");
+    }
+    b.keyframe_bytes = b.map_share_bytes - in.map.overhead_bytes;
+    const std::uint64_t fit = b.keyframe_bytes / b.slot_bytes;
+    if (fit == 0) {
+      return OutOfRange("the keyframe budget " + FormatBytes(b.keyframe_bytes) +
+                        " holds no keyframe slot of " + FormatBytes(b.slot_bytes));
+    }
+    k = std::min(k, fit);
+  }
+  b.k_max = static_cast<std::uint32_t>(k);
+  b.bounded = in.bounded_policy;
+  b.arena_slots = b.bounded ? b.k_max : whole_map;
+  return b;
+}
+
+}  // namespace zm

@@ -1,0 +1,86 @@
+// The memory budget: how much of the device the keyframe map may hold, and K_max.
+//
+// This is the ONE derivation of K_max (docs/style.md §14): the tick loop, `zonemap arena`, the
+// evaluation harness and the public API all call DeriveBudget(). Inputs are plain options read
+// once from a profile (profile.h) plus two facts of the map database (its largest resident
+// keyframe and its keyframe count); nothing here allocates after it returns.
+//
+//   map share     = map.map_share_bytes if set, else
+//                   device.memory - device.os_reserve - model (weights + KV cache) - headroom
+//   keyframe room = map share - map.overhead (the map process's memory besides its slots)
+//   slot_bytes    = map.slot_bytes if set, else the database's largest resident keyframe
+//   K_max         = min(map.memory_thr_keyframes, keyframe room / slot_bytes, keyframes in map)
+//                   (a limit of 0 is "none"; with no limit at all K_max is the whole map)
+//   arena slots   = K_max for the bounded policies (the arena makes exceeding K_max physically
+//                   impossible); the whole map for basic and unbounded, which model RTAB-Map's
+//                   heap: their residency grows and is measured against K_max, not capped.
+//
+// Errors name the quantity and the limit ("map.slot_bytes 4096 is smaller than the largest
+// keyframe (2200000 bytes)").
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "common/status.h"
+
+namespace zm {
+
+// The device the map shares. Report-only fields say so.
+struct DeviceOptions {
+  std::string name = "unnamed";        // reports only
+  std::string power_mode;              // reports only ("15W", "MAXN SUPER")
+  std::uint64_t memory_bytes = 0;      // device (unified) memory; 0 = unknown (no byte budget)
+  std::uint64_t os_reserve_bytes = 0;  // OS + JetPack/CUDA baseline, never available to us
+};
+
+// The AI model (VLM/LLM) the map shares the device with: what the map must leave free for it.
+struct ModelOptions {
+  std::string name;                   // reports only ("qwen3-vl-2b")
+  std::uint64_t weights_bytes = 0;    // model weights as loaded
+  std::uint64_t kv_cache_bytes = 0;   // KV cache + activations at the context the robot uses
+};
+
+// The map process's budget and arena.
+struct MapOptions {
+  std::uint64_t memory_thr_keyframes = 0;  // MemoryThr as a count (RTAB-Map's); 0 = no count limit
+  std::uint64_t map_share_bytes = 0;       // explicit map share; 0 = derived from device and model
+  std::uint64_t headroom_bytes = 0;        // left free when deriving the share (page cache, bursts)
+  std::uint64_t overhead_bytes = 0;        // map process memory besides keyframe slots
+  std::uint64_t slot_bytes = 0;            // 0 = the database's largest resident keyframe
+  bool lock_arena = false;                 // mlock the arena (needs RLIMIT_MEMLOCK)
+  bool prefault_arena = false;             // MAP_POPULATE: the budget is resident from the start
+  std::uint64_t process_cap_bytes = 0;     // setrlimit cap of the map process; 0 = none
+};
+
+struct BudgetInputs {
+  DeviceOptions device;
+  ModelOptions model;
+  MapOptions map;
+  std::uint64_t largest_keyframe_bytes = 0;  // the database's largest resident keyframe
+  std::uint64_t keyframe_count = 0;          // keyframes in the map
+  bool bounded_policy = true;                // false for basic and unbounded (see above)
+  bool unbounded_policy = false;             // the "unbounded" policy ignores every limit
+};
+
+struct Budget {
+  std::uint64_t map_share_bytes = 0;      // 0 = no byte limit
+  std::uint64_t keyframe_bytes = 0;       // map share - overhead; 0 = no byte limit
+  std::uint64_t slot_bytes = 0;
+  std::uint32_t k_max = 0;                // MemoryThr in keyframes (>= 1)
+  std::uint32_t arena_slots = 0;          // what the arena reserves
+  bool bounded = true;                    // the arena caps residency at k_max
+};
+
+// The map share alone (map.map_share_bytes, or derived); 0 when the device memory is unknown
+// and no share is given. Errors when the device has nothing left for the map.
+[[nodiscard]] Result<std::uint64_t> MapShareBytes(const DeviceOptions& device,
+                                                  const ModelOptions& model, const MapOptions& map);
+
+// K_max, slot size and arena size for one map under one policy. See the header comment.
+[[nodiscard]] Result<Budget> DeriveBudget(const BudgetInputs& inputs);
+
+// Human-readable bytes for reports and errors: "1.90 GB (1.77 GiB)".
+[[nodiscard]] std::string FormatBytes(std::uint64_t bytes);
+
+}  // namespace zm

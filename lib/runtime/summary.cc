@@ -1,0 +1,55 @@
+// LoopSummary: the typed totals of a loop as summary.json's keys (docs/design.md).
+#include "runtime/summary.h"
+
+namespace zm {
+
+nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
+  const LoopTotals& t = loop.totals();
+  nlohmann::json s;
+  s["policy"] = loop.config().policy.policy;
+  s["k_max"] = loop.k_max();
+  s["slot_bytes"] = loop.slot_bytes();
+  s["arena_slots"] = loop.arena().capacity();
+  s["arena_bytes_reserved"] = loop.arena().stats().bytes_reserved;
+  s["map_share_bytes"] = loop.budget().map_share_bytes;
+  s["ticks"] = t.ticks;
+  s["interrupted"] = interrupted;
+  s["update_rate_hz"] = t.simulated_s > 0 ? static_cast<double>(t.ticks) / t.simulated_s : 0.0;
+  s["frame_rate_hz"] = loop.config().loop.rate_hz;
+  // Steady-state ticks (the first, start-up tick is reported apart in "startup").
+  s["tick_ms"] = {{"mean", t.tick_ms.mean()},
+                  {"p50", t.tick_ms.Quantile(0.50)},
+                  {"p99", t.tick_ms.Quantile(0.99)},
+                  {"max", t.tick_ms.max()},
+                  {"count", t.tick_ms.count()}};
+  s["startup"] = {{"tick_ms", t.startup.tick_ms},
+                  {"load_ms", t.startup.load_ms},
+                  {"keyframes_loaded", t.startup.keyframes_loaded},
+                  {"bytes_read", t.startup.bytes_read},
+                  {"db_transactions", t.startup.db_transactions},
+                  {"db_queries", t.startup.db_queries}};
+  s["loop_closures"] = t.loop_closures;
+  s["closures_rejected"] = t.closures_rejected;
+  s["peak_resident_keyframes"] = t.peak_resident_keyframes;
+  s["peak_resident_bytes"] = t.peak_resident_bytes;
+  s["over_budget_ticks"] = t.over_budget_ticks;
+  s["max_over_budget_keyframes"] = t.max_over_budget_keyframes;
+  s["longest_over_budget_run_ticks"] = t.longest_over_budget_run;
+  s["alloc_failures"] = loop.arena().stats().refused;
+  s["stalled_ticks"] = t.stalled_ticks;
+  s["step_errors"] = t.step_errors;
+  if (!t.first_error.ok()) s["first_error"] = t.first_error.ToString();
+  s["keyframes_loaded"] = t.keyframes_loaded;
+  s["keyframes_unloaded"] = t.keyframes_unloaded;
+  s["zone_loads"] = t.zone_loads;
+  s["db_transactions"] = t.db_transactions;
+  s["db_queries"] = t.db_queries;
+  s["search_queries"] = t.search_queries;
+  s["db_bytes_read"] = t.db_bytes_read;
+  s["load_ms_total"] = t.load_ms;
+  s["unload_ms_total"] = t.unload_ms;
+  s["malformed_lines"] = loop.malformed_lines();
+  return s;
+}
+
+}  // namespace zm

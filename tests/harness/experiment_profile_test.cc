@@ -1,0 +1,61 @@
+// The evaluation's profile sections: [cotenant] read by the harness from the same files as the
+// core; --cotenant MODEL swaps [model] for one of the paper's models and keeps the map share.
+#include "harness/experiment_profile.h"
+
+#include <doctest/doctest.h>
+
+#include <filesystem>
+
+namespace zm {
+namespace {
+
+bool Contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
+
+TEST_CASE("every shipped profile loads with its harness sections") {
+  int loaded = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(ZM_SOURCE_DIR "/profiles")) {
+    if (entry.path().extension() != ".toml") continue;
+    CAPTURE(entry.path().string());
+    Result<ExperimentProfile> p = LoadExperimentProfile(entry.path().string());
+    REQUIRE_MESSAGE(p.ok(), p.status().ToString());
+    CHECK(p->cotenant.answer_tokens > 0);
+    ++loaded;
+  }
+  CHECK(loaded >= 3);
+}
+
+TEST_CASE("[cotenant] keys are checked like the core's") {
+  Result<ExperimentProfile> p =
+      ParseExperimentProfile("[cotenant]\nprompt_tokens = 9\nanswer_tokens = 3\n", "co.toml");
+  REQUIRE(p.ok());
+  CHECK(p->cotenant.prompt_tokens == 9);
+  CHECK(p->cotenant.answer_tokens == 3);
+  Result<ExperimentProfile> bad = ParseExperimentProfile("[cotenant]\nmodel = \"x\"\n", "bad.toml");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(Contains(bad.status().message(), "'cotenant.model'"));
+  bad = ParseExperimentProfile("[cotenant]\nanswer_tokens = 0\n", "bad.toml");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(Contains(bad.status().message(), "'cotenant.answer_tokens'"));
+  bad = ParseExperimentProfile("[gpu]\ncores = 1\n", "bad.toml");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(Contains(bad.status().message(), "'gpu'"));
+}
+
+TEST_CASE("--cotenant changes the model but keeps the planned map share") {
+  Result<ExperimentProfile> loaded = LoadExperimentProfile("orin-nano-8gb");
+  REQUIRE(loaded.ok());
+  ExperimentProfile p = *loaded;
+  const std::uint64_t share = *MapShareBytes(p.core);
+  REQUIRE(ApplyModelOverride("gemma3-4b", p).ok());
+  CHECK(p.core.model.name == "gemma3-4b");
+  CHECK(p.core.model.weights_bytes == 3'300'000'000ULL);
+  CHECK(*MapShareBytes(p.core) == share);
+  Status unknown = ApplyModelOverride("gpt-9", p);
+  REQUIRE_FALSE(unknown.ok());
+  CHECK(Contains(unknown.message(), "gpt-9"));
+}
+
+}  // namespace
+}  // namespace zm
