@@ -15,10 +15,10 @@ namespace {
 
 // The exact nearest-rank quantile of a sample (the definition StreamingStats approximates).
 double NearestRank(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
-  if (q <= 0.0) return v.front();
   const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
-  return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
+  return v.at(std::clamp<std::size_t>(rank, 1, v.size()) - 1);
 }
 
 TEST_CASE("quantiles are the nearest-rank sample within 0.5 %; count, mean, min, max exact") {
