@@ -341,7 +341,13 @@ struct MapDb::Impl {
     sqlite3_stmt* end = commit_it ? commit.get() : rollback.get();
     const int rc = sqlite3_step(end);
     sqlite3_reset(end);
-    if (commit_it && rc != SQLITE_DONE) return FromSqlite(rc, db.get(), "COMMIT");
+    if (commit_it && rc != SQLITE_DONE) {
+      // A failed COMMIT leaves the transaction open: roll it back so the next load can begin.
+      const Status st = FromSqlite(rc, db.get(), "COMMIT");
+      sqlite3_step(rollback.get());
+      sqlite3_reset(rollback.get());
+      return st;
+    }
     return Status::Ok();
   }
 
