@@ -222,10 +222,11 @@ struct MapDbOptions {
   // PRAGMA mmap_size: SQLite reads pages through a memory map of the file. On by default since
   // issue 14: Debian's SQLite has no direct overflow read, so without the map every payload page
   // is pread into SQLite's page cache and then copied again into the slot (one copy with the
-  // map: a zone load at 52 % of a sequential read() instead of 35 %, docs/mapdb.md). The price:
-  // a map file truncated in place by another process while mapped raises SIGBUS (replace a map
-  // with rename, as every zonemap writer does; never cp over a running robot's map), and the
-  // pages a load touched count in the process's RSS (file-backed, reclaimable). 0 = off.
+  // map: a warm zone load of dense keyframes at 60 % of a sequential read() instead of 37 %,
+  // docs/mapdb.md). The price: a map file truncated in place by another process while mapped
+  // raises SIGBUS (replace a map with rename, as every zonemap writer does; never cp over a
+  // running robot's map), and the pages a load touched count in the process's RSS
+  // (file-backed, reclaimable). 0 = off.
   std::int64_t mmap_bytes = kMapDbMmapWholeFile;
 };
 
