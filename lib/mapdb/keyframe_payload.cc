@@ -9,6 +9,8 @@
 #include <limits>
 #include <string>
 
+#include "simd/crc32c.h"
+
 namespace zm {
 namespace {
 
@@ -18,8 +20,8 @@ std::string Kf(KeyframeId id) { return "keyframe " + std::to_string(id.value); }
 
 }  // namespace
 
-std::uint32_t Crc32(std::span<const std::byte> bytes) {
-  uLong crc = crc32(0L, Z_NULL, 0);
+std::uint32_t Crc32(std::span<const std::byte> bytes, std::uint32_t previous) {
+  uLong crc = previous;
   const auto* p = reinterpret_cast<const Bytef*>(bytes.data());
   std::size_t left = bytes.size();
   // zlib takes uInt lengths; feed large ranges in chunks.
@@ -30,6 +32,15 @@ std::uint32_t Crc32(std::span<const std::byte> bytes) {
     left -= chunk;
   }
   return static_cast<std::uint32_t>(crc);
+}
+
+std::uint32_t Crc32c(std::span<const std::byte> bytes, std::uint32_t crc) {
+  return simd::Crc32c(bytes.data(), bytes.size(), crc);
+}
+
+std::uint32_t PayloadBodyChecksum(std::uint16_t version, std::span<const std::byte> body,
+                                  std::uint32_t previous) {
+  return version == kPayloadVersionZlibCrc ? Crc32(body, previous) : Crc32c(body, previous);
 }
 
 PayloadLayout LayoutFor(std::uint32_t feature_count, std::uint32_t dense_bytes) {
@@ -90,8 +101,9 @@ Result<std::size_t> EncodePayload(const PayloadParts& parts, std::span<std::byte
   h.feature_count = static_cast<std::uint32_t>(n);
   h.dense_bytes = dense_bytes;
   h.dense_split = parts.dense_split;
-  h.body_crc32 = Crc32(std::span<const std::byte>(out.data() + kPayloadHeaderBytes,
-                                                  l.total - kPayloadHeaderBytes));
+  h.body_crc32 = PayloadBodyChecksum(
+      kPayloadVersion,
+      std::span<const std::byte>(out.data() + kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
   std::memcpy(out.data(), &h, sizeof h);
   return l.total;
 }
@@ -126,9 +138,11 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
     }() + " (not a zonemap keyframe)");
   }
   const KeyframeId id{h.keyframe_id};
-  if (h.version != kPayloadVersion) {
+  if (h.version != kPayloadVersion && h.version != kPayloadVersionZlibCrc) {
     return FailedPrecondition(Kf(id) + ": payload version " + std::to_string(h.version) +
-                              ", this build reads version " + std::to_string(kPayloadVersion));
+                              ", this build reads versions " +
+                              std::to_string(kPayloadVersionZlibCrc) + " to " +
+                              std::to_string(kPayloadVersion));
   }
   if (h.feature_count > kMaxFeaturesPerKeyframe) {
     return Corrupt(Kf(id) + ": header claims " + std::to_string(h.feature_count) +
@@ -149,7 +163,10 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
   }
   if (options.verify_crc) {
     const std::uint32_t crc =
-        Crc32(blob.subspan(kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
+        options.body_checksum != nullptr
+            ? *options.body_checksum
+            : PayloadBodyChecksum(h.version,
+                                  blob.subspan(kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
     if (crc != h.body_crc32) {
       return Corrupt(Kf(id) + ": payload checksum mismatch (corrupt blob of " +
                      std::to_string(l.total) + " bytes)");
