@@ -307,8 +307,8 @@ int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
 // two segments' own largest clearance (`peak`). Doors are narrow against both rooms; a split
 // through the middle of one open room is not. Labels stay in 1..label_count (some unused).
 void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, double ratio,
-                      float min_saddle) {
-  if (ratio <= 0.0 || label_count < 2) return;
+                      float min_saddle, double no_constriction_ratio) {
+  if ((ratio <= 0.0 && no_constriction_ratio <= 0.0) || label_count < 2) return;
   std::vector<float> peak(Idx(label_count) + 1, 0.0f);
   std::map<std::pair<int, int>, float> saddle;
   auto note = [&](int a, int b, float d) {
@@ -353,7 +353,9 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
     for (const auto& [key, s] : current) {
       const float lo = std::min(peak[Idx(key.first)], peak[Idx(key.second)]);
       const double q = lo > 0.0f ? static_cast<double>(s / lo) : 0.0;
-      if (q >= ratio && s >= min_saddle && q > best) best = q, best_pair = key;
+      const bool open = ratio > 0.0 && q >= ratio && s >= min_saddle;
+      const bool same_space = no_constriction_ratio > 0.0 && q >= no_constriction_ratio;
+      if ((open || same_space) && q > best) best = q, best_pair = key;
     }
     if (best_pair.first == 0) break;
     parent[Idx(best_pair.second)] = best_pair.first;
@@ -444,6 +446,7 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"seed_min_persistence_m", &SegmentOptions::seed_min_persistence_m},
       {"merge_open_border_ratio", &SegmentOptions::merge_open_border_ratio},
       {"merge_min_opening_m", &SegmentOptions::merge_min_opening_m},
+      {"merge_no_constriction_ratio", &SegmentOptions::merge_no_constriction_ratio},
       {"min_room_area_m2", &SegmentOptions::min_room_area_m2},
       {"corridor_elongation", &SegmentOptions::corridor_elongation},
       {"corridor_max_width_m", &SegmentOptions::corridor_max_width_m},
@@ -536,7 +539,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       }
       const int label_count = seed_count + std::max(0, n_extra - 1);
       MergeOpenBorders(&labels, dt, label_count, options.merge_open_border_ratio,
-                       static_cast<float>(0.5 * options.merge_min_opening_m / res));
+                       static_cast<float>(0.5 * options.merge_min_opening_m / res),
+                       options.merge_no_constriction_ratio);
       const int min_area = static_cast<int>(options.min_room_area_m2 / (res * res));
       const int count = MergeSmallSegments(&labels, label_count, min_area);
       Describe(labels, dt, count, res, options, &seg.segments);

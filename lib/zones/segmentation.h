@@ -38,8 +38,9 @@ struct SegmentOptions {
                                       // with no straight run this long along the dominant wall
                                       // directions becomes free (declutter.h); 0 = off
   double wall_line_gap_m = 0.45;      // collinear pieces this close form one run (dashed walls)
-  double door_max_width_m = 1.0;      // a gap up to this wide between two collinear wall runs
-                                      // is a door: closed while seeds are found (0 = off)
+  double door_max_width_m = 1.8;      // a gap up to this wide between two collinear wall runs
+                                      // is a door (a double door is 1.6-1.8 m): closed while
+                                      // seeds are found (0 = off)
   double seed_min_level_m = 0.35;     // lowest distance-transform level tried for seeds
   double seed_level_step_m = 0.05;    // step between levels
   double seed_max_level_m = 3.0;      // highest level tried
@@ -47,7 +48,12 @@ struct SegmentOptions {
   double seed_min_persistence_m = 0.3;  // ...and rises this far above the level it split at
   double merge_open_border_ratio = 0.45;  // neighbours merge when their border's clearance is
                                          // >= this x the smaller one's peak clearance (0 = off)
-  double merge_min_opening_m = 1.8;   // ...and the opening is at least this wide (no door)
+  double merge_min_opening_m = 2.4;   // ...and the opening is wider than any door (a double
+                                      // door with its frame is < 2.4 m)
+  double merge_no_constriction_ratio = 0.0;  // neighbours also merge, however narrow, when the
+                                      // border is >= this x the narrower one's peak clearance:
+                                      // no constriction, one space (a corridor cut at a side
+                                      // opening); 0 = off
   double min_room_area_m2 = 2.0;      // smaller segments merge into a neighbour
   double corridor_elongation = 4.0;   // length / width at or above this = corridor
   double corridor_max_width_m = 3.5;  // corridors are at most this wide
