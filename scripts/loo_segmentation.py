@@ -20,13 +20,15 @@ import tempfile
 
 # Each choice is a physical quantity with a plausible range, not a per-map fit:
 #   wall_min_length_m: shortest straight run that counts as a wall when decluttering (0 = off);
-#   door_max_width_m: widest gap between collinear walls taken as a door (0 = off);
+#   door_max_width_m: widest gap between collinear walls taken as a door (0 = off); at most
+#   1.2 m, the narrowest corridor building codes allow, so that two room walls aligned across a
+#   corridor never close it (wider doors are left to the clearance hierarchy);
 #   merge_min_opening_m: narrowest opening that joins two segments into one room;
 #   merge_no_constriction_ratio: a border this wide relative to the narrower segment is no
 #   constriction at all (0 = off).
 CANDIDATES = {
     "wall_min_length_m": [0.0, 1.0, 1.5],
-    "door_max_width_m": [0.0, 1.0, 1.4, 1.8],
+    "door_max_width_m": [0.0, 0.9, 1.2],
     "merge_min_opening_m": [1.8, 2.4],
     "merge_no_constriction_ratio": [0.0, 0.8],
 }

@@ -38,9 +38,11 @@ struct SegmentOptions {
                                       // with no straight run this long along the dominant wall
                                       // directions becomes free (declutter.h); 0 = off
   double wall_line_gap_m = 0.45;      // collinear pieces this close form one run (dashed walls)
-  double door_max_width_m = 1.8;      // a gap up to this wide between two collinear wall runs
-                                      // is a door (a double door is 1.6-1.8 m): closed while
-                                      // seeds are found (0 = off)
+  double door_max_width_m = 1.2;      // a gap up to this wide between two collinear wall runs
+                                      // is a door: closed while seeds are found (0 = off). At
+                                      // most the narrowest corridor (1.2 m), so room walls
+                                      // aligned across a corridor never close it
+
   double seed_min_level_m = 0.35;     // lowest distance-transform level tried for seeds
   double seed_level_step_m = 0.05;    // step between levels
   double seed_max_level_m = 3.0;      // highest level tried
