@@ -25,6 +25,8 @@ struct SegmentOpts {
   int max_zone_keyframes = 0;
   double resolution_m = 0.0;
   double cell_size_m = 8.0;
+  std::vector<std::string> params;  // KEY=VALUE overrides of SegmentOptions
+  std::string labels_png;
   bool json = false;
 };
 
@@ -67,10 +69,18 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
     auto grid = LoadOccupancyGrid(o.map, o.resolution_m);
     if (!grid.ok()) return ctx.Fail(kCmd, grid.status());
     SegmentOptions options;
+    for (const std::string& kv : o.params) {
+      if (Status st = SetSegmentOption(kv, &options); !st.ok()) return ctx.Fail(kCmd, st);
+    }
     auto seg = SegmentRooms(*grid, options);
     if (!seg.ok()) return ctx.Fail(kCmd, seg.status());
     report["source"] = o.map;
     report["segment_ms"] = seg->runtime_ms;
+    if (!o.labels_png.empty()) {
+      if (Status st = WriteSegmentationPng(o.labels_png, *grid, *seg); !st.ok()) {
+        return ctx.Fail(kCmd, st);
+      }
+    }
     if (!o.score_gt.empty()) {
       auto gt = LoadGroundTruthLabels(o.score_gt);
       if (!gt.ok()) return ctx.Fail(kCmd, gt.status());
@@ -147,6 +157,11 @@ void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx) {
                   "metres per pixel of a PNG map (default 0.05) or override of the YAML's");
   cmd->add_option("--cell-size", opts->cell_size_m,
                   "keyframe-only zones: cell size in metres before size-capped splits");
+  cmd->add_option("--param", opts->params,
+                  "override one segmentation option, KEY=VALUE in metres / m2 (repeatable; "
+                  "for evaluation: see docs/segmentation.md)");
+  cmd->add_option("--labels", opts->labels_png,
+                  "write the segments as a colour PNG over the grid (for inspection)");
   cmd->add_flag("--json", opts->json, "print a JSON report");
   cmd->callback([opts, &ctx] { Run(*opts, ctx); });
 }

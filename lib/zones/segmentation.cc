@@ -20,6 +20,7 @@
 #include <tuple>
 #include <unordered_map>
 
+#include "zones/declutter.h"
 #include "zones/polygon.h"
 
 namespace zm {
@@ -58,14 +59,29 @@ void FillSmallInteriorComponents(const cv::Mat& mask, int max_area, cv::Mat* tar
   }
 }
 
-// The cleaned free-space mask (255 = free) of `cells`.
-cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res) {
+// The cleaned free-space mask (255 = free) of `cells`; `*walls` gets the wall evidence when
+// decluttering is on (else empty masks).
+cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res,
+                       WallEvidence* walls) {
   cv::Mat occupied = cells == kCellOccupied;
+  cv::Mat free_mask = cells == kCellFree;
+  if (o.wall_min_length_m > 0.0) {
+    // Furniture, people and unseen patches inside rooms hold no long straight wall: free.
+    *walls = FindWalls(occupied, DominantWallAngle(occupied),
+                       CellsFromMetres(o.wall_min_length_m, res),
+                       CellsFromMetres(o.wall_line_gap_m, res),
+                       CellsFromMetres(o.door_max_width_m, res));
+    free_mask = FillClutterIslands(free_mask, walls->walls);
+    occupied &= ~free_mask;
+  } else {
+    walls->walls = cv::Mat::zeros(cells.size(), CV_8U);
+    walls->doorways = cv::Mat::zeros(cells.size(), CV_8U);
+  }
   // Close gaps in walls (scan noise) so that rooms do not leak through them.
   const int gap = CellsFromMetres(o.wall_gap_close_m, res);
   if (gap > 0) cv::morphologyEx(occupied, occupied, cv::MORPH_CLOSE, Disk(gap + 1));
-  cv::Mat free_mask = (cells == kCellFree) & ~occupied;
-  // Clutter (furniture, people, unknown patches) standing inside free space becomes free.
+  free_mask &= ~occupied;
+  // Small clutter (furniture, people, unknown patches) standing inside free space becomes free.
   const int clutter = static_cast<int>(o.clutter_area_m2 / (res * res));
   cv::Mat not_free = ~free_mask;
   FillSmallInteriorComponents(not_free, clutter, &free_mask, 255);
@@ -291,8 +307,8 @@ int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
 // two segments' own largest clearance (`peak`). Doors are narrow against both rooms; a split
 // through the middle of one open room is not. Labels stay in 1..label_count (some unused).
 void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, double ratio,
-                      float min_saddle) {
-  if (ratio <= 0.0 || label_count < 2) return;
+                      float min_saddle, double no_constriction_ratio) {
+  if ((ratio <= 0.0 && no_constriction_ratio <= 0.0) || label_count < 2) return;
   std::vector<float> peak(Idx(label_count) + 1, 0.0f);
   std::map<std::pair<int, int>, float> saddle;
   auto note = [&](int a, int b, float d) {
@@ -337,7 +353,9 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
     for (const auto& [key, s] : current) {
       const float lo = std::min(peak[Idx(key.first)], peak[Idx(key.second)]);
       const double q = lo > 0.0f ? static_cast<double>(s / lo) : 0.0;
-      if (q >= ratio && s >= min_saddle && q > best) best = q, best_pair = key;
+      const bool open = ratio > 0.0 && q >= ratio && s >= min_saddle;
+      const bool same_space = no_constriction_ratio > 0.0 && q >= no_constriction_ratio;
+      if ((open || same_space) && q > best) best = q, best_pair = key;
     }
     if (best_pair.first == 0) break;
     parent[Idx(best_pair.second)] = best_pair.first;
@@ -391,10 +409,90 @@ Status CheckOptions(const SegmentOptions& o) {
     return bad("areas must be >= 0");
   }
   if (o.simplify_tolerance_m < 0.0) return bad("simplify_tolerance_m must be >= 0");
+  if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0) {
+    return bad("wall_min_length_m, wall_line_gap_m and door_max_width_m must be >= 0");
+  }
   return Status::Ok();
 }
 
 }  // namespace
+
+Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
+  const auto eq = key_value.find('=');
+  if (eq == std::string::npos) {
+    return InvalidArgument("segmentation option '" + key_value + "': expected KEY=VALUE");
+  }
+  const std::string key = key_value.substr(0, eq);
+  const std::string text = key_value.substr(eq + 1);
+  double value = 0.0;
+  try {
+    std::size_t used = 0;
+    value = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(value)) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    return InvalidArgument("segmentation option '" + key + "': '" + text + "' is not a number");
+  }
+  const std::pair<const char*, double SegmentOptions::*> fields[] = {
+      {"wall_gap_close_m", &SegmentOptions::wall_gap_close_m},
+      {"ray_width_m", &SegmentOptions::ray_width_m},
+      {"clutter_area_m2", &SegmentOptions::clutter_area_m2},
+      {"wall_min_length_m", &SegmentOptions::wall_min_length_m},
+      {"wall_line_gap_m", &SegmentOptions::wall_line_gap_m},
+      {"door_max_width_m", &SegmentOptions::door_max_width_m},
+      {"seed_min_level_m", &SegmentOptions::seed_min_level_m},
+      {"seed_level_step_m", &SegmentOptions::seed_level_step_m},
+      {"seed_max_level_m", &SegmentOptions::seed_max_level_m},
+      {"seed_min_area_m2", &SegmentOptions::seed_min_area_m2},
+      {"seed_min_persistence_m", &SegmentOptions::seed_min_persistence_m},
+      {"merge_open_border_ratio", &SegmentOptions::merge_open_border_ratio},
+      {"merge_min_opening_m", &SegmentOptions::merge_min_opening_m},
+      {"merge_no_constriction_ratio", &SegmentOptions::merge_no_constriction_ratio},
+      {"min_room_area_m2", &SegmentOptions::min_room_area_m2},
+      {"corridor_elongation", &SegmentOptions::corridor_elongation},
+      {"corridor_max_width_m", &SegmentOptions::corridor_max_width_m},
+      {"simplify_tolerance_m", &SegmentOptions::simplify_tolerance_m},
+  };
+  std::string known;
+  for (const auto& [name, field] : fields) {
+    if (key == name) {
+      options->*field = value;
+      return CheckOptions(*options);
+    }
+    known += (known.empty() ? "" : ", ") + std::string(name);
+  }
+  return InvalidArgument("unknown segmentation option '" + key + "' (known: " + known + ")");
+}
+
+Status WriteSegmentationPng(const std::string& path, const OccupancyGrid& grid,
+                            const Segmentation& seg) {
+  if (seg.labels.size() != grid.cells.size()) {
+    return InvalidArgument("segmentation and grid differ in size");
+  }
+  cv::Mat img(grid.cells.size(), CV_8UC3);
+  for (int r = 0; r < img.rows; ++r) {
+    const std::uint8_t* g = grid.cells.ptr<std::uint8_t>(r);
+    const int* l = seg.labels.ptr<int>(r);
+    auto* out = img.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < img.cols; ++c) {
+      if (l[c] > 0) {
+        // A fixed hash of the label: neighbours get unrelated, reproducible colours.
+        const auto h = static_cast<std::uint32_t>(l[c]) * 2654435761u;
+        out[c] = cv::Vec3b(static_cast<std::uint8_t>(64 + (h >> 8) % 192),
+                           static_cast<std::uint8_t>(64 + (h >> 16) % 192),
+                           static_cast<std::uint8_t>(64 + (h >> 24) % 192));
+      } else {
+        const std::uint8_t v = g[c] == kCellOccupied ? 0 : (g[c] == kCellFree ? 255 : 160);
+        out[c] = cv::Vec3b(v, v, v);
+      }
+    }
+  }
+  try {
+    if (!cv::imwrite(path, img)) return IoError(path + ": cannot write the PNG");
+  } catch (const cv::Exception& e) {
+    return IoError(path + ": OpenCV could not write it: " + e.what());
+  }
+  return Status::Ok();
+}
 
 Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -409,7 +507,9 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
   const double res = grid.resolution_m;
   Segmentation seg;
   try {
-    seg.free_cleaned = CleanFreeSpace(grid.cells, options, res);
+    WallEvidence walls;
+    seg.free_cleaned = CleanFreeSpace(grid.cells, options, res, &walls);
+    seg.wall_angle_rad = walls.angle_rad;
     seg.labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
     // Work inside the bounding box of free space (plus a border) only.
     cv::Rect box = cv::boundingRect(seg.free_cleaned);
@@ -417,8 +517,11 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       box = cv::Rect(box.x - 2, box.y - 2, box.width + 4, box.height + 4) &
             cv::Rect(0, 0, grid.cols(), grid.rows());
       cv::Mat free_roi = seg.free_cleaned(box);
+      // Clearance with doorways closed: seeds never span a door, floods meet in it (its
+      // clearance is 0) and no merge crosses it.
       cv::Mat dt;
-      cv::distanceTransform(free_roi, dt, cv::DIST_L2, cv::DIST_MASK_5, CV_32F);
+      cv::distanceTransform(free_roi & ~walls.doorways(box), dt, cv::DIST_L2, cv::DIST_MASK_5,
+                            CV_32F);
       int seed_count = 0;
       cv::Mat labels = FindSeeds(dt, options, res, &seed_count);
       Flood(free_roi, dt, &labels);
@@ -436,7 +539,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       }
       const int label_count = seed_count + std::max(0, n_extra - 1);
       MergeOpenBorders(&labels, dt, label_count, options.merge_open_border_ratio,
-                       static_cast<float>(0.5 * options.merge_min_opening_m / res));
+                       static_cast<float>(0.5 * options.merge_min_opening_m / res),
+                       options.merge_no_constriction_ratio);
       const int min_area = static_cast<int>(options.min_room_area_m2 / (res * res));
       const int count = MergeSmallSegments(&labels, label_count, min_area);
       Describe(labels, dt, count, res, options, &seg.segments);

@@ -34,6 +34,15 @@ struct SegmentOptions {
   double wall_gap_close_m = 0.45;     // gaps in walls up to this width are closed
   double ray_width_m = 0.15;          // free strands thinner than this are dropped
   double clutter_area_m2 = 0.5;       // obstacle islands smaller than this become free
+  double wall_min_length_m = 1.0;     // decluttering: an island of obstacles or unknown cells
+                                      // with no straight run this long along the dominant wall
+                                      // directions becomes free (declutter.h); 0 = off
+  double wall_line_gap_m = 0.45;      // collinear pieces this close form one run (dashed walls)
+  double door_max_width_m = 1.2;      // a gap up to this wide between two collinear wall runs
+                                      // is a door: closed while seeds are found (0 = off). At
+                                      // most the narrowest corridor (1.2 m), so room walls
+                                      // aligned across a corridor never close it
+
   double seed_min_level_m = 0.35;     // lowest distance-transform level tried for seeds
   double seed_level_step_m = 0.05;    // step between levels
   double seed_max_level_m = 3.0;      // highest level tried
@@ -41,7 +50,12 @@ struct SegmentOptions {
   double seed_min_persistence_m = 0.3;  // ...and rises this far above the level it split at
   double merge_open_border_ratio = 0.45;  // neighbours merge when their border's clearance is
                                          // >= this x the smaller one's peak clearance (0 = off)
-  double merge_min_opening_m = 1.8;   // ...and the opening is at least this wide (no door)
+  double merge_min_opening_m = 2.4;   // ...and the opening is wider than any door (a double
+                                      // door with its frame is < 2.4 m)
+  double merge_no_constriction_ratio = 0.0;  // neighbours also merge, however narrow, when the
+                                      // border is >= this x the narrower one's peak clearance:
+                                      // no constriction, one space (a corridor cut at a side
+                                      // opening); 0 = off
   double min_room_area_m2 = 2.0;      // smaller segments merge into a neighbour
   double corridor_elongation = 4.0;   // length / width at or above this = corridor
   double corridor_max_width_m = 3.5;  // corridors are at most this wide
@@ -61,8 +75,14 @@ struct Segmentation {
   cv::Mat labels;  // CV_32SC1, 0 = none
   std::vector<SegmentInfo> segments;
   cv::Mat free_cleaned;  // CV_8UC1, 255 where the cleaned grid is free
+  double wall_angle_rad = 0.0;  // dominant wall direction found by decluttering
   double runtime_ms = 0.0;
 };
+
+// Sets one field of `options` from "KEY=VALUE" (KEY is the field name, VALUE a number in the
+// field's unit). An unknown key or a value that is not a finite number is an InvalidArgument
+// naming it. For evaluation runs (leave-one-out parameter choice); the defaults are the product.
+[[nodiscard]] Status SetSegmentOption(const std::string& key_value, SegmentOptions* options);
 
 // Segments the grid into rooms and corridors. Errors: empty grid, bad options, OpenCV failure.
 [[nodiscard]] Result<Segmentation> SegmentRooms(const OccupancyGrid& grid,
@@ -82,6 +102,11 @@ struct Segmentation {
 [[nodiscard]] Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg,
                                                             const OccupancyGrid& grid,
                                                             const SegmentOptions& options = {});
+
+// Writes the segments as a colour PNG over the grid (occupied black, unknown grey, free but in
+// no segment white, each segment one colour): for looking at a result, not for reading back.
+[[nodiscard]] Status WriteSegmentationPng(const std::string& path, const OccupancyGrid& grid,
+                                          const Segmentation& seg);
 
 // GeoJSON FeatureCollection of Polygon features (closed rings, metres) with properties name,
 // kind, floor: the zones module's zone file format.

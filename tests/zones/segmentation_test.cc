@@ -1,11 +1,14 @@
-// Automatic zones: a synthetic floor of rectangular rooms joined by doors is segmented exactly;
-// a real map scores within the range measured in docs/segmentation.md; grid loaders (YAML, PNG,
+// Automatic zones: a synthetic floor of rectangular rooms joined by doors is segmented exactly,
+// also cluttered (furniture, unseen floor); unknown cells inside a room do not split it; a
+// corridor with aligned rooms on both sides stays one corridor; a real map stays above a
+// labelled regression floor; grid loaders (YAML, PNG,
 // RTAB-Map opt_map) place cells right and reject bad input with one clear error; keyframe-only
 // zones and oversize splits respect their keyframe cap.
 #include <doctest/doctest.h>
 #include <sqlite3.h>
 #include <zlib.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -102,8 +105,152 @@ TEST_CASE("a synthetic floor of rooms joined by doors is segmented one segment p
   CHECK(loaded->size() == 4);
 }
 
-TEST_CASE("a real map (map15) scores within the measured range") {
-  const std::string base = std::string(ZM_SHARED_DIR) + "/data/floorplans/map15";
+// A floor drawn from rectangles at 0.05 m/px: everything unknown, an occupied block, free
+// rectangles (rooms, corridor, doors) cut out of it. `truth` labels each room rectangle.
+struct Floor {
+  OccupancyGrid grid;
+  cv::Mat truth;
+  static constexpr int kPx = 20;  // cells per metre
+  Floor(double w_m, double h_m) {
+    grid.resolution_m = 0.05;
+    grid.cells = cv::Mat(static_cast<int>(h_m * kPx), static_cast<int>(w_m * kPx), CV_8UC1,
+                         cv::Scalar(kCellUnknown));
+    truth = cv::Mat::zeros(grid.cells.size(), CV_32S);
+    Fill(0.9, 0.9, w_m - 0.9, h_m - 0.9, kCellOccupied);
+  }
+  static cv::Rect R(double x0, double y0, double x1, double y1) {
+    return {cv::Point(static_cast<int>(x0 * kPx), static_cast<int>(y0 * kPx)),
+            cv::Point(static_cast<int>(x1 * kPx), static_cast<int>(y1 * kPx))};
+  }
+  void Fill(double x0, double y0, double x1, double y1, std::uint8_t v) {
+    cv::rectangle(grid.cells, R(x0, y0, x1, y1), cv::Scalar(v), cv::FILLED);
+  }
+  void Room(double x0, double y0, double x1, double y1, int label) {
+    Fill(x0, y0, x1, y1, kCellFree);
+    cv::rectangle(truth, R(x0, y0, x1, y1), cv::Scalar(label), cv::FILLED);
+  }
+};
+
+int CountKind(const Segmentation& seg, const std::string& kind) {
+  int n = 0;
+  for (const auto& s : seg.segments) n += s.kind == kind ? 1 : 0;
+  return n;
+}
+
+TEST_CASE("a cluttered floor still segments into its rooms") {
+  cv::Mat truth;
+  OccupancyGrid grid = SyntheticFloor(&truth);
+  auto fill = [&](double x0, double y0, double x1, double y1, std::uint8_t v) {
+    cv::rectangle(grid.cells, Floor::R(x0, y0, x1, y1), cv::Scalar(v), cv::FILLED);
+  };
+  // Room 1: a 1.6 x 0.9 m table as a laser sees it: four legs and the unknown shadow between.
+  fill(2.2, 4.4, 3.8, 5.3, kCellUnknown);
+  for (const double x : {2.2, 3.7}) {
+    for (const double y : {4.4, 5.2}) fill(x, y, x + 0.1, y + 0.1, kCellOccupied);
+  }
+  // Room 2: chairs (0.5 m outlines, staggered: collinear pieces closer than wall_line_gap_m
+  // would read as a dashed wall) and a patch of floor the robot never saw.
+  for (const double x : {5.8, 6.6, 7.4}) {
+    const double y = x == 6.6 ? 3.8 : 4.6;
+    cv::rectangle(grid.cells, Floor::R(x, y, x + 0.5, y + 0.5), cv::Scalar(kCellOccupied), 1);
+  }
+  fill(6.0, 5.6, 8.0, 6.4, kCellUnknown);
+  // Room 3: a 0.8 m cabinet standing free; the corridor: a person.
+  fill(10.5, 4.5, 11.3, 5.0, kCellOccupied);
+  fill(6.0, 1.6, 6.3, 1.9, kCellOccupied);
+  auto seg = SegmentRooms(grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  CHECK(seg->segments.size() == 4);
+  auto score = ScoreSegmentation(seg->labels, truth);
+  REQUIRE(score.ok());
+  CHECK(score->precision > 0.97);
+  CHECK(score->recall > 0.97);
+  CHECK(score->mean_iou > 0.95);
+  CHECK(CountKind(*seg, "corridor") == 1);
+  // Without decluttering the table's 1.4 m2 shadow stays an obstacle (the old behaviour).
+  SegmentOptions off;
+  off.wall_min_length_m = 0.0;
+  auto cluttered = SegmentRooms(grid, off);
+  REQUIRE(cluttered.ok());
+  CHECK(cv::countNonZero(cluttered->free_cleaned) < cv::countNonZero(seg->free_cleaned));
+}
+
+TEST_CASE("unknown cells inside a room do not split it") {
+  Floor f(10.0, 7.0);
+  f.Room(1.0, 1.0, 9.0, 6.0, 1);  // one 8 x 5 m room
+  // Unseen floor: a 2.5 x 1.5 m patch in the middle and a 3 m band nearly across the room.
+  f.Fill(3.5, 2.5, 6.0, 4.0, kCellUnknown);
+  f.Fill(1.6, 4.6, 8.4, 5.0, kCellUnknown);
+  auto seg = SegmentRooms(f.grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  CHECK(seg->segments.size() == 1);
+  auto score = ScoreSegmentation(seg->labels, f.truth);
+  REQUIRE(score.ok());
+  CHECK(score->mean_iou > 0.95);
+  // The unseen cells are part of the room's segment: the zone covers the whole room.
+  CHECK(seg->labels.at<int>(Floor::kPx * 3, Floor::kPx * 5) > 0);
+}
+
+TEST_CASE("a corridor with rooms on both sides stays one corridor") {
+  // A 20 x 1.6 m corridor; five 4 m rooms above and five below, their walls aligned across the
+  // corridor (1.6 m apart: wider than any door taken as one), each with a 0.9 m door.
+  Floor f(22.0, 12.0);
+  f.Room(1.0, 5.2, 21.0, 6.8, 100);
+  for (int i = 0; i < 5; ++i) {
+    const double x0 = 1.0 + 4.0 * i;
+    f.Room(x0, 1.0, x0 + 3.9, 5.1, i + 1);
+    f.Room(x0, 6.9, x0 + 3.9, 11.0, i + 11);
+    f.Fill(x0 + 1.5, 5.1, x0 + 2.4, 5.2, kCellFree);
+    f.Fill(x0 + 1.5, 6.8, x0 + 2.4, 6.9, kCellFree);
+  }
+  auto seg = SegmentRooms(f.grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  CHECK(seg->segments.size() == 11);
+  CHECK(CountKind(*seg, "corridor") == 1);
+  // One segment holds (nearly) all of the corridor.
+  std::map<int, int> in_corridor;
+  for (int r = 0; r < f.truth.rows; ++r) {
+    for (int c = 0; c < f.truth.cols; ++c) {
+      if (f.truth.at<int>(r, c) == 100) ++in_corridor[seg->labels.at<int>(r, c)];
+    }
+  }
+  int best = 0, total = 0;
+  for (const auto& [label, n] : in_corridor) {
+    total += n;
+    if (label > 0) best = std::max(best, n);
+  }
+  CHECK(best > 0.95 * total);
+  auto score = ScoreSegmentation(seg->labels, f.truth);
+  REQUIRE(score.ok());
+  CHECK(score->mean_iou > 0.95);
+}
+
+TEST_CASE("segmentation options are set by name, with one clear error otherwise") {
+  SegmentOptions o;
+  REQUIRE(SetSegmentOption("door_max_width_m=0.9", &o).ok());
+  CHECK(o.door_max_width_m == 0.9);
+  const Status unknown = SetSegmentOption("door_width=1", &o);
+  CHECK(unknown.code() == StatusCode::kInvalidArgument);
+  CHECK(unknown.message().find("unknown segmentation option 'door_width'") != std::string::npos);
+  CHECK(SetSegmentOption("door_max_width_m=wide", &o).message().find("not a number") !=
+        std::string::npos);
+  CHECK_FALSE(SetSegmentOption("door_max_width_m", &o).ok());
+  CHECK_FALSE(SetSegmentOption("wall_min_length_m=-1", &o).ok());
+}
+
+// SCORING REGRESSION FLOOR, not a tuning target: the defaults were chosen by leave-one-out on
+// the six shared maps (docs/segmentation.md). map15 measured 98.4 / 86.9 / 81.6 % with 25
+// segments; these floors sit a few points below so that only a real regression trips them.
+TEST_CASE("regression floor: map15 with the default options") {
+  // The shared data sit beside the checkout; a worktree elsewhere points at them with the
+  // environment variable ZM_SHARED_DIR.
+  const char* env = std::getenv("ZM_SHARED_DIR");
+  const std::string base =
+      std::string(env != nullptr ? env : ZM_SHARED_DIR) + "/data/floorplans/map15";
+  if (!std::filesystem::exists(base + "_map.png")) {
+    MESSAGE("skipped: no shared floor plan at " << base << "_map.png (set ZM_SHARED_DIR)");
+    return;
+  }
   auto grid = LoadGridImage(base + "_map.png");
   REQUIRE_MESSAGE(grid.ok(), grid.status().ToString());
   auto gt = LoadGroundTruthLabels(base + "_gt.png");
@@ -112,14 +259,12 @@ TEST_CASE("a real map (map15) scores within the measured range") {
   REQUIRE(seg.ok());
   auto score = ScoreSegmentation(seg->labels, *gt);
   REQUIRE(score.ok());
-  // Measured 95.1 / 87.7 / 79.4 % with 24 segments (docs/segmentation.md); bounds leave a
-  // margin for floating-point differences across platforms.
   CHECK(score->gt_rooms == 20);
-  CHECK(score->precision >= 0.90);
-  CHECK(score->recall >= 0.83);
-  CHECK(score->mean_iou >= 0.74);
+  CHECK(score->precision >= 0.93);
+  CHECK(score->recall >= 0.82);
+  CHECK(score->mean_iou >= 0.76);
   CHECK(score->predicted_segments >= 16);
-  CHECK(score->predicted_segments <= 30);
+  CHECK(score->predicted_segments <= 32);
 }
 
 TEST_CASE("bad inputs give one clear error naming the file") {

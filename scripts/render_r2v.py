@@ -1,0 +1,179 @@
+#!/usr/bin/python3
+"""Renders R2V vector floor plans (tests/data/segmentation/r2v, see its README) into occupancy
+grids and room ground truths at 0.05 m/px, in the layout of ../shared/data/floorplans
+(<name>_map.png, <name>_gt.png), for held-out scoring of `zonemap zones segment`.
+
+Two variants per plan:
+  plan/  the architectural plan as a map: walls occupied, doors open, furniture icons
+         (bathtub, counters, toilet, basins, ...) as obstacle outlines with unknown inside,
+         outside the building unknown;
+  scan/  what a robot's laser would have mapped of it: 360-degree scans (range 8 m) from the
+         middle of every room label and every door, so rooms have shadows (unknown cells)
+         behind furniture and around corners, and walls are only where a ray hit them.
+
+Ground truth: every region enclosed by walls with doors closed is one room (R2V's room labels
+only mark a point in a room; enclosed regions of any label are rooms).
+Scale: R2V coordinates are pixels of the source raster; a plan's scale is set so that the lower
+quartile of its door openings is 0.75 m (a single interior door; the wider openings are
+balcony sliders and double doors), the only physical assumption made. It was fixed before any
+segmentation was scored on these plans.
+
+Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR
+"""
+import collections
+import os
+import sys
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+RES = 0.05  # m per cell
+DOOR_M = 0.75  # lower-quartile door opening: a single interior door
+WALL_M = 0.15  # wall thickness drawn
+MARGIN_M = 1.0
+FURNITURE = {"bathtub", "cooking_counter", "toilet", "washing_basin", "refrigerator", "sofa",
+             "bed", "TV", "special"}
+RANGE_M = 8.0
+
+
+def parse(path):
+    items = []
+    with open(path) as f:
+        for line in f:
+            parts = line.split("\t")
+            if len(parts) < 5:
+                continue
+            x1, y1, x2, y2 = (float(v) for v in parts[:4])
+            items.append((x1, y1, x2, y2, parts[4]))
+    return items
+
+
+def components(mask):
+    """4-connected components of a boolean mask: (labels, count)."""
+    labels = np.zeros(mask.shape, np.int32)
+    n = 0
+    h, w = mask.shape
+    for r0, c0 in zip(*np.nonzero(mask)):
+        if labels[r0, c0]:
+            continue
+        n += 1
+        labels[r0, c0] = n
+        q = collections.deque([(r0, c0)])
+        while q:
+            r, c = q.popleft()
+            for rr, cc in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
+                if 0 <= rr < h and 0 <= cc < w and mask[rr, cc] and not labels[rr, cc]:
+                    labels[rr, cc] = n
+                    q.append((rr, cc))
+    return labels, n
+
+
+def render(items):
+    doors = [i for i in items if i[4] == "door"]
+    lengths = sorted(np.hypot(d[2] - d[0], d[3] - d[1]) for d in doors)
+    # Openings include wide balcony sliders and double doors; the narrowest quarter are single
+    # interior doors.
+    scale = DOOR_M / lengths[len(lengths) // 4]  # metres per source pixel
+    xs = [v for i in items for v in (i[0], i[2])]
+    ys = [v for i in items for v in (i[1], i[3])]
+    x0, y0 = min(xs), min(ys)
+    w = int((max(xs) - x0) * scale / RES + 2 * MARGIN_M / RES) + 1
+    h = int((max(ys) - y0) * scale / RES + 2 * MARGIN_M / RES) + 1
+
+    def px(x, y):
+        return ((x - x0) * scale / RES + MARGIN_M / RES, (y - y0) * scale / RES + MARGIN_M / RES)
+
+    wall_w = max(2, round(WALL_M / RES))
+
+    def layer(kinds, width):
+        img = Image.new("L", (w, h), 0)
+        d = ImageDraw.Draw(img)
+        for x1, y1, x2, y2, kind in items:
+            if kind in kinds:
+                d.line([px(x1, y1), px(x2, y2)], fill=255, width=width)
+        return np.array(img) > 0
+
+    walls = layer({"wall"}, wall_w)
+    door_cut = layer({"door"}, wall_w + 2)
+    outside, _ = components(~walls)
+    outside = outside == outside[0, 0]
+    rooms, n = components(~walls & ~outside)
+    inside = ~walls & ~outside
+    open_walls = walls & ~door_cut
+    free = (inside | (walls & door_cut)) & ~outside
+    occupied = open_walls.copy()
+    unknown = outside.copy()
+    img = Image.new("L", (w, h), 0)
+    d = ImageDraw.Draw(img)
+    for x1, y1, x2, y2, kind in items:
+        if kind in FURNITURE:
+            a, b = px(min(x1, x2), min(y1, y2)), px(max(x1, x2), max(y1, y2))
+            d.rectangle([a, b], fill=128, outline=255)
+    furn = np.array(img)
+    occupied |= (furn == 255) & inside
+    unknown |= (furn == 128) & inside
+    free &= ~occupied & ~unknown
+    viewpoints = []
+    for x1, y1, x2, y2, kind in items:
+        if kind == "door" or kind not in FURNITURE | {"wall", "entrance", "stairs"}:
+            viewpoints.append(px((x1 + x2) / 2, (y1 + y2) / 2))
+    return free, occupied, rooms, n, viewpoints
+
+
+def scan(free, occupied, viewpoints):
+    """Cells a 360-degree laser sees from each viewpoint: (seen_free, seen_occupied)."""
+    h, w = free.shape
+    seen_free = np.zeros_like(free)
+    seen_occ = np.zeros_like(free)
+    angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
+    steps = np.arange(0, RANGE_M / RES, 0.5)
+    for vx, vy in viewpoints:
+        c = (vx + np.outer(np.cos(angles), steps)).astype(int)
+        r = (vy + np.outer(np.sin(angles), steps)).astype(int)
+        valid = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
+        if not free[r[0, 0], c[0, 0]]:
+            continue  # a viewpoint inside furniture sees nothing
+        blocked = (~free[r, c]) | ~valid
+        first = np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
+        before = np.arange(steps.size)[None, :] < first[:, None]
+        seen_free[r[before], c[before]] = True
+        hit = np.nonzero(first < steps.size)[0]
+        hr, hc = r[hit, first[hit]], c[hit, first[hit]]
+        keep = occupied[hr, hc]
+        seen_occ[hr[keep], hc[keep]] = True
+    return seen_free & free, seen_occ
+
+
+def write(out_dir, name, free, occupied, rooms, n):
+    os.makedirs(out_dir, exist_ok=True)
+    grid = np.full(free.shape, 128, np.uint8)
+    grid[free] = 255
+    grid[occupied] = 0
+    Image.fromarray(grid).save(os.path.join(out_dir, name + "_map.png"))
+    rng = np.random.default_rng(7)
+    colours = rng.integers(60, 255, size=(n + 1, 3), dtype=np.uint8)
+    colours[0] = 0
+    Image.fromarray(colours[rooms]).save(os.path.join(out_dir, name + "_gt.png"))
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    args = sys.argv[1:]
+    src = args[0] if len(args) == 2 else os.path.join(here, "..", "tests", "data",
+                                                      "segmentation", "r2v")
+    out = args[-1] if args else sys.exit(__doc__)
+    for fname in sorted(os.listdir(src)):
+        if not fname.endswith(".txt"):
+            continue
+        name = "r2v_" + fname[:-4]
+        free, occupied, rooms, n, views = render(parse(os.path.join(src, fname)))
+        write(os.path.join(out, "plan"), name, free, occupied, rooms, n)
+        seen_free, seen_occ = scan(free, occupied, views)
+        write(os.path.join(out, "scan"), name, seen_free, seen_occ, rooms, n)
+        print(f"{name}: {free.shape[1]}x{free.shape[0]} cells, {n} enclosed regions, "
+              f"{len(views)} scan viewpoints")
+
+
+if __name__ == "__main__":
+    main()
