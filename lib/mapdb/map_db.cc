@@ -18,6 +18,8 @@
 //   - a blob's size is checked against the slot BEFORE any byte is copied, and a slot whose
 //     payload fails validation is released before the error is returned, so nothing is written
 //     outside a slot and nothing half-valid is reported as loaded;
+//   - a validated dense payload is decoded in its slot right away (Impl::Land, dense_codec.h),
+//     and the sink is told the keyframe's resident bytes (what the slot then holds);
 //   - once warm, the load paths make no allocation through operator new (errors aside).
 #include "mapdb/map_db.h"
 
@@ -26,6 +28,7 @@
 #include <filesystem>
 #include <string_view>
 
+#include "mapdb/dense_codec.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/sqlite_util.h"
 
@@ -211,6 +214,7 @@ struct MapDb::Impl {
   sqlite::Stmt payload_point;  // one payload by keyframe id (the per-keyframe path)
   sqlite::Stmt keyframes, links, zones, all_members, zone_sizes;
   MapMetadata meta;
+  std::unique_ptr<DenseDecoder> dense;  // decodes dense payloads into their slots
   std::uint64_t total_queries = 0;
   std::uint64_t total_transactions = 0;
   std::uint64_t total_bytes = 0;
@@ -224,6 +228,15 @@ struct MapDb::Impl {
                      std::to_string(view->id.value));
     }
     return Status::Ok();
+  }
+
+  // Validates the payload that now sits at the start of `slot` (`bytes` long) and decodes its
+  // dense part into the slot; returns the keyframe's resident bytes.
+  Result<std::uint32_t> Land(KeyframeId id, std::span<std::byte> slot, std::size_t bytes) const {
+    ZM_RETURN_IF_ERROR(Validate(id, slot.first(bytes)));
+    auto resident = dense->DecodeInSlot(slot, bytes);
+    if (!resident.ok()) return resident.status().Annotate(Kf(id) + " in " + path);
+    return resident;
   }
 };
 
@@ -343,6 +356,7 @@ Result<std::unique_ptr<MapDb>> MapDb::Open(const std::string& path, MapDbOptions
                    std::to_string(kf_count) + ", " + std::to_string(zone_count) + " and " +
                    std::to_string(largest) + " bytes");
   }
+  ZM_ASSIGN_OR_RETURN(impl->dense, DenseDecoder::Create(m.camera));
   return std::unique_ptr<MapDb>(new MapDb(std::move(impl)));
 }
 
@@ -486,13 +500,14 @@ Result<LoadStats> MapDb::LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) {
       }
       std::span<std::byte> dst = arena.Slot(*slot).first(static_cast<std::size_t>(bytes));
       const int rrc = sqlite3_blob_read(blob.get(), dst.data(), bytes, 0);
-      Status valid = rrc == SQLITE_OK ? im.Validate(id, dst)
-                                      : FromSqlite(rrc, db, "reading the payload of " + Kf(id));
-      if (!valid.ok()) {
+      auto landed = rrc == SQLITE_OK
+                        ? im.Land(id, arena.Slot(*slot), static_cast<std::size_t>(bytes))
+                        : Result<std::uint32_t>(FromSqlite(rrc, db, "reading the payload of " + Kf(id)));
+      if (!landed.ok()) {
         arena.Release(*slot);
-        return valid;
+        return landed.status();
       }
-      sink.Loaded(id, *slot, static_cast<std::uint32_t>(bytes));
+      sink.Loaded(id, *slot, *landed);
       ++st.keyframes;
       st.bytes += static_cast<std::uint64_t>(bytes);
       im.total_bytes += static_cast<std::uint64_t>(bytes);
@@ -554,12 +569,12 @@ Result<LoadStats> MapDb::LoadKeyframes(std::span<const KeyframeId> ids, Arena& a
     }
     std::span<std::byte> dst = arena.Slot(*slot).first(static_cast<std::size_t>(bytes));
     if (bytes > 0) std::memcpy(dst.data(), src, static_cast<std::size_t>(bytes));
-    Status valid = im.Validate(id, dst);
-    if (!valid.ok()) {
+    auto landed = im.Land(id, arena.Slot(*slot), static_cast<std::size_t>(bytes));
+    if (!landed.ok()) {
       arena.Release(*slot);
-      return valid;
+      return landed.status();
     }
-    sink.Loaded(id, *slot, static_cast<std::uint32_t>(bytes));
+    sink.Loaded(id, *slot, *landed);
     ++st.keyframes;
     st.bytes += static_cast<std::uint64_t>(bytes);
     im.total_bytes += static_cast<std::uint64_t>(bytes);
@@ -729,7 +744,9 @@ Status MapDbWriter::InsertKeyframes(std::span<const KeyframeRecord> keyframes) {
       sqlite3_bind_double(s, 2, k.meta.stamp_s);
       sqlite3_bind_blob(s, 3, pose, sizeof pose, SQLITE_TRANSIENT);
       sqlite3_bind_int(s, 4, k.meta.weight);
-      sqlite3_bind_int64(s, 5, static_cast<sqlite3_int64>(k.payload.size()));
+      // payload_bytes is what the keyframe occupies in a slot once loaded (its blob, plus what
+      // decoding adds for dense payloads): the largest one sizes the arena's slots.
+      sqlite3_bind_int64(s, 5, static_cast<sqlite3_int64>(view->resident_bytes));
       Status st = sqlite::StepDone(db, s, "inserting " + Kf(id) + " into table keyframe");
       if (!st.ok()) {
         if (st.code() == StatusCode::kInvalidArgument) {
