@@ -11,6 +11,8 @@
 #include <limits>
 #include <string>
 
+#include "simd/crc32c.h"
+
 namespace zm {
 namespace {
 
@@ -32,6 +34,14 @@ std::uint32_t Crc32(std::span<const std::byte> bytes) {
     left -= chunk;
   }
   return static_cast<std::uint32_t>(crc);
+}
+
+std::uint32_t Crc32c(std::span<const std::byte> bytes) {
+  return simd::Crc32c(bytes.data(), bytes.size());
+}
+
+std::uint32_t PayloadBodyChecksum(std::uint16_t version, std::span<const std::byte> body) {
+  return version == kPayloadVersionZlibCrc ? Crc32(body) : Crc32c(body);
 }
 
 PayloadLayout LayoutFor(std::uint32_t feature_count, std::uint32_t dense_bytes, bool points_on_disk) {
@@ -157,8 +167,9 @@ Result<std::size_t> EncodePayload(const PayloadParts& parts, std::span<std::byte
   h.dense_width = static_cast<std::uint16_t>(parts.dense_width);
   h.dense_height = static_cast<std::uint16_t>(parts.dense_height);
   h.cloud_step = static_cast<std::uint16_t>(parts.cloud_step);
-  h.body_crc32 = Crc32(std::span<const std::byte>(out.data() + kPayloadHeaderBytes,
-                                                  l.total - kPayloadHeaderBytes));
+  h.body_crc32 = PayloadBodyChecksum(
+      kPayloadVersion,
+      std::span<const std::byte>(out.data() + kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
   std::memcpy(out.data(), &h, sizeof h);
   return l.total;
 }
@@ -192,9 +203,11 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
     }() + " (not a zonemap keyframe)");
   }
   const KeyframeId id{h.keyframe_id};
-  if (h.version != kPayloadVersion) {
+  if (h.version != kPayloadVersion && h.version != kPayloadVersionZlibCrc) {
     return FailedPrecondition(Kf(id) + ": payload version " + std::to_string(h.version) +
-                              ", this build reads version " + std::to_string(kPayloadVersion));
+                              ", this build reads versions " +
+                              std::to_string(kPayloadVersionZlibCrc) + " to " +
+                              std::to_string(kPayloadVersion));
   }
   if (h.feature_count > kMaxFeaturesPerKeyframe) {
     return Corrupt(Kf(id) + ": header claims " + std::to_string(h.feature_count) +
@@ -255,8 +268,8 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
                    " bytes, its slot holds " + std::to_string(blob.size()));
   }
   if (options.verify_crc) {
-    const std::uint32_t crc =
-        Crc32(blob.subspan(kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
+    const std::uint32_t crc = PayloadBodyChecksum(
+        h.version, blob.subspan(kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
     if (crc != h.body_crc32) {
       return Corrupt(Kf(id) + ": payload checksum mismatch (corrupt blob of " +
                      std::to_string(l.total) + " bytes)");

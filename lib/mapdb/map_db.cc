@@ -6,26 +6,36 @@
 //   payload(keyframe_id INTEGER PRIMARY KEY, blob BLOB)   -- separate, so metadata reads no
 //                                                          -- payload pages
 //   link(from_id, to_id, type, transform BLOB = 12 float64, information BLOB = 36 float64)
+//     indexes link_from(from_id) and (maps written since issue 14) link_to(to_id), so the links
+//     of a node are two index lookups
 //   zone(id INTEGER PRIMARY KEY, name UNIQUE, kind, floor, z_min, z_max, polygon BLOB = n x 2 f64)
 //   zone_member(zone_id, keyframe_id, PRIMARY KEY(zone_id, keyframe_id)) WITHOUT ROWID
 //   meta(key TEXT PRIMARY KEY, value) WITHOUT ROWID
+// The page size is the writer's choice (PageBytesForPayload): 64 KiB for megabyte payloads.
 //
 // Invariants of the read path:
 //   - the database is opened SQLITE_OPEN_READONLY; every statement is prepared in Open();
-//   - LoadZone() is one BEGIN..COMMIT and one statement stepping over zone_member's primary key;
-//     payload bytes go from SQLite's page cache straight into the arena slot through an
-//     incremental blob handle (sqlite3_blob_read), never through a buffer of ours;
+//   - a zone load is one BEGIN..COMMIT and one statement stepping over zone_member's primary
+//     key; payload bytes go straight into the arena slot through an incremental blob handle
+//     (sqlite3_blob_read; SQLite reads each overflow page with one pread into the slot), never
+//     through a buffer of ours; time-sliced, the transaction, the statement and the blob handle
+//     stay open between steps, and nothing else (no slot);
 //   - a blob's size is checked against the slot BEFORE any byte is copied, and a slot whose
 //     payload fails validation is released before the error is returned, so nothing is written
 //     outside a slot and nothing half-valid is reported as loaded;
+//   - every error of a zone load ends it (statement reset, blob closed, transaction rolled back);
 //   - a validated dense payload is decoded in its slot right away (Impl::Land, dense_codec.h),
 //     and the sink is told the keyframe's resident bytes (what the slot then holds);
 //   - once warm, the load paths make no allocation through operator new (errors aside).
 #include "mapdb/map_db.h"
 
+#include <algorithm>
+#include <bit>
+#include <cassert>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <string_view>
 
 #include "mapdb/dense_codec.h"
@@ -58,6 +68,7 @@ CREATE TABLE link(
   transform BLOB NOT NULL,
   information BLOB NOT NULL);
 CREATE INDEX link_from ON link(from_id);
+CREATE INDEX link_to ON link(to_id);
 CREATE TABLE zone(
   id INTEGER PRIMARY KEY,
   name TEXT NOT NULL UNIQUE,
@@ -173,26 +184,34 @@ Result<std::vector<KeyframeMeta>> ReadKeyframes(sqlite3* db, sqlite3_stmt* s) {
   return out;
 }
 
+// One link row (from_id, to_id, type, transform, information) into `l`; builds a message only
+// on error, so reading a row allocates nothing.
+Status LinkFromRow(sqlite3_stmt* s, LinkRecord& l) {
+  l.from = KeyframeId{sqlite3_column_int64(s, 0)};
+  l.to = KeyframeId{sqlite3_column_int64(s, 1)};
+  l.type = static_cast<LinkType>(sqlite3_column_int(s, 2));
+  const auto what = [&] {
+    return "link " + std::to_string(l.from.value) + "->" + std::to_string(l.to.value);
+  };
+  if (!PoseFromColumn(s, 3, l.transform)) {
+    return Corrupt(what() + ": transform blob is " + std::to_string(sqlite3_column_bytes(s, 3)) +
+                   " bytes, expected " + std::to_string(kPoseBlobBytes));
+  }
+  if (sqlite3_column_bytes(s, 4) != kInformationBlobBytes) {
+    return Corrupt(what() + ": information blob is " + std::to_string(sqlite3_column_bytes(s, 4)) +
+                   " bytes, expected " + std::to_string(kInformationBlobBytes) + " (36 float64)");
+  }
+  std::memcpy(l.information.data(), sqlite3_column_blob(s, 4), kInformationBlobBytes);
+  return Status::Ok();
+}
+
 Result<std::vector<LinkRecord>> ReadLinks(sqlite3* db, sqlite3_stmt* s) {
   StmtReset reset(s);
   std::vector<LinkRecord> out;
   int rc;
   while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
     LinkRecord l;
-    l.from = KeyframeId{sqlite3_column_int64(s, 0)};
-    l.to = KeyframeId{sqlite3_column_int64(s, 1)};
-    l.type = static_cast<LinkType>(sqlite3_column_int(s, 2));
-    const std::string what =
-        "link " + std::to_string(l.from.value) + "->" + std::to_string(l.to.value);
-    if (!PoseFromColumn(s, 3, l.transform)) {
-      return Corrupt(what + ": transform blob is " + std::to_string(sqlite3_column_bytes(s, 3)) +
-                     " bytes, expected " + std::to_string(kPoseBlobBytes));
-    }
-    if (sqlite3_column_bytes(s, 4) != kInformationBlobBytes) {
-      return Corrupt(what + ": information blob is " + std::to_string(sqlite3_column_bytes(s, 4)) +
-                     " bytes, expected " + std::to_string(kInformationBlobBytes) + " (36 float64)");
-    }
-    std::memcpy(l.information.data(), sqlite3_column_blob(s, 4), kInformationBlobBytes);
+    ZM_RETURN_IF_ERROR(LinkFromRow(s, l));
     out.push_back(l);
   }
   if (rc != SQLITE_DONE) return FromSqlite(rc, db, "reading table link");
@@ -208,20 +227,36 @@ Result<std::vector<LinkRecord>> ReadLinks(sqlite3* db, sqlite3_stmt* s) {
 struct MapDb::Impl {
   std::string path;
   MapDbOptions options;
-  sqlite::Db db;
+  sqlite::Db db;  // declared first: destroyed last, after every statement and blob handle
   sqlite::Stmt begin, commit, rollback;
   sqlite::Stmt zone_members;   // keyframe ids of one zone, stepping over zone_member's PK
   sqlite::Stmt payload_point;  // one payload by keyframe id (the per-keyframe path)
+  sqlite::Stmt node_point;     // one keyframe row by id (RTAB-Map's Node)
+  sqlite::Stmt weight_point;   // one keyframe's weight by id (the graph search's getWeight)
+  sqlite::Stmt links_of;       // every link of one keyframe, both directions (loadLinks)
+  sqlite::Stmt calibration;    // the camera rows of meta (RTAB-Map's Data.calibration)
   sqlite::Stmt keyframes, links, zones, all_members, zone_sizes;
   MapMetadata meta;
   std::unique_ptr<DenseDecoder> dense;  // decodes dense payloads into their slots
   std::uint64_t total_queries = 0;
+  std::uint64_t total_blob_reads = 0;
   std::uint64_t total_transactions = 0;
   std::uint64_t total_bytes = 0;
 
+  // The zone load in flight (zone == kNoZone: none). Between steps it holds the transaction,
+  // zone_members positioned on the next member to handle (row_ready) and the blob handle.
+  struct Cursor {
+    ZoneId zone = kNoZone;
+    Arena* arena = nullptr;
+    LoadSink* sink = nullptr;
+    bool row_ready = false;
+    std::uint32_t delivered = 0;  // keyframes of this load so far (for messages)
+  } cursor;
+  sqlite::Blob blob;  // after db: closed before the connection
+
   // Validates the payload that now sits in `slot` (exactly `bytes` long) for keyframe `id`.
-  Status Validate(KeyframeId id, std::span<const std::byte> blob) const {
-    auto view = DecodePayload(blob, DecodeOptions{.verify_crc = options.verify_checksums});
+  Status Validate(KeyframeId id, std::span<const std::byte> blob_bytes) const {
+    auto view = DecodePayload(blob_bytes, DecodeOptions{.verify_crc = options.verify_checksums});
     if (!view.ok()) return view.status().Annotate(Kf(id) + " in " + path);
     if (view->id != id) {
       return Corrupt(Kf(id) + " in " + path + ": payload row holds keyframe " +
@@ -237,6 +272,182 @@ struct MapDb::Impl {
     auto resident = dense->DecodeInSlot(slot, bytes);
     if (!resident.ok()) return resident.status().Annotate(Kf(id) + " in " + path);
     return resident;
+  }
+
+  void Count(LoadStats& st, std::uint32_t queries, std::uint32_t blob_reads,
+             std::uint32_t transactions) {
+    st.queries += queries;
+    st.blob_reads += blob_reads;
+    st.transactions += transactions;
+    total_queries += queries;
+    total_blob_reads += blob_reads;
+    total_transactions += transactions;
+  }
+  void CountBytes(LoadStats& st, std::uint32_t bytes) {
+    ++st.keyframes;
+    st.bytes += bytes;
+    total_bytes += bytes;
+  }
+
+  // A metadata statement run outside any transaction: one query, one transaction.
+  void CountMetadataRead() {
+    ++total_queries;
+    ++total_transactions;
+  }
+
+  Status RefuseWhileZoneLoad(std::string_view what) const {
+    if (cursor.zone == kNoZone) return Status::Ok();
+    return FailedPrecondition(std::string(what) + " refused: the load of zone " +
+                              std::to_string(cursor.zone.value) + " from " + path +
+                              " is in flight (one load at a time; step it to the end or abort it)");
+  }
+
+  // Ends the zone load in flight: statement reset, blob closed, transaction ended (COMMIT when
+  // `commit`, else ROLLBACK; a read transaction changes nothing either way). Returns the
+  // COMMIT's error, if any.
+  Status EndZoneLoad(bool commit_it) {
+    sqlite3_stmt* members = zone_members.get();
+    sqlite3_reset(members);
+    sqlite3_clear_bindings(members);
+    blob.reset();
+    cursor = Cursor{};
+    sqlite3_stmt* end = commit_it ? commit.get() : rollback.get();
+    const int rc = sqlite3_step(end);
+    sqlite3_reset(end);
+    if (commit_it && rc != SQLITE_DONE) return FromSqlite(rc, db.get(), "COMMIT");
+    return Status::Ok();
+  }
+
+  // Steps zone_members to the next member: row_ready says whether there is one.
+  Status Advance() {
+    const int rc = sqlite3_step(zone_members.get());
+    cursor.row_ready = rc == SQLITE_ROW;
+    if (rc == SQLITE_ROW || rc == SQLITE_DONE) return Status::Ok();
+    return FromSqlite(rc, db.get(), "stepping the members of zone " + std::to_string(cursor.zone.value));
+  }
+
+  Status MissingPayload(int brc, KeyframeId id) const {
+    const std::string zone = std::to_string(cursor.zone.value);
+    if ((brc & 0xff) == SQLITE_NOMEM) {  // SQLite's heap limit, not a missing row
+      return ResourceExhausted(Kf(id) + " of zone " + zone + " in " + path +
+                               ": SQLite out of memory opening its payload (" + sqlite3_errstr(brc) + ")");
+    }
+    return Corrupt(Kf(id) + " of zone " + zone + " in " + path + ": no readable payload row (" +
+                   sqlite3_errstr(brc) + ": " + sqlite3_errmsg(db.get()) + ")");
+  }
+
+  // Positions the blob handle on `id`'s payload (opened once per load, then moved along the
+  // payload table: no statement compile, no buffer).
+  Status PositionBlob(KeyframeId id) {
+    if (!blob) {
+      sqlite3_blob* raw = nullptr;
+      const int brc = sqlite3_blob_open(db.get(), "main", "payload", "blob", id.value, 0, &raw);
+      blob.reset(raw);
+      if (brc != SQLITE_OK) return MissingPayload(brc, id);
+      return Status::Ok();
+    }
+    const int brc = sqlite3_blob_reopen(blob.get(), id.value);
+    return brc == SQLITE_OK ? Status::Ok() : MissingPayload(brc, id);
+  }
+
+  // The body of one step (see StepZoneLoad); on error the caller ends the load.
+  Status Step(const LoadBudget& budget, LoadStats& st) {
+    Arena& arena = *cursor.arena;
+    LoadSink& sink = *cursor.sink;
+    const bool timed = budget.deadline != std::chrono::steady_clock::time_point::max();
+    std::uint32_t loaded = 0;
+    std::uint64_t bytes_loaded = 0;
+    while (cursor.row_ready) {
+      // Count and time are checked before Wants(), so a member is asked once unless the byte
+      // budget (which needs the blob's size) stops the step.
+      if (loaded > 0 && (loaded >= budget.max_keyframes ||
+                         (timed && std::chrono::steady_clock::now() >= budget.deadline))) {
+        return Status::Ok();
+      }
+      const KeyframeId id{sqlite3_column_int64(zone_members.get(), 0)};
+      if (!sink.Wants(id)) {
+        ++st.skipped;
+        ZM_RETURN_IF_ERROR(Advance());
+        continue;
+      }
+      ZM_RETURN_IF_ERROR(PositionBlob(id));
+      const int bytes = sqlite3_blob_bytes(blob.get());
+      if (bytes < 0 || static_cast<std::uint64_t>(bytes) > arena.slot_bytes()) {
+        return OutOfRange(Kf(id) + " in " + path + ": payload blob of " + std::to_string(bytes) +
+                          " bytes is larger than the arena slot of " +
+                          std::to_string(arena.slot_bytes()) + " bytes");
+      }
+      if (loaded > 0 && bytes_loaded + static_cast<std::uint64_t>(bytes) > budget.max_bytes) {
+        return Status::Ok();  // the row stays ready: the next step starts with this member
+      }
+      const auto slot = arena.TryAcquire();
+      if (!slot) {
+        return ResourceExhausted("arena full (" + std::to_string(arena.capacity()) +
+                                 " slots) loading " + Kf(id) + " of zone " +
+                                 std::to_string(cursor.zone.value) + " after " +
+                                 std::to_string(cursor.delivered) + " keyframes of this zone");
+      }
+      std::span<std::byte> dst = arena.Slot(*slot).first(static_cast<std::size_t>(bytes));
+      const int rrc = sqlite3_blob_read(blob.get(), dst.data(), bytes, 0);
+      Count(st, 0, 1, 0);
+      auto landed = rrc == SQLITE_OK
+                        ? Land(id, arena.Slot(*slot), static_cast<std::size_t>(bytes))
+                        : Result<std::uint32_t>(FromSqlite(rrc, db.get(), "reading the payload of " + Kf(id)));
+      if (!landed.ok()) {
+        arena.Release(*slot);
+        return landed.status();
+      }
+      sink.Loaded(id, *slot, *landed);
+      CountBytes(st, static_cast<std::uint32_t>(bytes));
+      ++loaded;
+      ++cursor.delivered;
+      bytes_loaded += static_cast<std::uint64_t>(bytes);
+      ZM_RETURN_IF_ERROR(Advance());
+    }
+    return Status::Ok();
+  }
+
+  // RTAB-Map's Node row of `id`: read and checked like Keyframes() does, then dropped.
+  Status ReadNodeRow(KeyframeId id) {
+    sqlite3_stmt* s = node_point.get();
+    StmtReset reset(s);
+    sqlite3_bind_int64(s, 1, id.value);
+    const int rc = sqlite3_step(s);
+    if (rc == SQLITE_DONE) return NotFound(Kf(id) + " is not in " + path);
+    if (rc != SQLITE_ROW) return FromSqlite(rc, db.get(), "reading the row of " + Kf(id));
+    Pose3 pose;
+    if (!PoseFromColumn(s, 2, pose)) {
+      return Corrupt(Kf(id) + ": pose blob is " + std::to_string(sqlite3_column_bytes(s, 2)) +
+                     " bytes, expected " + std::to_string(kPoseBlobBytes) + " (12 float64)");
+    }
+    return Status::Ok();
+  }
+
+  // Every link of `id` (both directions), each checked and handed to `sink` when there is one.
+  Status ReadLinksOf(KeyframeId id, GraphNodeSink* sink) {
+    sqlite3_stmt* s = links_of.get();
+    StmtReset reset(s);
+    sqlite3_bind_int64(s, 1, id.value);
+    int rc;
+    while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+      LinkRecord link;
+      ZM_RETURN_IF_ERROR(LinkFromRow(s, link));
+      if (sink != nullptr) sink->Link(link);
+    }
+    if (rc != SQLITE_DONE) return FromSqlite(rc, db.get(), "reading the links of " + Kf(id));
+    return Status::Ok();
+  }
+
+  // The camera rows of meta (a zonemap map has one calibration for every keyframe).
+  Status ReadCalibration(KeyframeId id) {
+    sqlite3_stmt* s = calibration.get();
+    StmtReset reset(s);
+    int rc;
+    while ((rc = sqlite3_step(s)) == SQLITE_ROW) (void)sqlite3_column_double(s, 1);
+    if (rc != SQLITE_DONE) {
+      return FromSqlite(rc, db.get(), "reading the calibration for " + Kf(id));
+    }
+    return Status::Ok();
   }
 };
 
@@ -274,6 +485,24 @@ Result<std::unique_ptr<MapDb>> MapDb::Open(const std::string& path, MapDbOptions
                                 "ORDER BY keyframe_id"));
   ZM_ASSIGN_OR_RETURN(impl->payload_point,
                       PrepareOn(db, path, "payload", "SELECT blob FROM payload WHERE keyframe_id=?1"));
+  ZM_ASSIGN_OR_RETURN(impl->node_point,
+                      PrepareOn(db, path, "keyframe",
+                                "SELECT id, stamp, pose, weight, payload_bytes FROM keyframe "
+                                "WHERE id=?1"));
+  ZM_ASSIGN_OR_RETURN(impl->weight_point,
+                      PrepareOn(db, path, "keyframe", "SELECT weight FROM keyframe WHERE id=?1"));
+  // Each edge is stored once, so a node's links are those it starts and those it ends: two
+  // index lookups (link_from, link_to; a map written before link_to existed scans for the
+  // second half, correct but slower: regenerate it or run `zonemap zones annotate` on it).
+  ZM_ASSIGN_OR_RETURN(impl->links_of,
+                      PrepareOn(db, path, "link",
+                                "SELECT from_id, to_id, type, transform, information FROM link "
+                                "WHERE from_id=?1 UNION ALL "
+                                "SELECT from_id, to_id, type, transform, information FROM link "
+                                "WHERE to_id=?1 AND from_id<>?1"));
+  ZM_ASSIGN_OR_RETURN(impl->calibration,
+                      PrepareOn(db, path, "meta",
+                                "SELECT key, value FROM meta WHERE key GLOB 'camera_*'"));
   ZM_ASSIGN_OR_RETURN(impl->keyframes,
                       PrepareOn(db, path, "keyframe",
                                 "SELECT id, stamp, pose, weight, payload_bytes FROM keyframe "
@@ -335,6 +564,12 @@ Result<std::unique_ptr<MapDb>> MapDb::Open(const std::string& path, MapDbOptions
     }
   }
   if (rc != SQLITE_DONE) return FromSqlite(rc, db, path + ": reading table meta");
+  {
+    ZM_ASSIGN_OR_RETURN(sqlite::Stmt page, Prepare(db, "PRAGMA page_size"));
+    if (sqlite3_step(page.get()) == SQLITE_ROW) {
+      m.page_bytes = static_cast<std::uint32_t>(sqlite3_column_int(page.get(), 0));
+    }
+  }
   if (!finished) {
     return FailedPrecondition(path + " was not finished by its writer (meta has no keyframe_count; "
                               "MapDbWriter::Finish() was not called)");
@@ -363,17 +598,17 @@ Result<std::unique_ptr<MapDb>> MapDb::Open(const std::string& path, MapDbOptions
 const MapMetadata& MapDb::metadata() const { return impl_->meta; }
 
 Result<std::vector<KeyframeMeta>> MapDb::Keyframes() const {
-  ++impl_->total_queries;
+  impl_->CountMetadataRead();
   return ReadKeyframes(impl_->db.get(), impl_->keyframes.get());
 }
 
 Result<std::vector<LinkRecord>> MapDb::Links() const {
-  ++impl_->total_queries;
+  impl_->CountMetadataRead();
   return ReadLinks(impl_->db.get(), impl_->links.get());
 }
 
 Result<std::vector<ZoneRecord>> MapDb::Zones() const {
-  ++impl_->total_queries;
+  impl_->CountMetadataRead();
   sqlite3_stmt* s = impl_->zones.get();
   StmtReset reset(s);
   std::vector<ZoneRecord> out;
@@ -406,7 +641,7 @@ Result<std::vector<ZoneRecord>> MapDb::Zones() const {
 }
 
 Result<std::vector<ZoneMember>> MapDb::ZoneMembers() const {
-  ++impl_->total_queries;
+  impl_->CountMetadataRead();
   sqlite3_stmt* s = impl_->all_members.get();
   StmtReset reset(s);
   std::vector<ZoneMember> out;
@@ -419,7 +654,7 @@ Result<std::vector<ZoneMember>> MapDb::ZoneMembers() const {
 }
 
 Result<std::vector<std::uint32_t>> MapDb::ZoneSizes() const {
-  ++impl_->total_queries;
+  impl_->CountMetadataRead();
   sqlite3_stmt* s = impl_->zone_sizes.get();
   StmtReset reset(s);
   std::vector<std::uint32_t> out(impl_->meta.zone_count, 0);
@@ -436,96 +671,67 @@ Result<std::vector<std::uint32_t>> MapDb::ZoneSizes() const {
   return out;
 }
 
-Result<LoadStats> MapDb::LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) {
+Result<LoadStats> MapDb::BeginZoneLoad(ZoneId zone, Arena& arena, LoadSink& sink) {
   const auto t0 = std::chrono::steady_clock::now();
   Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.RefuseWhileZoneLoad("loading zone " + std::to_string(zone.value)));
   if (zone.value < 0 || static_cast<std::uint64_t>(zone.value) >= im.meta.zone_count) {
     return NotFound("zone " + std::to_string(zone.value) + " is not in " + im.path + " (" +
                     std::to_string(im.meta.zone_count) + " zones)");
   }
   sqlite3* db = im.db.get();
   LoadStats st;
-  int rc = sqlite3_step(im.begin.get());
+  const int rc = sqlite3_step(im.begin.get());
   sqlite3_reset(im.begin.get());
   if (rc != SQLITE_DONE) return FromSqlite(rc, db, "BEGIN for zone " + std::to_string(zone.value));
-  ++st.transactions;
-  ++im.total_transactions;
+  im.cursor.zone = zone;
+  im.cursor.arena = &arena;
+  im.cursor.sink = &sink;
+  im.Count(st, 1, 0, 1);
+  // The first step of the member statement takes the read lock: from here on the load sees
+  // one state of the map, however many steps it takes.
+  sqlite3_bind_int(im.zone_members.get(), 1, zone.value);
+  Status status = im.Advance();
+  if (!status.ok()) {
+    (void)im.EndZoneLoad(/*commit_it=*/false);
+    return status;
+  }
+  st.ms = Ms(t0);
+  return st;
+}
 
-  // The body; whatever it returns, the statement is reset, the blob handle closed and the read
-  // transaction ended below.
-  sqlite::Blob blob;
-  sqlite3_stmt* members = im.zone_members.get();
-  const auto MissingPayload = [&](int brc, KeyframeId id) {
-    if ((brc & 0xff) == SQLITE_NOMEM) {  // SQLite's heap limit, not a missing row
-      return ResourceExhausted(Kf(id) + " of zone " + std::to_string(zone.value) + " in " + im.path +
-                               ": SQLite out of memory opening its payload (" + sqlite3_errstr(brc) + ")");
-    }
-    return Corrupt(Kf(id) + " of zone " + std::to_string(zone.value) + " in " + im.path +
-                   ": no readable payload row (" + sqlite3_errstr(brc) + ": " + sqlite3_errmsg(db) +
-                   ")");
-  };
-  const auto body = [&]() -> Status {
-    sqlite3_bind_int(members, 1, zone.value);
-    ++st.queries;
-    ++im.total_queries;
-    while ((rc = sqlite3_step(members)) == SQLITE_ROW) {
-      const KeyframeId id{sqlite3_column_int64(members, 0)};
-      if (!sink.Wants(id)) {
-        ++st.skipped;
-        continue;
-      }
-      // The blob handle is opened on the first wanted member and moved along the payload table
-      // for the others: no statement compile, no buffer.
-      if (!blob) {
-        sqlite3_blob* raw = nullptr;
-        const int brc = sqlite3_blob_open(db, "main", "payload", "blob", id.value, 0, &raw);
-        blob.reset(raw);
-        if (brc != SQLITE_OK) return MissingPayload(brc, id);
-      } else {
-        const int brc = sqlite3_blob_reopen(blob.get(), id.value);
-        if (brc != SQLITE_OK) return MissingPayload(brc, id);
-      }
-      const int bytes = sqlite3_blob_bytes(blob.get());
-      if (bytes < 0 || static_cast<std::uint64_t>(bytes) > arena.slot_bytes()) {
-        return OutOfRange(Kf(id) + " in " + im.path + ": payload blob of " + std::to_string(bytes) +
-                          " bytes is larger than the arena slot of " +
-                          std::to_string(arena.slot_bytes()) + " bytes");
-      }
-      const auto slot = arena.TryAcquire();
-      if (!slot) {
-        return ResourceExhausted("arena full (" + std::to_string(arena.capacity()) +
-                                 " slots) loading " + Kf(id) + " of zone " +
-                                 std::to_string(zone.value) + " after " +
-                                 std::to_string(st.keyframes) + " keyframes of this zone");
-      }
-      std::span<std::byte> dst = arena.Slot(*slot).first(static_cast<std::size_t>(bytes));
-      const int rrc = sqlite3_blob_read(blob.get(), dst.data(), bytes, 0);
-      auto landed = rrc == SQLITE_OK
-                        ? im.Land(id, arena.Slot(*slot), static_cast<std::size_t>(bytes))
-                        : Result<std::uint32_t>(FromSqlite(rrc, db, "reading the payload of " + Kf(id)));
-      if (!landed.ok()) {
-        arena.Release(*slot);
-        return landed.status();
-      }
-      sink.Loaded(id, *slot, *landed);
-      ++st.keyframes;
-      st.bytes += static_cast<std::uint64_t>(bytes);
-      im.total_bytes += static_cast<std::uint64_t>(bytes);
-    }
-    if (rc != SQLITE_DONE) {
-      return FromSqlite(rc, db, "stepping the members of zone " + std::to_string(zone.value));
-    }
-    return Status::Ok();
-  };
-  Status status = body();
-  sqlite3_reset(members);
-  sqlite3_clear_bindings(members);
-  blob.reset();
-  sqlite3_stmt* end = status.ok() ? im.commit.get() : im.rollback.get();
-  rc = sqlite3_step(end);
-  sqlite3_reset(end);
-  if (status.ok() && rc != SQLITE_DONE) status = FromSqlite(rc, db, "COMMIT");
-  if (!status.ok()) return status;
+Result<ZoneLoadStep> MapDb::StepZoneLoad(const LoadBudget& budget) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Impl& im = *impl_;
+  if (im.cursor.zone == kNoZone) {
+    return FailedPrecondition("no zone load in flight on " + im.path + " (BeginZoneLoad first)");
+  }
+  ZoneLoadStep step;
+  Status status = im.Step(budget, step.stats);
+  if (status.ok() && !im.cursor.row_ready) {
+    status = im.EndZoneLoad(/*commit_it=*/true);
+    step.done = true;
+  }
+  if (!status.ok()) {
+    if (im.cursor.zone != kNoZone) (void)im.EndZoneLoad(/*commit_it=*/false);
+    return status;
+  }
+  step.stats.ms = Ms(t0);
+  return step;
+}
+
+void MapDb::AbortZoneLoad() {
+  if (impl_->cursor.zone != kNoZone) (void)impl_->EndZoneLoad(/*commit_it=*/false);
+}
+
+ZoneId MapDb::ZoneLoadInFlight() const { return impl_->cursor.zone; }
+
+Result<LoadStats> MapDb::LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ZM_ASSIGN_OR_RETURN(LoadStats st, BeginZoneLoad(zone, arena, sink));
+  ZM_ASSIGN_OR_RETURN(const ZoneLoadStep step, StepZoneLoad(LoadBudget{}));
+  assert(step.done && "an unlimited step finishes the load");
+  st += step.stats;
   st.ms = Ms(t0);
   return st;
 }
@@ -534,56 +740,101 @@ Result<LoadStats> MapDb::LoadKeyframes(std::span<const KeyframeId> ids, Arena& a
                                        LoadSink& sink) {
   const auto t0 = std::chrono::steady_clock::now();
   Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.RefuseWhileZoneLoad("loading keyframes"));
   sqlite3* db = im.db.get();
-  sqlite3_stmt* s = im.payload_point.get();
   LoadStats st;
-  // RTAB-Map's pattern: one point query per keyframe, each in its own implicit transaction.
+  // RTAB-Map's retrieval (basic-baseline.md §5, §11): per node its Node row, its features, its
+  // links and its calibration, each one statement outside any transaction (autocommit: one
+  // transaction each). Here: the keyframe row, the payload, the links of both directions and
+  // the camera rows of meta (a zonemap map has no GlobalDescriptor table). Only the payload is
+  // kept; the rest is read and counted, as the cost of retrieving a node the RTAB-Map way.
   for (const KeyframeId id : ids) {
     if (!sink.Wants(id)) {
       ++st.skipped;
       continue;
     }
-    StmtReset reset(s);
-    sqlite3_bind_int64(s, 1, id.value);
-    ++st.queries;
-    ++im.total_queries;
-    const int rc = sqlite3_step(s);
-    if (rc == SQLITE_DONE) return NotFound(Kf(id) + " is not in " + im.path);
-    if (rc != SQLITE_ROW) return FromSqlite(rc, db, "reading the payload of " + Kf(id));
-    const int bytes = sqlite3_column_bytes(s, 0);
-    if (bytes < 0 || static_cast<std::uint64_t>(bytes) > arena.slot_bytes()) {
-      return OutOfRange(Kf(id) + " in " + im.path + ": payload blob of " + std::to_string(bytes) +
-                        " bytes is larger than the arena slot of " +
-                        std::to_string(arena.slot_bytes()) + " bytes");
+    im.Count(st, 1, 0, 1);
+    ZM_RETURN_IF_ERROR(im.ReadNodeRow(id));
+
+    sqlite3_stmt* s = im.payload_point.get();
+    std::optional<SlotIndex> slot;
+    int bytes = 0;
+    {
+      // Reset at the end of this scope, ending its transaction before the next statement.
+      StmtReset reset(s);
+      sqlite3_bind_int64(s, 1, id.value);
+      im.Count(st, 1, 0, 1);
+      const int rc = sqlite3_step(s);
+      if (rc == SQLITE_DONE) return NotFound(Kf(id) + " has no payload row in " + im.path);
+      if (rc != SQLITE_ROW) return FromSqlite(rc, db, "reading the payload of " + Kf(id));
+      bytes = sqlite3_column_bytes(s, 0);
+      if (bytes < 0 || static_cast<std::uint64_t>(bytes) > arena.slot_bytes()) {
+        return OutOfRange(Kf(id) + " in " + im.path + ": payload blob of " + std::to_string(bytes) +
+                          " bytes is larger than the arena slot of " +
+                          std::to_string(arena.slot_bytes()) + " bytes");
+      }
+      const void* src = sqlite3_column_blob(s, 0);
+      if (src == nullptr && bytes > 0) {
+        return ResourceExhausted("SQLite could not materialise the payload of " + Kf(id) + " (" +
+                                 std::to_string(bytes) + " bytes)");
+      }
+      slot = arena.TryAcquire();
+      if (!slot) {
+        return ResourceExhausted("arena full (" + std::to_string(arena.capacity()) +
+                                 " slots) loading " + Kf(id) + " after " +
+                                 std::to_string(st.keyframes) + " keyframes of this call");
+      }
+      if (bytes > 0) std::memcpy(arena.Slot(*slot).data(), src, static_cast<std::size_t>(bytes));
     }
-    const void* src = sqlite3_column_blob(s, 0);
-    if (src == nullptr && bytes > 0) {
-      return ResourceExhausted("SQLite could not materialise the payload of " + Kf(id) + " (" +
-                               std::to_string(bytes) + " bytes)");
-    }
-    const auto slot = arena.TryAcquire();
-    if (!slot) {
-      return ResourceExhausted("arena full (" + std::to_string(arena.capacity()) +
-                               " slots) loading " + Kf(id) + " after " +
-                               std::to_string(st.keyframes) + " keyframes of this call");
-    }
-    std::span<std::byte> dst = arena.Slot(*slot).first(static_cast<std::size_t>(bytes));
-    if (bytes > 0) std::memcpy(dst.data(), src, static_cast<std::size_t>(bytes));
     auto landed = im.Land(id, arena.Slot(*slot), static_cast<std::size_t>(bytes));
-    if (!landed.ok()) {
+    Status valid = landed.ok() ? Status::Ok() : landed.status();
+    if (valid.ok()) {
+      im.Count(st, 1, 0, 1);
+      valid = im.ReadLinksOf(id, nullptr);
+    }
+    if (valid.ok()) {
+      im.Count(st, 1, 0, 1);
+      valid = im.ReadCalibration(id);
+    }
+    if (!valid.ok()) {
       arena.Release(*slot);
-      return landed.status();
+      return valid;
     }
     sink.Loaded(id, *slot, *landed);
-    ++st.keyframes;
-    st.bytes += static_cast<std::uint64_t>(bytes);
-    im.total_bytes += static_cast<std::uint64_t>(bytes);
+    im.CountBytes(st, static_cast<std::uint32_t>(bytes));
+  }
+  st.ms = Ms(t0);
+  return st;
+}
+
+Result<LoadStats> MapDb::ReadGraphNodes(std::span<const KeyframeId> ids, GraphNodeSink* sink) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.RefuseWhileZoneLoad("reading graph nodes"));
+  sqlite3* db = im.db.get();
+  LoadStats st;
+  // Memory::getNeighborsId per admitted long-term-memory node: getWeight, then loadLinks
+  // (basic-baseline.md §3.1), each its own autocommit statement.
+  for (const KeyframeId id : ids) {
+    sqlite3_stmt* w = im.weight_point.get();
+    {
+      StmtReset reset(w);
+      sqlite3_bind_int64(w, 1, id.value);
+      im.Count(st, 1, 0, 1);
+      const int rc = sqlite3_step(w);
+      if (rc == SQLITE_DONE) return NotFound(Kf(id) + " is not in " + im.path);
+      if (rc != SQLITE_ROW) return FromSqlite(rc, db, "reading the weight of " + Kf(id));
+      if (sink != nullptr) sink->Node(id, sqlite3_column_int(w, 0));
+    }
+    im.Count(st, 1, 0, 1);
+    ZM_RETURN_IF_ERROR(im.ReadLinksOf(id, sink));
   }
   st.ms = Ms(t0);
   return st;
 }
 
 std::uint64_t MapDb::total_queries() const { return impl_->total_queries; }
+std::uint64_t MapDb::total_blob_reads() const { return impl_->total_blob_reads; }
 std::uint64_t MapDb::total_transactions() const { return impl_->total_transactions; }
 std::uint64_t MapDb::total_bytes_read() const { return impl_->total_bytes; }
 
@@ -591,8 +842,19 @@ std::uint64_t MapDb::total_bytes_read() const { return impl_->total_bytes; }
 // Writer
 // ---------------------------------------------------------------------------------------------
 
+std::uint32_t PageBytesForPayload(std::uint64_t mean_payload_bytes) {
+  constexpr std::uint64_t kMin = 4096;
+  constexpr std::uint64_t kMax = 65536;
+  return static_cast<std::uint32_t>(std::clamp<std::uint64_t>(std::bit_floor(mean_payload_bytes / 16),
+                                                               kMin, kMax));
+}
+
 struct MapDbWriter::Impl {
   std::string path;
+  MapDbWriterOptions options;
+  bool schema_ready = false;  // false: a new database whose schema waits for the page size
+  std::optional<CameraIntrinsics> pending_camera;  // SetCamera/SetSource before the schema
+  std::optional<std::string> pending_source;
   sqlite::Db db;
   sqlite::Stmt begin, commit, rollback;
   sqlite::Stmt ins_keyframe, ins_payload, ins_link, ins_zone, ins_member, del_zones, del_members;
@@ -679,12 +941,57 @@ struct MapDbWriter::Impl {
   void Report(std::string_view stage, std::uint64_t done, std::uint64_t total) const {
     if (progress && (done % 256 == 0 || done == total)) progress(stage, done, total);
   }
+
+  Status WriteCamera(const CameraIntrinsics& c) {
+    return InTransaction("camera", [&]() -> Status {
+      ZM_RETURN_IF_ERROR(PutMeta("camera_fx", c.fx));
+      ZM_RETURN_IF_ERROR(PutMeta("camera_fy", c.fy));
+      ZM_RETURN_IF_ERROR(PutMeta("camera_cx", c.cx));
+      ZM_RETURN_IF_ERROR(PutMeta("camera_cy", c.cy));
+      ZM_RETURN_IF_ERROR(PutMeta("camera_width", sqlite3_int64{c.width}));
+      return PutMeta("camera_height", sqlite3_int64{c.height});
+    });
+  }
+
+  // Creates the schema of a new database with `page_bytes` pages (the options' size wins when
+  // set), then writes what SetCamera/SetSource kept. A no-op once done.
+  Status EnsureSchema(std::uint32_t page_bytes) {
+    if (schema_ready) return Status::Ok();
+    if (options.page_bytes != 0) page_bytes = options.page_bytes;
+    sqlite3* d = db.get();
+    // page_size first: it only takes effect on a database with nothing in it yet, and WAL mode
+    // would fix it (WAL cannot change the page size).
+    ZM_RETURN_IF_ERROR(sqlite::Exec(d,
+                                    "PRAGMA page_size=" + std::to_string(page_bytes) +
+                                        "; PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;",
+                                    "configuring " + path));
+    ZM_RETURN_IF_ERROR(sqlite::Exec(
+        d, std::string("BEGIN;") + kSchemaSql + "PRAGMA user_version=" +
+               std::to_string(kMapDbSchemaVersion) + "; COMMIT;",
+        "creating the schema in " + path));
+    ZM_RETURN_IF_ERROR(Prepare());
+    schema_ready = true;
+    if (pending_camera) ZM_RETURN_IF_ERROR(WriteCamera(*pending_camera));
+    if (pending_source) {
+      ZM_RETURN_IF_ERROR(InTransaction("source", [&] { return PutMeta("source", *pending_source); }));
+    }
+    pending_camera.reset();
+    pending_source.reset();
+    return Status::Ok();
+  }
+  Status EnsureSchema() { return EnsureSchema(4096); }
 };
 
 MapDbWriter::MapDbWriter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 MapDbWriter::~MapDbWriter() = default;
 
-Result<std::unique_ptr<MapDbWriter>> MapDbWriter::Create(const std::string& path, bool overwrite) {
+Result<std::unique_ptr<MapDbWriter>> MapDbWriter::Create(const std::string& path, bool overwrite,
+                                                         MapDbWriterOptions options) {
+  const std::uint32_t page = options.page_bytes;
+  if (page != 0 && (page < 512 || page > 65536 || !std::has_single_bit(page))) {
+    return InvalidArgument("map database page size " + std::to_string(page) +
+                           " bytes: must be a power of two from 512 to 65536 (or 0 = automatic)");
+  }
   std::error_code ec;
   if (std::filesystem::exists(path, ec)) {
     if (!overwrite) return FailedPrecondition(path + " already exists (pass overwrite to replace it)");
@@ -695,16 +1002,11 @@ Result<std::unique_ptr<MapDbWriter>> MapDbWriter::Create(const std::string& path
   }
   auto impl = std::make_unique<Impl>();
   impl->path = path;
+  impl->options = options;
   ZM_ASSIGN_OR_RETURN(impl->db, sqlite::Open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE |
                                                        SQLITE_OPEN_NOMUTEX));
-  sqlite3* db = impl->db.get();
-  ZM_RETURN_IF_ERROR(sqlite::Exec(db, "PRAGMA page_size=4096; PRAGMA journal_mode=WAL; "
-                                      "PRAGMA synchronous=NORMAL;", "configuring " + path));
-  ZM_RETURN_IF_ERROR(sqlite::Exec(
-      db, std::string("BEGIN;") + kSchemaSql + "PRAGMA user_version=" +
-              std::to_string(kMapDbSchemaVersion) + "; COMMIT;",
-      "creating the schema in " + path));
-  ZM_RETURN_IF_ERROR(impl->Prepare());
+  // The schema waits for the first call that needs it (EnsureSchema), so that the page size
+  // can follow the first batch of payloads.
   return std::unique_ptr<MapDbWriter>(new MapDbWriter(std::move(impl)));
 }
 
@@ -713,11 +1015,16 @@ Result<std::unique_ptr<MapDbWriter>> MapDbWriter::OpenExisting(const std::string
   if (!std::filesystem::exists(path, ec)) return NotFound("map database " + path + " does not exist");
   auto impl = std::make_unique<Impl>();
   impl->path = path;
+  impl->schema_ready = true;
   ZM_ASSIGN_OR_RETURN(impl->db, sqlite::Open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX));
   sqlite3* db = impl->db.get();
   ZM_RETURN_IF_ERROR(CheckSchema(db, path));
   ZM_RETURN_IF_ERROR(sqlite::Exec(db, "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;",
                                   "configuring " + path));
+  // Maps written before the link_to index existed get it here (same schema version: readers
+  // work with or without it, only faster with it).
+  ZM_RETURN_IF_ERROR(sqlite::Exec(db, "CREATE INDEX IF NOT EXISTS link_to ON link(to_id)",
+                                  "indexing table link of " + path));
   ZM_RETURN_IF_ERROR(impl->Prepare());
   return std::unique_ptr<MapDbWriter>(new MapDbWriter(std::move(impl)));
 }
@@ -726,6 +1033,12 @@ void MapDbWriter::SetProgress(WriteProgressFn progress) { impl_->progress = std:
 
 Status MapDbWriter::InsertKeyframes(std::span<const KeyframeRecord> keyframes) {
   Impl& im = *impl_;
+  if (!im.schema_ready) {
+    std::uint64_t sum = 0;
+    for (const KeyframeRecord& k : keyframes) sum += k.payload.size();
+    ZM_RETURN_IF_ERROR(im.EnsureSchema(
+        PageBytesForPayload(keyframes.empty() ? 0 : sum / keyframes.size())));
+  }
   sqlite3* db = im.db.get();
   return im.InTransaction("keyframes", [&]() -> Status {
     std::uint64_t done = 0;
@@ -767,6 +1080,7 @@ Status MapDbWriter::InsertKeyframes(std::span<const KeyframeRecord> keyframes) {
 
 Status MapDbWriter::InsertLinks(std::span<const LinkRecord> links) {
   Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.EnsureSchema());
   sqlite3* db = im.db.get();
   return im.InTransaction("links", [&]() -> Status {
     std::uint64_t done = 0;
@@ -798,6 +1112,7 @@ Status MapDbWriter::InsertLinks(std::span<const LinkRecord> links) {
 Status MapDbWriter::ReplaceZones(std::span<const ZoneRecord> zones,
                                  std::span<const ZoneMember> members) {
   Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.EnsureSchema());
   sqlite3* db = im.db.get();
   return im.InTransaction("zones", [&]() -> Status {
     ZM_RETURN_IF_ERROR(sqlite::StepDone(db, im.del_members.get(), "clearing table zone_member"));
@@ -859,31 +1174,35 @@ Status MapDbWriter::ReplaceZones(std::span<const ZoneRecord> zones,
 
 Status MapDbWriter::SetCamera(const CameraIntrinsics& c) {
   Impl& im = *impl_;
-  return im.InTransaction("camera", [&]() -> Status {
-    ZM_RETURN_IF_ERROR(im.PutMeta("camera_fx", c.fx));
-    ZM_RETURN_IF_ERROR(im.PutMeta("camera_fy", c.fy));
-    ZM_RETURN_IF_ERROR(im.PutMeta("camera_cx", c.cx));
-    ZM_RETURN_IF_ERROR(im.PutMeta("camera_cy", c.cy));
-    ZM_RETURN_IF_ERROR(im.PutMeta("camera_width", sqlite3_int64{c.width}));
-    return im.PutMeta("camera_height", sqlite3_int64{c.height});
-  });
+  if (!im.schema_ready) {
+    im.pending_camera = c;
+    return Status::Ok();
+  }
+  return im.WriteCamera(c);
 }
 
 Status MapDbWriter::SetSource(const std::string& source) {
   Impl& im = *impl_;
+  if (!im.schema_ready) {
+    im.pending_source = source;
+    return Status::Ok();
+  }
   return im.InTransaction("source", [&] { return im.PutMeta("source", source); });
 }
 
 Result<std::vector<KeyframeMeta>> MapDbWriter::Keyframes() const {
+  if (!impl_->schema_ready) return std::vector<KeyframeMeta>{};
   return ReadKeyframes(impl_->db.get(), impl_->keyframes.get());
 }
 
 Result<std::vector<LinkRecord>> MapDbWriter::Links() const {
+  if (!impl_->schema_ready) return std::vector<LinkRecord>{};
   return ReadLinks(impl_->db.get(), impl_->links.get());
 }
 
 Status MapDbWriter::Finish() {
   Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.EnsureSchema());
   sqlite3* db = im.db.get();
   const auto compute = [&]() -> Status {
     ZM_ASSIGN_OR_RETURN(sqlite::Stmt s,

@@ -2,19 +2,29 @@
 // SQLite file. Writers (simulator, importer, zone annotation) use MapDbWriter; the run-time reads
 // through MapDb, opened read-only with every statement prepared once at open.
 //
-// The hot path is LoadZone(): one transaction, one prepared statement stepping over the
-// zone-member index, each member's payload copied straight into an arena slot (no intermediate
-// heap buffer), stopping with a clear error, never writing outside a slot, if a blob does not
-// fit. LoadKeyframes() is the per-keyframe path of the "basic" baseline; it counts its queries
-// so the two I/O patterns can be compared.
+// The hot path is the zone load: one read transaction, one prepared statement stepping over the
+// zone-member index, each member's payload read by SQLite's incremental blob I/O straight into an
+// arena slot (no buffer of ours; with the large pages MapDbWriter picks for large payloads,
+// SQLite reads each overflow page with one pread straight into the slot), checked with the
+// hardware CRC-32C, stopping with a clear error, never writing outside a slot, if a blob does not
+// fit. It runs in one call (LoadZone) or time-sliced (BeginZoneLoad / StepZoneLoad /
+// AbortZoneLoad: the same transaction held open across steps, keyframes delivered one at a
+// time, each complete and validated before the sink hears of it).
+//
+// LoadKeyframes() is the per-node retrieval of the "basic" baseline and ReadGraphNodes() its
+// graph-search point queries, both as real statements, each its own transaction, as RTAB-Map
+// does them (basic-baseline.md §3.1, §5, §11). Every path counts its work in LoadStats the same
+// way, so the I/O patterns can be compared.
 //
 // This module knows nothing of memory policies (docs/design.md): callers say which keyframes
 // they want through a LoadSink and get told which slot each one landed in.
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <span>
 #include <string>
@@ -28,7 +38,10 @@
 
 namespace zm {
 
-// Bumped whenever the schema changes; a database of another version is refused at open.
+// Bumped whenever the schema changes so that a reader of one version cannot read the other; a
+// database of another version is refused at open. Not bumped by changes both ways can read: the
+// page size (any is read), the link_to index (used when present), the payload version (carried
+// by each payload, keyframe_payload.h).
 inline constexpr int kMapDbSchemaVersion = 1;
 
 // RTAB-Map's Link.type values (basic-baseline.md §5), kept as-is on import.
@@ -87,22 +100,45 @@ struct MapMetadata {
   std::uint64_t zone_count = 0;
   std::uint32_t largest_payload_bytes = 0;  // largest resident keyframe: slot_bytes >= this
   std::uint64_t total_payload_bytes = 0;
+  std::uint32_t page_bytes = 0;  // SQLite page size of the file (PRAGMA page_size)
   CameraIntrinsics camera;
   std::string source;  // "sim hospital seed=1", "rtabmap:/path/file.db", ...
 };
 
-// What a load did. Times are wall-clock on a monotonic clock.
+// What a load did, counted the same way on every path so I/O patterns compare (issue 17 §5).
+// Times are wall-clock on a monotonic clock.
+//   queries       SQL statements executed (each SELECT stepped from its start; BEGIN, COMMIT
+//                 and ROLLBACK are not counted here, they are the transaction);
+//   blob_reads    payloads read through an incremental blob handle (the zone load's way);
+//   transactions  read transactions: each BEGIN..COMMIT, plus each statement executed outside
+//                 one (SQLite's autocommit: one statement, one transaction).
+// A zone load: 1 query, 1 blob read per keyframe read, 1 transaction. LoadKeyframes: 4 queries
+// and 4 transactions per keyframe read. ReadGraphNodes: 2 queries, 2 transactions per node.
 struct LoadStats {
   std::uint32_t keyframes = 0;     // payloads copied into slots
   std::uint32_t skipped = 0;       // members the sink did not want (already resident)
   std::uint64_t bytes = 0;         // payload bytes copied
-  std::uint32_t queries = 0;       // statements stepped (a zone load is 1)
-  std::uint32_t transactions = 0;  // BEGIN..COMMIT pairs (a zone load is 1)
+  std::uint32_t queries = 0;       // SQL statements executed (see above)
+  std::uint32_t blob_reads = 0;    // incremental blob reads
+  std::uint32_t transactions = 0;  // read transactions, autocommit statements included
   double ms = 0.0;
+
+  LoadStats& operator+=(const LoadStats& o) {
+    keyframes += o.keyframes;
+    skipped += o.skipped;
+    bytes += o.bytes;
+    queries += o.queries;
+    blob_reads += o.blob_reads;
+    transactions += o.transactions;
+    ms += o.ms;
+    return *this;
+  }
 };
 
 // Receives loaded keyframes. Wants() is asked before a payload is read (so resident keyframes
-// of overlapping zones are not read twice); Loaded() after it sits in `slot`.
+// of overlapping zones are not read twice); Loaded() after it sits in `slot`, complete and
+// validated (the slot then belongs to the sink). A time-sliced load may ask Wants() again for a
+// member it stopped before (the answer must not change while the load is in flight).
 class LoadSink {
  public:
   virtual ~LoadSink() = default;
@@ -110,16 +146,70 @@ class LoadSink {
   virtual void Loaded(KeyframeId id, SlotIndex slot, std::uint32_t payload_bytes) = 0;
 };
 
+// Receives what ReadGraphNodes() read: each node's weight, then each of its links (both
+// directions: `link.from` or `link.to` is the node).
+class GraphNodeSink {
+ public:
+  virtual ~GraphNodeSink() = default;
+  virtual void Node(KeyframeId id, std::int32_t weight) = 0;
+  virtual void Link(const LinkRecord& link) = 0;
+};
+
+// How much one step of a time-sliced zone load may do. A step always loads at least one
+// keyframe when one is left (so every load finishes), then stops before the first keyframe
+// that would take it past max_keyframes or past max_bytes of payload, or that would start after
+// the deadline. Skipped members (not wanted) cost nothing against the budget.
+struct LoadBudget {
+  std::uint32_t max_keyframes = std::numeric_limits<std::uint32_t>::max();
+  std::uint64_t max_bytes = std::numeric_limits<std::uint64_t>::max();
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+};
+
+// The outcome of one StepZoneLoad().
+struct ZoneLoadStep {
+  bool done = false;  // every member handled and the transaction ended: no load in flight now
+  LoadStats stats;    // what this step did
+};
+
 // The seam between the working set and the database: the memory module talks to this
 // interface, tests use a fake (tests/support/fake_keyframe_source.h).
+//
+// Time-sliced zone loads: at most ONE is in flight per source. BeginZoneLoad opens the read
+// transaction (the load sees one state of the map, whatever is written meanwhile), each
+// StepZoneLoad delivers keyframes within its budget, the last one ends the transaction
+// (done = true). Any error ends the load: the failing keyframe's slot is released, the
+// transaction ended, and nothing is in flight any more; keyframes delivered before stay with the
+// sink. AbortZoneLoad ends a load early the same way. Between steps the source holds no slot:
+// only the transaction, its statement and blob handle. The arena and the sink must outlive the
+// load. While a zone load is in flight, the other loads and ReadGraphNodes are refused
+// (FailedPrecondition), so each counts its transactions truly.
 class KeyframeSource {
  public:
   virtual ~KeyframeSource() = default;
-  // Loads the members of `zone` that the sink wants, in one transaction.
+  // Loads the members of `zone` that the sink wants, in one transaction (one call: Begin, then
+  // Step with no budget).
   [[nodiscard]] virtual Result<LoadStats> LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) = 0;
-  // Loads the given keyframes one point query each (RTAB-Map's pattern), in one call.
+  // Loads the given keyframes the way RTAB-Map retrieves nodes: per wanted keyframe its row,
+  // payload, links and calibration, each one statement in its own transaction.
   [[nodiscard]] virtual Result<LoadStats> LoadKeyframes(std::span<const KeyframeId> ids,
                                                         Arena& arena, LoadSink& sink) = 0;
+
+  // Starts a time-sliced load of `zone` (see above); returns what starting cost (1 transaction,
+  // 1 query). Refused while another load is in flight.
+  [[nodiscard]] virtual Result<LoadStats> BeginZoneLoad(ZoneId zone, Arena& arena,
+                                                        LoadSink& sink) = 0;
+  // Delivers the next keyframes within `budget`. Refused when no load is in flight.
+  [[nodiscard]] virtual Result<ZoneLoadStep> StepZoneLoad(const LoadBudget& budget) = 0;
+  // Ends the load in flight, if any (no-op otherwise).
+  virtual void AbortZoneLoad() = 0;
+  // The zone being loaded, or kNoZone.
+  [[nodiscard]] virtual ZoneId ZoneLoadInFlight() const = 0;
+
+  // The basic baseline's graph-search point queries (basic-baseline.md §3.1): per id its weight
+  // and its links, two statements, each its own transaction. `sink` may be null (read, counted,
+  // discarded). An id that is not in the map is NotFound. No allocation once warm.
+  [[nodiscard]] virtual Result<LoadStats> ReadGraphNodes(std::span<const KeyframeId> ids,
+                                                         GraphNodeSink* sink) = 0;
 };
 
 struct MapDbOptions {
@@ -150,9 +240,15 @@ class MapDb final : public KeyframeSource {
   Result<LoadStats> LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) override;
   Result<LoadStats> LoadKeyframes(std::span<const KeyframeId> ids, Arena& arena,
                                   LoadSink& sink) override;
+  Result<LoadStats> BeginZoneLoad(ZoneId zone, Arena& arena, LoadSink& sink) override;
+  Result<ZoneLoadStep> StepZoneLoad(const LoadBudget& budget) override;
+  void AbortZoneLoad() override;
+  [[nodiscard]] ZoneId ZoneLoadInFlight() const override;
+  Result<LoadStats> ReadGraphNodes(std::span<const KeyframeId> ids, GraphNodeSink* sink) override;
 
-  // Totals since open, for telemetry.
+  // Totals since open, for telemetry (metadata reads count as queries and transactions too).
   [[nodiscard]] std::uint64_t total_queries() const;
+  [[nodiscard]] std::uint64_t total_blob_reads() const;
   [[nodiscard]] std::uint64_t total_transactions() const;
   [[nodiscard]] std::uint64_t total_bytes_read() const;
 
@@ -173,13 +269,30 @@ struct KeyframeRecord {
 using WriteProgressFn =
     std::function<void(std::string_view stage, std::uint64_t done, std::uint64_t total)>;
 
-// Creates or modifies a map database. WAL journal; bulk inserts in transactions.
+// The SQLite page size for a new map whose payloads are `mean_payload_bytes` on average: the
+// largest power of two in [4096, 65536] not above a sixteenth of it. A payload larger than a page
+// is a chain of overflow pages that SQLite reads one pread each, so large pages make loads of
+// large payloads cost few system calls (16x fewer at 64 KiB than at 4 KiB); the last page of a
+// chain is half empty on average, so pages no larger than 1/16 of a payload waste <= ~3 %.
+[[nodiscard]] std::uint32_t PageBytesForPayload(std::uint64_t mean_payload_bytes);
+
+struct MapDbWriterOptions {
+  // SQLite page size of a new database (a power of two in [512, 65536]); 0 = chosen from the
+  // first InsertKeyframes batch with PageBytesForPayload() (4096 if the map gets no keyframe).
+  std::uint32_t page_bytes = 0;
+};
+
+// Creates or modifies a map database. WAL journal while writing; bulk inserts in transactions.
+// A new database's file is created at once, its schema at the first call that needs it (so
+// the page size can follow the payloads; SetCamera/SetSource before that are kept until then).
 class MapDbWriter {
  public:
   // Creates a new database (refuses to overwrite an existing file unless `overwrite`).
   [[nodiscard]] static Result<std::unique_ptr<MapDbWriter>> Create(const std::string& path,
-                                                                   bool overwrite = false);
-  // Opens an existing database for modification (zone annotation).
+                                                                   bool overwrite = false,
+                                                                   MapDbWriterOptions options = {});
+  // Opens an existing database for modification (zone annotation); adds the link_to index to
+  // a map written before it existed.
   [[nodiscard]] static Result<std::unique_ptr<MapDbWriter>> OpenExisting(const std::string& path);
   ~MapDbWriter();
 

@@ -110,6 +110,43 @@ TEST_CASE("truncated, corrupt and lying blobs are refused with the keyframe name
   }
 }
 
+TEST_CASE("the body checksum is CRC-32C (version 2); version 1 blobs with zlib CRC-32 still read") {
+  Parts p = MakeParts(30, 5000, 5);
+  auto blob = Encode(p, 12);
+  PayloadHeader h;
+  std::memcpy(&h, blob.data(), sizeof h);
+  const auto body = std::span<const std::byte>(blob).subspan(kPayloadHeaderBytes);
+  CHECK(h.version == 2);
+  CHECK(h.body_crc32 == Crc32c(body));
+  CHECK(h.body_crc32 != Crc32(body));
+  CHECK(PayloadBodyChecksum(2, body) == Crc32c(body));
+  CHECK(PayloadBodyChecksum(1, body) == Crc32(body));
+
+  SUBCASE("a version 1 blob (zlib CRC-32) decodes, and its checksum is still checked") {
+    h.version = kPayloadVersionZlibCrc;
+    h.body_crc32 = Crc32(body);
+    std::memcpy(blob.data(), &h, sizeof h);
+    auto v = DecodePayload(blob);
+    REQUIRE_MESSAGE(v.ok(), v.status().ToString());
+    CHECK(v->id == KeyframeId{12});
+    blob[300] ^= std::byte{4};
+    CHECK(DecodePayload(blob).status().message().find("checksum mismatch") != std::string::npos);
+  }
+  SUBCASE("a version 1 header over a CRC-32C body is a checksum mismatch") {
+    h.version = kPayloadVersionZlibCrc;
+    std::memcpy(blob.data(), &h, sizeof h);
+    CHECK(DecodePayload(blob).status().code() == StatusCode::kCorrupt);
+  }
+  SUBCASE("a later version is refused naming the versions read") {
+    h.version = 3;
+    std::memcpy(blob.data(), &h, sizeof h);
+    auto r = DecodePayload(blob);
+    CHECK(r.status().code() == StatusCode::kFailedPrecondition);
+    CHECK(r.status().message().find("payload version 3, this build reads versions 1 to 2") !=
+          std::string::npos);
+  }
+}
+
 TEST_CASE("encode refuses mismatched parts and small buffers") {
   Parts p = MakeParts(5, 10, 4);
   p.pts.pop_back();

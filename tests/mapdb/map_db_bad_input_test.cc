@@ -16,6 +16,7 @@ namespace zm {
 namespace {
 
 using test::BuildMap;
+using test::EditPayload;
 using test::MakeArena;
 using test::RecordingSink;
 using test::Snapshot;
@@ -35,27 +36,6 @@ void Sql(const std::string& path, const std::string& sql) {
   sqlite3_free(err);
   sqlite3_close(db);
   REQUIRE(rc == SQLITE_OK);
-}
-
-// Replaces keyframe `id`'s payload blob by `edit(blob)`.
-void EditPayload(const std::string& path, std::int64_t id,
-                 const std::function<void(std::vector<unsigned char>&)>& edit) {
-  sqlite3* db = nullptr;
-  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
-  sqlite3_stmt* s = nullptr;
-  REQUIRE(sqlite3_prepare_v2(db, "SELECT blob FROM payload WHERE keyframe_id=?1", -1, &s, nullptr) == SQLITE_OK);
-  sqlite3_bind_int64(s, 1, id);
-  REQUIRE(sqlite3_step(s) == SQLITE_ROW);
-  const auto* p = static_cast<const unsigned char*>(sqlite3_column_blob(s, 0));
-  std::vector<unsigned char> blob(p, p + sqlite3_column_bytes(s, 0));
-  sqlite3_finalize(s);
-  edit(blob);
-  REQUIRE(sqlite3_prepare_v2(db, "UPDATE payload SET blob=?2 WHERE keyframe_id=?1", -1, &s, nullptr) == SQLITE_OK);
-  sqlite3_bind_int64(s, 1, id);
-  sqlite3_bind_blob(s, 2, blob.data(), static_cast<int>(blob.size()), SQLITE_TRANSIENT);
-  REQUIRE(sqlite3_step(s) == SQLITE_DONE);
-  sqlite3_finalize(s);
-  sqlite3_close(db);
 }
 
 // Fills every slot with a pattern (holding them all), then frees `free_slots` of them, so a

@@ -2,7 +2,9 @@
 // progress, and leaves a finished map as one self-contained file.
 #include <doctest/doctest.h>
 
+#include <cstring>
 #include <filesystem>
+#include <map>
 
 #include "mapdb/map_db.h"
 #include "mapdb/mapdb_test_util.h"
@@ -45,6 +47,88 @@ TEST_CASE("writer refuses to overwrite unless asked, and finishes into one file"
   auto db = MapDb::Open(path);
   REQUIRE(db.ok());
   CHECK((*db)->metadata().keyframe_count == 0);
+}
+
+TEST_CASE("the page size follows the payloads: 1/16 of the mean, from 4 KiB to 64 KiB") {
+  CHECK(PageBytesForPayload(0) == 4096);
+  CHECK(PageBytesForPayload(2000) == 4096);
+  CHECK(PageBytesForPayload(100'000) == 4096);   // the default hospital's ~100 KB keyframes
+  CHECK(PageBytesForPayload(16 * 8192) == 8192);
+  CHECK(PageBytesForPayload(300'000) == 16384);
+  CHECK(PageBytesForPayload(1'600'000) == 65536);  // dense keyframes
+  CHECK(PageBytesForPayload(std::uint64_t{1} << 40) == 65536);
+}
+
+// Writes `count` keyframes of about `payload_bytes` (opaque dense bytes) in one zone; returns
+// the payloads by id.
+std::map<std::int64_t, std::vector<std::byte>> WriteDense(const std::string& path, int count,
+                                                          std::uint32_t payload_bytes,
+                                                          MapDbWriterOptions options = {}) {
+  auto w = MapDbWriter::Create(path, false, options);
+  REQUIRE(w.ok());
+  // Camera and source before the first keyframe: kept until the schema exists.
+  REQUIRE((*w)->SetCamera({.fx = 1, .fy = 2, .cx = 3, .cy = 4, .width = 5, .height = 6}).ok());
+  REQUIRE((*w)->SetSource("dense test").ok());
+  std::map<std::int64_t, std::vector<std::byte>> payloads;
+  std::vector<KeyframeRecord> recs;
+  for (int i = 1; i <= count; ++i) {
+    payloads[i] = MakePayload(i, 10, payload_bytes + static_cast<std::uint32_t>(i) * 4099);
+  }
+  for (auto& [id, p] : payloads) recs.push_back({Meta(id), p});
+  REQUIRE((*w)->InsertKeyframes(recs).ok());
+  std::vector<ZoneRecord> zones = {Zone(0, "all")};
+  std::vector<ZoneMember> members;
+  for (int i = 1; i <= count; ++i) members.push_back({ZoneId{0}, KeyframeId{i}});
+  REQUIRE((*w)->ReplaceZones(zones, members).ok());
+  REQUIRE((*w)->Finish().ok());
+  return payloads;
+}
+
+TEST_CASE("large payloads get large pages and load byte-exact through both read paths") {
+  TempDir dir;
+  struct Case {
+    std::uint32_t payload_bytes;
+    MapDbWriterOptions options;
+    std::uint32_t page;
+  };
+  for (const Case c : {Case{1'200'000, {}, 65536}, Case{300'000, {}, 16384},
+                       Case{300'000, {.page_bytes = 4096}, 4096}}) {
+    CAPTURE(c.payload_bytes);
+    CAPTURE(c.page);
+    const std::string path = dir.File("dense" + std::to_string(c.page) + ".db");
+    const auto payloads = WriteDense(path, 6, c.payload_bytes, c.options);
+    auto db = MapDb::Open(path);
+    REQUIRE(db.ok());
+    CHECK((*db)->metadata().page_bytes == c.page);
+    CHECK((*db)->metadata().camera.height == 6);
+    CHECK((*db)->metadata().source == "dense test");
+    Arena arena = test::MakeArena(6, (*db)->metadata().largest_payload_bytes);
+    test::RecordingSink sink;
+    auto st = (*db)->LoadZone(ZoneId{0}, arena, sink);
+    REQUIRE_MESSAGE(st.ok(), st.status().ToString());
+    CHECK(st->keyframes == 6);
+    for (const auto& e : sink.loaded()) {
+      const auto& want = payloads.at(e.id.value);
+      CHECK(std::memcmp(arena.Slot(e.slot).data(), want.data(), want.size()) == 0);
+    }
+    sink.ReleaseAll(arena);
+    const KeyframeId ids[] = {KeyframeId{6}, KeyframeId{2}};
+    REQUIRE((*db)->LoadKeyframes(ids, arena, sink).ok());
+    for (const auto& e : sink.loaded()) {
+      const auto& want = payloads.at(e.id.value);
+      CHECK(std::memcmp(arena.Slot(e.slot).data(), want.data(), want.size()) == 0);
+    }
+  }
+}
+
+TEST_CASE("a page size that SQLite cannot use is refused before anything is created") {
+  TempDir dir;
+  const std::string path = dir.File("map.db");
+  auto w = MapDbWriter::Create(path, false, MapDbWriterOptions{.page_bytes = 3000});
+  REQUIRE_FALSE(w.ok());
+  CHECK(w.status().code() == StatusCode::kInvalidArgument);
+  CHECK(Contains(w.status(), "page size 3000 bytes: must be a power of two from 512 to 65536"));
+  CHECK_FALSE(std::filesystem::exists(path));
 }
 
 TEST_CASE("a bad keyframe rolls back its whole batch, with an error naming it") {

@@ -4,11 +4,13 @@
 #pragma once
 
 #include <doctest/doctest.h>
+#include <sqlite3.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <map>
 #include <random>
@@ -78,9 +80,10 @@ struct BuiltMap {
   std::vector<KeyframeMeta> metas;
 };
 
-inline BuiltMap BuildMap(const std::string& path, const MapSpec& spec = {}) {
+inline BuiltMap BuildMap(const std::string& path, const MapSpec& spec = {},
+                         MapDbWriterOptions options = {}) {
   BuiltMap built;
-  auto w = MapDbWriter::Create(path);
+  auto w = MapDbWriter::Create(path, /*overwrite=*/false, options);
   REQUIRE_MESSAGE(w.ok(), w.status().ToString());
   std::vector<KeyframeRecord> recs;
   for (int i = 1; i <= spec.count; ++i) {
@@ -140,6 +143,13 @@ class RecordingSink final : public LoadSink {
     std::uint32_t bytes;
   };
   [[nodiscard]] const std::vector<Entry>& loaded() const { return loaded_; }
+  // Makes Wants(id) false, as if it were already resident (a shared member of another zone).
+  void MarkResident(KeyframeId id) { resident_[static_cast<std::size_t>(id.value)] = 1; }
+  // Releases every slot it was given and forgets residency.
+  void ReleaseAll(Arena& arena) {
+    for (const auto& e : loaded_) arena.Release(e.slot);
+    Clear();
+  }
   // Forgets residency (the caller releases the slots).
   void Clear() {
     std::fill(resident_.begin(), resident_.end(), std::uint8_t{0});
@@ -150,6 +160,41 @@ class RecordingSink final : public LoadSink {
   std::vector<std::uint8_t> resident_;
   std::vector<Entry> loaded_;
 };
+
+// Replaces keyframe `id`'s payload blob in `path` by `edit(blob)` (to damage it on purpose).
+inline void EditPayload(const std::string& path, std::int64_t id,
+                        const std::function<void(std::vector<unsigned char>&)>& edit) {
+  sqlite3* db = nullptr;
+  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
+  sqlite3_stmt* s = nullptr;
+  REQUIRE(sqlite3_prepare_v2(db, "SELECT blob FROM payload WHERE keyframe_id=?1", -1, &s, nullptr) == SQLITE_OK);
+  sqlite3_bind_int64(s, 1, id);
+  REQUIRE(sqlite3_step(s) == SQLITE_ROW);
+  const auto* p = static_cast<const unsigned char*>(sqlite3_column_blob(s, 0));
+  std::vector<unsigned char> blob(p, p + sqlite3_column_bytes(s, 0));
+  sqlite3_finalize(s);
+  edit(blob);
+  REQUIRE(sqlite3_prepare_v2(db, "UPDATE payload SET blob=?2 WHERE keyframe_id=?1", -1, &s, nullptr) == SQLITE_OK);
+  sqlite3_bind_int64(s, 1, id);
+  sqlite3_bind_blob(s, 2, blob.data(), static_cast<int>(blob.size()), SQLITE_TRANSIENT);
+  REQUIRE(sqlite3_step(s) == SQLITE_DONE);
+  sqlite3_finalize(s);
+  sqlite3_close(db);
+}
+
+// Tries to commit a write to `path` from another connection without waiting: SQLITE_BUSY while
+// some reader holds its read transaction (finished maps use a rollback journal), SQLITE_OK
+// otherwise.
+inline int TryWrite(const std::string& path) {
+  sqlite3* db = nullptr;
+  REQUIRE(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr) == SQLITE_OK);
+  sqlite3_busy_timeout(db, 0);
+  const int rc = sqlite3_exec(db, "BEGIN IMMEDIATE; INSERT OR REPLACE INTO meta(key, value) VALUES('zm_test_probe', 1); COMMIT;",
+                              nullptr, nullptr, nullptr);
+  if (rc != SQLITE_OK) sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+  sqlite3_close(db);
+  return rc & 0xff;
+}
 
 inline std::vector<char> Snapshot(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -131,7 +131,7 @@ TEST_CASE("basic: local and hypothesis retrieval / immunization / WM may stay ab
   // Searches: local 2+2 queries, time 4, space 4.
   CHECK(r.search_queries == 12);
   CHECK(t.search_queries == 12);
-  CHECK(t.db_queries == 10);  // 5 point queries per loaded node
+  CHECK(t.db_queries == 8);  // 4 point queries per loaded node (row, payload, links, calibration)
   // Everything in WM was immunized (time search + local + retrieved + lastLoc): nothing to
   // transfer although |WM| = 7 > 5.
   CHECK(r.transferred.empty());
