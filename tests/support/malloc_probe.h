@@ -2,7 +2,8 @@
 // even through C libraries (libjpeg, zlib, SQLite) that never touch operator new:
 //   - under ASan: every malloc call, through the sanitizer's malloc hooks;
 //   - otherwise: the change of glibc's bytes in use (mallinfo2), which catches a block kept but
-//     not one freed again before count() (say so where it matters).
+//     not one freed again before count(), nor a small block glibc's tcache hands out (it counts
+//     as in use already). So the ASan build (host-debug) is the one that proves "no malloc".
 // Pair it with support/counting_allocator.h (operator new). Same approach as the PnP test's.
 #pragma once
 
