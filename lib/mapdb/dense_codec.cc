@@ -455,9 +455,14 @@ Result<std::uint32_t> DenseDecoder::DecodeInSlot(std::span<std::byte> slot, std:
     const std::uint32_t step = v.cloud_step;
     const float nan = std::numeric_limits<float>::quiet_NaN();
     auto* cloud = reinterpret_cast<float*>(base + d.cloud);
-    for (std::uint32_t y = 0; y < h; y += step) {
+    // (w / step) x (h / step) points, as DecodedLayoutFor counted: the pixels at multiples of
+    // the step, the last partial block of a side left out.
+    const std::uint32_t rows = h / step, cols = w / step;
+    for (std::uint32_t r = 0; r < rows; ++r) {
+      const std::uint32_t y = r * step;
       const double yn = (y + 0.5 - cy) / fy;
-      for (std::uint32_t x = 0; x < w; x += step, cloud += 4) {
+      for (std::uint32_t c = 0; c < cols; ++c, cloud += 4) {
+        const std::uint32_t x = c * step;
         const std::size_t p = std::size_t{y} * w + x;
         const std::uint8_t* rgb = colour + 3 * p;
         const std::uint32_t packed = (std::uint32_t{rgb[0]} << 16) | (std::uint32_t{rgb[1]} << 8) | rgb[2];

@@ -240,6 +240,25 @@ TEST_CASE("a dense payload decodes into its slot: colour, depth, points from dep
   }
 }
 
+TEST_CASE("a cloud step that does not divide the image takes whole blocks only") {
+  DenseParts p = MakeParts();  // 64 x 48
+  p.step = 5;                  // 12 x 9 points; the last 4 columns and 3 rows are left out
+  const std::vector<std::byte> blob = Payload(p, 9);
+  const std::uint32_t resident = ResidentOf(blob);
+  GuardedSlot slot(resident);  // exactly: a point too many would hit the guard
+  slot.Load(blob);
+  auto decoder = DenseDecoder::Create(kCamera);
+  REQUIRE(decoder.ok());
+  auto landed = (*decoder)->DecodeInSlot(slot.slot(), blob.size());
+  REQUIRE(landed.ok());
+  CHECK(slot.UntouchedOutside(resident));
+  auto v = DecodePayload(slot.slot(), {}, true);
+  REQUIRE(v.ok());
+  CHECK(v->cloud_points == 12 * 9);
+  const float* last = v->cloud + 4 * (12 * 9 - 1);  // pixel (55, 40)
+  CHECK(last[2] == doctest::Approx(p.depth.pixels[40 * 64 + 55] * 0.001));
+}
+
 TEST_CASE("a warm decode allocates nothing: operator new and malloc counted") {
   const DenseParts small = MakeParts();
   const DenseParts big = MakeParts(640, 480);
