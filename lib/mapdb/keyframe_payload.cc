@@ -22,8 +22,8 @@ std::string Kf(KeyframeId id) { return "keyframe " + std::to_string(id.value); }
 
 }  // namespace
 
-std::uint32_t Crc32(std::span<const std::byte> bytes) {
-  uLong crc = crc32(0L, Z_NULL, 0);
+std::uint32_t Crc32(std::span<const std::byte> bytes, std::uint32_t previous) {
+  uLong crc = previous;
   const auto* p = reinterpret_cast<const Bytef*>(bytes.data());
   std::size_t left = bytes.size();
   // zlib takes uInt lengths; feed large ranges in chunks.
@@ -36,12 +36,13 @@ std::uint32_t Crc32(std::span<const std::byte> bytes) {
   return static_cast<std::uint32_t>(crc);
 }
 
-std::uint32_t Crc32c(std::span<const std::byte> bytes) {
-  return simd::Crc32c(bytes.data(), bytes.size());
+std::uint32_t Crc32c(std::span<const std::byte> bytes, std::uint32_t crc) {
+  return simd::Crc32c(bytes.data(), bytes.size(), crc);
 }
 
-std::uint32_t PayloadBodyChecksum(std::uint16_t version, std::span<const std::byte> body) {
-  return version == kPayloadVersionZlibCrc ? Crc32(body) : Crc32c(body);
+std::uint32_t PayloadBodyChecksum(std::uint16_t version, std::span<const std::byte> body,
+                                  std::uint32_t previous) {
+  return version == kPayloadVersionZlibCrc ? Crc32(body, previous) : Crc32c(body, previous);
 }
 
 PayloadLayout LayoutFor(std::uint32_t feature_count, std::uint32_t dense_bytes, bool points_on_disk) {
@@ -268,8 +269,11 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
                    " bytes, its slot holds " + std::to_string(blob.size()));
   }
   if (options.verify_crc) {
-    const std::uint32_t crc = PayloadBodyChecksum(
-        h.version, blob.subspan(kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
+    const std::uint32_t crc =
+        options.body_checksum != nullptr
+            ? *options.body_checksum
+            : PayloadBodyChecksum(h.version,
+                                  blob.subspan(kPayloadHeaderBytes, l.total - kPayloadHeaderBytes));
     if (crc != h.body_crc32) {
       return Corrupt(Kf(id) + ": payload checksum mismatch (corrupt blob of " +
                      std::to_string(l.total) + " bytes)");

@@ -198,6 +198,10 @@ struct PayloadParts {
 
 struct DecodeOptions {
   bool verify_crc = true;
+  // When set (and verify_crc), the body checksum the caller already computed, piece by piece
+  // while the bytes landed (PayloadBodyChecksum with `previous`), compared instead of
+  // recomputed: the body is then read once, while it is still in cache.
+  const std::uint32_t* body_checksum = nullptr;
 };
 // Validates `blob` (exactly the payload, or a slot whose first bytes are one: pass
 // `blob_is_slot`) and returns views into it. Never reads outside `blob`. In a slot whose header
@@ -206,11 +210,15 @@ struct DecodeOptions {
                                                  DecodeOptions options = {},
                                                  bool blob_is_slot = false);
 
-// CRC-32 (zlib polynomial) of a byte range: version 1 payloads, and a digest for tests.
-[[nodiscard]] std::uint32_t Crc32(std::span<const std::byte> bytes);
-// CRC-32C (Castagnoli) of a byte range, with the fastest kernel this CPU has.
-[[nodiscard]] std::uint32_t Crc32c(std::span<const std::byte> bytes);
-// The body checksum a payload of `version` carries (CRC-32C for 2, zlib CRC-32 for 1).
-[[nodiscard]] std::uint32_t PayloadBodyChecksum(std::uint16_t version, std::span<const std::byte> body);
+// CRC-32 (zlib polynomial) of a byte range, continuing from `crc` (the CRC of earlier bytes):
+// version 1 payloads, and a digest for tests.
+[[nodiscard]] std::uint32_t Crc32(std::span<const std::byte> bytes, std::uint32_t crc = 0);
+// CRC-32C (Castagnoli) of a byte range continuing from `crc`, with the fastest kernel this CPU
+// has (lib/simd/crc32c.h).
+[[nodiscard]] std::uint32_t Crc32c(std::span<const std::byte> bytes, std::uint32_t crc = 0);
+// The body checksum a payload of `version` carries (CRC-32C for 2, zlib CRC-32 for 1), of
+// `body` continuing from `previous`: feed a body in pieces, in order, from previous = 0.
+[[nodiscard]] std::uint32_t PayloadBodyChecksum(std::uint16_t version, std::span<const std::byte> body,
+                                                std::uint32_t previous = 0);
 
 }  // namespace zm

@@ -23,16 +23,16 @@ struct Kernel {
   const char* name;
 };
 
+#if ZM_CRC32C_SSE42 || ZM_CRC32C_ARMV8
 bool CpuHasCrc32c() {
 #if ZM_CRC32C_SSE42
   __builtin_cpu_init();
   return __builtin_cpu_supports("sse4.2") != 0;
-#elif ZM_CRC32C_ARMV8
-  return (getauxval(AT_HWCAP) & HWCAP_CRC32) != 0;
 #else
-  return false;
+  return (getauxval(AT_HWCAP) & HWCAP_CRC32) != 0;
 #endif
 }
+#endif
 
 const Kernel& Hardware() {
   static const Kernel k = [] {

@@ -27,11 +27,14 @@ constexpr std::uint32_t MulModP(std::uint32_t a, std::uint32_t b) {
   return product;
 }
 
-// x^(8n) mod P.
+// x^(8n) mod P, by squaring (few enough steps for any compiler's constexpr limit).
 constexpr std::uint32_t XPow8N(std::size_t n) {
-  std::uint32_t power = 0x80000000u;       // x^0
-  constexpr std::uint32_t kX8 = 1u << 23;  // x^8
-  for (std::size_t i = 0; i < n; ++i) power = MulModP(power, kX8);
+  std::uint32_t power = 0x80000000u;  // x^0
+  std::uint32_t square = 1u << 23;    // x^8, then x^16, x^32, ... (x^(8 * 2^k))
+  for (; n > 0; n >>= 1) {
+    if ((n & 1u) != 0) power = MulModP(power, square);
+    square = MulModP(square, square);
+  }
   return power;
 }
 

@@ -122,20 +122,57 @@ TEST_CASE("zone load lands exact payload bytes in slots, one query and one trans
   }
 }
 
-TEST_CASE("memory-mapped reads (MapDbOptions::mmap_bytes) land the same bytes") {
+TEST_CASE("reads through SQLite's memory map (the default) and through read() land the same bytes") {
   TempDir dir;
   const std::string path = dir.File("map.db");
   auto built = BuildMap(path);
-  auto db = MapDb::Open(path, MapDbOptions{.verify_checksums = true, .sqlite_heap_limit_bytes = 0,
-                                           .mmap_bytes = 1 << 20});
-  REQUIRE(db.ok());
-  Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
-  RecordingSink sink;
-  REQUIRE((*db)->LoadZone(ZoneId{2}, arena, sink).ok());
-  REQUIRE(sink.loaded().size() == 4);
-  for (const auto& e : sink.loaded()) {
-    const auto& want = built.payloads.at(e.id.value);
-    CHECK(std::memcmp(arena.Slot(e.slot).data(), want.data(), want.size()) == 0);
+  for (const std::int64_t mmap_bytes : {kMapDbMmapWholeFile, std::int64_t{0}, std::int64_t{8192}}) {
+    CAPTURE(mmap_bytes);
+    auto db = MapDb::Open(path, MapDbOptions{.verify_checksums = true, .sqlite_heap_limit_bytes = 0,
+                                             .mmap_bytes = mmap_bytes});
+    REQUIRE(db.ok());
+    Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
+    RecordingSink sink;
+    REQUIRE((*db)->LoadZone(ZoneId{2}, arena, sink).ok());
+    REQUIRE(sink.loaded().size() == 4);
+    for (const auto& e : sink.loaded()) {
+      const auto& want = built.payloads.at(e.id.value);
+      CHECK(std::memcmp(arena.Slot(e.slot).data(), want.data(), want.size()) == 0);
+    }
+  }
+}
+
+TEST_CASE("a flipped byte deep in a payload larger than a copy chunk is caught on both read paths") {
+  TempDir dir;
+  const std::string path = dir.File("map.db");
+  test::MapSpec spec;
+  spec.count = 4;
+  spec.dense_bytes = 700'000;  // the checksum is computed in 256 KiB pieces as the bytes land
+  spec.members = {{1, 2, 3, 4}};
+  auto built = BuildMap(path, spec);
+  test::EditPayload(path, 3, [](std::vector<unsigned char>& b) { b[650'000] ^= 0x10; });
+  for (const std::int64_t mmap_bytes : {kMapDbMmapWholeFile, std::int64_t{0}}) {
+    CAPTURE(mmap_bytes);
+    auto db = MapDb::Open(path, MapDbOptions{.verify_checksums = true, .sqlite_heap_limit_bytes = 0,
+                                             .mmap_bytes = mmap_bytes});
+    REQUIRE(db.ok());
+    Arena arena = MakeArena(4, (*db)->metadata().largest_payload_bytes);
+    RecordingSink sink;
+    auto st = (*db)->LoadZone(ZoneId{0}, arena, sink);
+    REQUIRE_FALSE(st.ok());
+    CHECK(st.status().message().find("keyframe 3") != std::string::npos);
+    CHECK(st.status().message().find("checksum mismatch") != std::string::npos);
+    CHECK(sink.loaded().size() == 2);
+    CHECK(arena.in_use() == 2);
+    sink.ReleaseAll(arena);
+    const KeyframeId three[] = {KeyframeId{3}};
+    auto kf = (*db)->LoadKeyframes(three, arena, sink);
+    CHECK(kf.status().message().find("checksum mismatch") != std::string::npos);
+    CHECK(arena.in_use() == 0);
+    const KeyframeId four[] = {KeyframeId{4}};
+    REQUIRE((*db)->LoadKeyframes(four, arena, sink).ok());
+    const auto& want = built.payloads.at(4);
+    CHECK(std::memcmp(arena.Slot(sink.loaded()[0].slot).data(), want.data(), want.size()) == 0);
   }
 }
 
