@@ -176,8 +176,12 @@ OutcomeDecision DecideCotenantOutcome(const CotenantResult& r) {
   if (r.restarts > 0) restarts += "; restarted " + Plural(r.restarts, "time");
   if (r.failed_starts > 0) restarts += "; " + Plural(r.failed_starts, "start") + " failed";
   if (r.starts == 0) {
-    return {CotenantOutcome::kFailedToStart,
-            r.start_failure.empty() ? "it never started" : r.start_failure};
+    std::string why = r.start_failure;
+    if (r.kills + r.crashes > 0) {
+      why += std::string(why.empty() ? "" : "; ") + "killed " + Plural(r.kills + r.crashes, "time") +
+             " while loading" + (r.kills > 0 ? " (SIGKILL: an OOM kill)" : "");
+    }
+    return {CotenantOutcome::kFailedToStart, why.empty() ? "it never started" : why};
   }
   if (r.kills + r.crashes > 0) {
     std::string why;

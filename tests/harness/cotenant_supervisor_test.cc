@@ -76,7 +76,7 @@ TEST_CASE("paced requests: 30 in a run, submitted on one schedule, all answered"
   }
 }
 
-TEST_CASE("a SIGKILL is recorded as killed; it restarts and every request is kept") {
+TEST_CASE("a SIGKILL is recorded as killed, then it restarts and every request is kept") {
   test::EmulatorLauncher launcher;
   const std::string events = std::filesystem::temp_directory_path() /
                              ("zm-cotenant-events-" + std::to_string(getpid()) + ".jsonl");
@@ -174,7 +174,7 @@ TEST_CASE("a co-tenant that cannot map its weights fails to start, again at ever
   CHECK(r->kills == 0);
 }
 
-TEST_CASE("the placement hook runs before the child maps anything; its failure is a failed start") {
+TEST_CASE("the placement hook runs before the child maps anything, and its failure is a failed start") {
   test::EmulatorLauncher launcher;
   CotenantSupervisorOptions o = Options();
   std::string maps_at_placement;
@@ -239,7 +239,9 @@ TEST_CASE("in a memory cgroup too small for a request's KV cache, the kernel's O
     MESSAGE("skipped under qemu-user: the emulator's own memory would be what the cgroup limits");
     return;
   }
-  TestCgroup cg(48ull << 20);
+  // 128 MiB: room for the child itself (an ASan build's runtime is ~45 MiB resident, its program
+  // pages and 4 MiB of weights ~15 MiB) but not for a 272 MiB request.
+  TestCgroup cg(128ull << 20);
   if (cg.dir.empty()) {
     MESSAGE("skipped: no memory cgroup can be created here (needs a writable cgroup v1 memory "
             "controller under this process's own cgroup)");
@@ -249,7 +251,7 @@ TEST_CASE("in a memory cgroup too small for a request's KV cache, the kernel's O
   CotenantSupervisorOptions o = Options(0.05, 4);
   o.config.device_scale = 1.0;
   o.config.weights_bytes = 4ull << 20;
-  o.config.options.kv_bytes_per_token = 1ull << 20;  // 68 tokens: a 68 MiB request
+  o.config.options.kv_bytes_per_token = 4ull << 20;  // 68 tokens: a 272 MiB request
   o.place_child = PlaceInCgroupProcs(cg.dir + "/cgroup.procs");
   CotenantSupervisor sup;
   REQUIRE(sup.Start(o).ok());

@@ -86,7 +86,7 @@ TEST_CASE("the model table holds the paper's weight sizes and each model's KV ge
   CHECK(KvCacheBytes(q35, 100) == q35.state_bytes + 100ULL * 2 * 6 * 2 * 256 * 2);
 }
 
-TEST_CASE("the device scale multiplies weights and KV cache together, and must be in (0, 1]") {
+TEST_CASE("the device scale multiplies weights and KV cache together, and must be above 0 and at most 1") {
   CotenantConfig c;
   c.options.context_tokens = 4096;
   Result<CotenantSizes> full = ResolveCotenantSizes(c);
@@ -336,6 +336,10 @@ TEST_CASE("the outcome follows the counts, in one place") {
   CHECK(DecideCotenantOutcome(r).outcome == CotenantOutcome::kFailedToStart);
   r.start_failure = "the KV cache could not be allocated";
   CHECK(DecideCotenantOutcome(r).reason == r.start_failure);
+  r.kills = 1;  // an OOM kill while loading is still a failure to start
+  CHECK(DecideCotenantOutcome(r).outcome == CotenantOutcome::kFailedToStart);
+  CHECK(DecideCotenantOutcome(r).reason.find("killed 1 time while loading") != std::string::npos);
+  r.kills = 0;
   r.starts = 1;
   CHECK(DecideCotenantOutcome(r).outcome == CotenantOutcome::kCompleted);
   r.requests_failed = 2;

@@ -79,7 +79,7 @@ TEST_CASE("bad sizes and unwritable directories are errors that name them") {
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("mmap load: file-backed, read-only, shared; read load: process memory") {
+TEST_CASE("mmap load is file-backed, read-only and shared, read load is process memory") {
   Result<WeightsFileInfo> file = EnsureWeightsFile(test::TestWeightsDir(), 256 * kWeightsPageBytes);
   REQUIRE(file.ok());
   Result<MappedWeights> w = MappedWeights::Map(file->path, {});
