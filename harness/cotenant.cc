@@ -57,6 +57,10 @@ std::uint64_t U64(const nlohmann::json& j, const char* key) {
   const auto it = j.find(key);
   return it != j.end() && it->is_number() ? it->get<std::uint64_t>() : 0;
 }
+bool Bool(const nlohmann::json& j, const char* key) {
+  const auto it = j.find(key);
+  return it != j.end() && it->is_boolean() && it->get<bool>();
+}
 std::string Str(const nlohmann::json& j, const char* key) {
   const auto it = j.find(key);
   return it != j.end() && it->is_string() ? it->get<std::string>() : std::string();
@@ -211,6 +215,16 @@ CotenantReportBuilder::CotenantReportBuilder(double origin_mono_s) {
 }
 
 Status CotenantReportBuilder::Add(const nlohmann::json& e) {
+  // A field of the wrong type would throw from nlohmann's accessors: turned into a value here,
+  // since this runs on the supervisor's thread.
+  try {
+    return AddEvent(e);
+  } catch (const nlohmann::json::exception& ex) {
+    return InvalidArgument(std::string("co-tenant event ") + e.dump() + ": " + ex.what());
+  }
+}
+
+Status CotenantReportBuilder::AddEvent(const nlohmann::json& e) {
   if (!e.is_object() || !e.contains("event") || !e["event"].is_string()) {
     return InvalidArgument("co-tenant event without an \"event\" name: " + e.dump());
   }
@@ -258,13 +272,13 @@ Status CotenantReportBuilder::Add(const nlohmann::json& e) {
     r_.weights_path = Str(e, "weights_path");
     r_.weights_load = Str(e, "weights_load");
     r_.kv_allocation = Str(e, "kv_allocation");
-    r_.file_backed = e.value("file_backed", false);
-    r_.evictable = e.value("evictable", false);
+    r_.file_backed = Bool(e, "file_backed");
+    r_.evictable = Bool(e, "evictable");
     r_.load_ms = Num(e, "load_ms");
-    if (e.value("weights_file_created", false)) r_.weights_create_ms = Num(e, "weights_create_ms");
+    if (Bool(e, "weights_file_created")) r_.weights_create_ms = Num(e, "weights_create_ms");
   } else if (ev == "weights_file") {
     r_.weights_path = Str(e, "weights_path");
-    if (e.value("weights_file_created", false)) r_.weights_create_ms = Num(e, "weights_create_ms");
+    if (Bool(e, "weights_file_created")) r_.weights_create_ms = Num(e, "weights_create_ms");
   } else if (ev == "failed_to_start") {
     ++r_.failed_starts;
     sizes();
@@ -278,7 +292,7 @@ Status CotenantReportBuilder::Add(const nlohmann::json& e) {
     latency_.Add(Num(e, "latency_ms"));
     record(true);
   } else if (ev == "request_failed") {
-    if (e.value("unfinished", false)) {
+    if (Bool(e, "unfinished")) {
       ++r_.requests_unfinished;
     } else {
       ++r_.requests_failed;

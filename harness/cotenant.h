@@ -202,6 +202,8 @@ class CotenantReportBuilder {
   [[nodiscard]] const CotenantResult& partial() const noexcept { return r_; }
 
  private:
+  Status AddEvent(const nlohmann::json& event);
+
   CotenantResult r_;
   StreamingStats tps_, prefill_tps_, latency_;
   std::uint32_t instance_ = 0;  // the latest "spawn" event's
