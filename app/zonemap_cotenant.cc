@@ -92,10 +92,12 @@ int main(int argc, char** argv) {
   bool serve = false, jsonl = false, json = false, list = false, create_weights = false;
   app.add_option("--profile", profile_name,
                  "start from the profile's [model] and [cotenant] (flags given override them)");
-  app.add_option("--model", flags.model, "model (KV geometry and weights): " + zm::CotenantModelNames());
+  app.add_option("--model", flags.model,
+                 "model (KV geometry and weights): " + zm::CotenantModelNames());
   app.add_option("--weights-bytes", weights_text, "weights size override (e.g. 1.9GB, 512MiB)");
-  app.add_option("--device-scale", flags.device_scale,
-                 "0 < S <= 1: scales weights and KV cache together (the experiment's --device-scale)")
+  app.add_option(
+         "--device-scale", flags.device_scale,
+         "0 < S <= 1: scales weights and KV cache together (the experiment's --device-scale)")
       ->check(CLI::Range(1e-9, 1.0));
   app.add_option("--prompt-tokens", flags.options.prompt_tokens, "prompt length per request");
   app.add_option("--answer-tokens", flags.options.answer_tokens, "generated tokens per request")
@@ -107,11 +109,14 @@ int main(int argc, char** argv) {
                  "n_ctx: KV cache reserved at start-up (Ollama's default 4096)")
       ->check(CLI::PositiveNumber);
   app.add_option("--requests", flags.requests, "self-paced: requests to serve (0 = until SIGTERM)");
-  app.add_option("--period-s", flags.options.request_period_s, "self-paced: a request every S seconds");
+  app.add_option("--period-s", flags.options.request_period_s,
+                 "self-paced: a request every S seconds");
   app.add_option("--watchdog-s", flags.options.watchdog_s,
                  "no token for this long inside a request = a stall (0 = no watchdog)");
-  app.add_option("--kv-bytes-per-token", kv_text, "KV cache bytes per token of context (0 = the model's)");
-  app.add_option("--kv-allocation", kv_allocation, "per_request (grows and is freed per request) | at_load (llama.cpp)")
+  app.add_option("--kv-bytes-per-token", kv_text,
+                 "KV cache bytes per token of context (0 = the model's)");
+  app.add_option("--kv-allocation", kv_allocation,
+                 "per_request (grows and is freed per request) | at_load (llama.cpp)")
       ->check(CLI::IsMember({"per_request", "at_load"}));
   app.add_option("--weights-load", weights_load, "mmap (llama.cpp) | read (Ollama's engine)")
       ->check(CLI::IsMember({"mmap", "read"}));
@@ -121,12 +126,14 @@ int main(int argc, char** argv) {
                "MAP_POPULATE + MADV_WILLNEED at load, as llama.cpp (default on)");
   app.add_flag("--cold-start,!--no-cold-start", flags.options.cold_start,
                "drop the file's cached pages before mapping (default on)");
-  app.add_flag("--mlock", flags.options.mlock, "mlock the weights (llama.cpp --mlock; default off)");
+  app.add_flag("--mlock", flags.options.mlock,
+               "mlock the weights (llama.cpp --mlock; default off)");
   app.add_option("--ledger", flags.ledger_path, "device ledger file (the portable fallback)");
   app.add_option("--ledger-device-bytes", ledger_device_text,
                  "device total when the ledger file is created (e.g. 8GiB)");
   app.add_option("--ledger-name", flags.ledger_name, "tenant name in the ledger");
-  app.add_flag("--serve", serve, "take commands on stdin (start, request ID T, stop); implies --jsonl");
+  app.add_flag("--serve", serve,
+               "take commands on stdin (start, request ID T, stop); implies --jsonl");
   app.add_flag("--jsonl", jsonl, "stream one JSON line per event on stdout as it happens");
   app.add_flag("--json", json, "print the final report as JSON on stdout");
   app.add_flag("--list-models", list, "print the model table and exit");
@@ -142,14 +149,15 @@ int main(int argc, char** argv) {
     return 1;
   };
   if (list) {
-    std::printf("%-14s %-14s %12s %14s %s\n", "name", "model", "weights", "KV B/token", "(window, fixed state)");
+    std::printf("%-14s %-14s %12s %14s %s\n", "name", "model", "weights", "KV B/token",
+                "(window, fixed state)");
     for (const zm::CotenantModel& m : zm::CotenantModels()) {
-      std::printf("%-14s %-14s %12s %14llu", std::string(m.name).c_str(), std::string(m.display).c_str(),
-                  zm::FormatBytes(m.weights_bytes).c_str(),
+      std::printf("%-14s %-14s %12s %14llu", std::string(m.name).c_str(),
+                  std::string(m.display).c_str(), zm::FormatBytes(m.weights_bytes).c_str(),
                   static_cast<unsigned long long>(m.kv_bytes_per_token));
       if (m.window_tokens != 0) {
-        std::printf("  + %llu B/token for %u tokens", static_cast<unsigned long long>(m.window_bytes_per_token),
-                    m.window_tokens);
+        std::printf("  + %llu B/token for %u tokens",
+                    static_cast<unsigned long long>(m.window_bytes_per_token), m.window_tokens);
       }
       if (m.state_bytes != 0) std::printf("  + %s state", zm::FormatBytes(m.state_bytes).c_str());
       std::printf("\n");
@@ -176,7 +184,8 @@ int main(int argc, char** argv) {
   const zm::CotenantOptions& f = flags.options;
   if (profile_name.empty() || given("--prompt-tokens")) o.prompt_tokens = f.prompt_tokens;
   if (profile_name.empty() || given("--answer-tokens")) o.answer_tokens = f.answer_tokens;
-  if (profile_name.empty() || given("--prompt-batch")) o.prompt_batch_tokens = f.prompt_batch_tokens;
+  if (profile_name.empty() || given("--prompt-batch"))
+    o.prompt_batch_tokens = f.prompt_batch_tokens;
   if (profile_name.empty() || given("--context-tokens")) o.context_tokens = f.context_tokens;
   if (profile_name.empty() || given("--period-s")) o.request_period_s = f.request_period_s;
   if (profile_name.empty() || given("--watchdog-s")) o.watchdog_s = f.watchdog_s;
@@ -185,7 +194,8 @@ int main(int argc, char** argv) {
   if (profile_name.empty() || given("--cold-start")) o.cold_start = f.cold_start;
   if (profile_name.empty() || given("--mlock")) o.mlock = f.mlock;
   if (profile_name.empty() || given("--kv-allocation")) {
-    o.kv_allocation = kv_allocation == "at_load" ? zm::KvAllocation::kAtLoad : zm::KvAllocation::kPerRequest;
+    o.kv_allocation =
+        kv_allocation == "at_load" ? zm::KvAllocation::kAtLoad : zm::KvAllocation::kPerRequest;
   }
   if (profile_name.empty() || given("--weights-load")) {
     o.weights_load = weights_load == "read" ? zm::WeightsLoad::kRead : zm::WeightsLoad::kMmap;
@@ -197,7 +207,8 @@ int main(int argc, char** argv) {
   if (!weights_text.empty()) {
     zm::Result<std::uint64_t> b = zm::ParseBytes(weights_text);
     if (!b.ok() || *b == 0) {
-      return fail("--weights-bytes: " + (b.ok() ? std::string("must be > 0") : b.status().message()));
+      return fail("--weights-bytes: " +
+                  (b.ok() ? std::string("must be > 0") : b.status().message()));
     }
     config.weights_bytes = *b;
   }
@@ -215,12 +226,14 @@ int main(int argc, char** argv) {
   if (!sizes.ok()) return fail(sizes.status().message());
 
   if (create_weights) {
-    zm::Result<zm::WeightsFileInfo> file = zm::EnsureWeightsFile(o.weights_dir, sizes->weights_bytes);
+    zm::Result<zm::WeightsFileInfo> file =
+        zm::EnsureWeightsFile(o.weights_dir, sizes->weights_bytes);
     if (!file.ok()) return fail(file.status().message());
     std::printf("%s: %s on %s, %s%s\n", file->path.c_str(), zm::FormatBytes(file->bytes).c_str(),
                 file->fs_type.c_str(),
-                file->created ? ("created in " + std::to_string(file->create_ms / 1000.0) + " s").c_str()
-                              : "already there (reused)",
+                file->created
+                    ? ("created in " + std::to_string(file->create_ms / 1000.0) + " s").c_str()
+                    : "already there (reused)",
                 file->evictable ? "" : " (tmpfs/ramfs: NOT evictable without swap)");
     return 0;
   }
@@ -235,9 +248,13 @@ int main(int argc, char** argv) {
       for (;;) {
         zm::CotenantTicket t;
         switch (commands.Next(t)) {
-          case Commands::Kind::kStart: return true;
-          case Commands::Kind::kStop: return false;
-          case Commands::Kind::kRequest: early.push_back(t); break;
+          case Commands::Kind::kStart:
+            return true;
+          case Commands::Kind::kStop:
+            return false;
+          case Commands::Kind::kRequest:
+            early.push_back(t);
+            break;
         }
       }
     };
@@ -249,9 +266,12 @@ int main(int argc, char** argv) {
       }
       for (;;) {
         switch (commands.Next(t)) {
-          case Commands::Kind::kRequest: return true;
-          case Commands::Kind::kStop: return false;
-          case Commands::Kind::kStart: break;
+          case Commands::Kind::kRequest:
+            return true;
+          case Commands::Kind::kStop:
+            return false;
+          case Commands::Kind::kStart:
+            break;
         }
       }
     };
@@ -262,35 +282,42 @@ int main(int argc, char** argv) {
     std::printf("%s\n", zm::ToJson(r).dump(2).c_str());
   } else if (!serve && !jsonl) {
     std::printf("co-tenant STAND-IN (%s)\n", std::string(zm::kCotenantNote).c_str());
-    std::printf("  model %s at device scale %g: %s of weights (%s, %s) + KV cache %s reserved for %u "
-                "tokens (%s per request, %s)\n",
-                r.model.c_str(), r.device_scale, zm::FormatBytes(r.weights_bytes).c_str(),
-                r.weights_load.c_str(), r.weights_path.c_str(),
-                zm::FormatBytes(r.kv_reserved_bytes).c_str(), r.context_tokens,
-                zm::FormatBytes(r.request_kv_bytes).c_str(), r.kv_allocation.c_str());
+    std::printf(
+        "  model %s at device scale %g: %s of weights (%s, %s) + KV cache %s reserved for %u "
+        "tokens (%s per request, %s)\n",
+        r.model.c_str(), r.device_scale, zm::FormatBytes(r.weights_bytes).c_str(),
+        r.weights_load.c_str(), r.weights_path.c_str(),
+        zm::FormatBytes(r.kv_reserved_bytes).c_str(), r.context_tokens,
+        zm::FormatBytes(r.request_kv_bytes).c_str(), r.kv_allocation.c_str());
     if (r.starts > 0) {
       std::printf("  weights loaded in %.1f ms%s\n", r.load_ms,
-                  r.weights_create_ms > 0.0
-                      ? (" (file created first in " + std::to_string(r.weights_create_ms / 1000.0) + " s)").c_str()
-                      : "");
+                  r.weights_create_ms > 0.0 ? (" (file created first in " +
+                                               std::to_string(r.weights_create_ms / 1000.0) + " s)")
+                                                  .c_str()
+                                            : "");
     }
     std::printf("  outcome: %s %s%s%s\n", std::string(zm::CotenantOutcomeSymbol(r.outcome)).c_str(),
-                std::string(zm::CotenantOutcomeName(r.outcome)).c_str(), r.reason.empty() ? "" : " - ",
-                r.reason.c_str());
+                std::string(zm::CotenantOutcomeName(r.outcome)).c_str(),
+                r.reason.empty() ? "" : " - ", r.reason.c_str());
     if (r.requests > 0) {
-      std::printf("  %u requests, %llu tokens: %.2f tokens/s (median decode), prompt %.1f tokens/s\n",
-                  r.requests, static_cast<unsigned long long>(r.tokens_generated), r.tokens_per_s,
-                  r.prefill_tokens_per_s);
+      std::printf(
+          "  %u requests, %llu tokens: %.2f tokens/s (median decode), prompt %.1f tokens/s\n",
+          r.requests, static_cast<unsigned long long>(r.tokens_generated), r.tokens_per_s,
+          r.prefill_tokens_per_s);
       std::printf("  latency p50 %.1f ms, p95 %.1f ms; %llu major faults in requests; %u stalls\n",
-                  r.latency_ms_p50, r.latency_ms_p95, static_cast<unsigned long long>(r.major_faults),
-                  r.stalls);
+                  r.latency_ms_p50, r.latency_ms_p95,
+                  static_cast<unsigned long long>(r.major_faults), r.stalls);
     }
   }
   switch (r.outcome) {
-    case zm::CotenantOutcome::kCompleted: return 0;
-    case zm::CotenantOutcome::kStalled: return 2;
-    case zm::CotenantOutcome::kFailedToStart: return 3;
-    case zm::CotenantOutcome::kKilled: return 2;
+    case zm::CotenantOutcome::kCompleted:
+      return 0;
+    case zm::CotenantOutcome::kStalled:
+      return 2;
+    case zm::CotenantOutcome::kFailedToStart:
+      return 3;
+    case zm::CotenantOutcome::kKilled:
+      return 2;
   }
   return 1;
 }

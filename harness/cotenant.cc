@@ -74,8 +74,8 @@ Result<CotenantModel> FindCotenantModel(std::string_view name) {
   for (const CotenantModel& m : kModels) {
     if (m.name == name) return m;
   }
-  return NotFound("unknown co-tenant model '" + std::string(name) + "' (known: " +
-                  CotenantModelNames() + ")");
+  return NotFound("unknown co-tenant model '" + std::string(name) +
+                  "' (known: " + CotenantModelNames() + ")");
 }
 
 std::string CotenantModelNames() {
@@ -93,24 +93,34 @@ std::string_view KvAllocationName(KvAllocation a) {
   return a == KvAllocation::kAtLoad ? "at_load" : "per_request";
 }
 
-std::string_view WeightsLoadName(WeightsLoad w) { return w == WeightsLoad::kRead ? "read" : "mmap"; }
+std::string_view WeightsLoadName(WeightsLoad w) {
+  return w == WeightsLoad::kRead ? "read" : "mmap";
+}
 
 std::string_view CotenantOutcomeName(CotenantOutcome o) {
   switch (o) {
-    case CotenantOutcome::kCompleted: return "completed";
-    case CotenantOutcome::kStalled: return "stalled";
-    case CotenantOutcome::kFailedToStart: return "failed_to_start";
-    case CotenantOutcome::kKilled: return "killed";
+    case CotenantOutcome::kCompleted:
+      return "completed";
+    case CotenantOutcome::kStalled:
+      return "stalled";
+    case CotenantOutcome::kFailedToStart:
+      return "failed_to_start";
+    case CotenantOutcome::kKilled:
+      return "killed";
   }
   return "unknown";
 }
 
 std::string_view CotenantOutcomeSymbol(CotenantOutcome o) {
   switch (o) {
-    case CotenantOutcome::kCompleted: return "\u25cb";      // ○
-    case CotenantOutcome::kStalled: return "\u25b3";        // △
-    case CotenantOutcome::kFailedToStart: return "\u00d7";  // ×
-    case CotenantOutcome::kKilled: return "\u2020";         // †
+    case CotenantOutcome::kCompleted:
+      return "\u25cb";  // ○
+    case CotenantOutcome::kStalled:
+      return "\u25b3";  // △
+    case CotenantOutcome::kFailedToStart:
+      return "\u00d7";  // ×
+    case CotenantOutcome::kKilled:
+      return "\u2020";  // †
   }
   return "?";
 }
@@ -182,15 +192,18 @@ OutcomeDecision DecideCotenantOutcome(const CotenantResult& r) {
   if (r.starts == 0) {
     std::string why = r.start_failure;
     if (r.kills + r.crashes > 0) {
-      why += std::string(why.empty() ? "" : "; ") + "killed " + Plural(r.kills + r.crashes, "time") +
-             " while loading" + (r.kills > 0 ? " (SIGKILL: an OOM kill)" : "");
+      why += std::string(why.empty() ? "" : "; ") + "killed " +
+             Plural(r.kills + r.crashes, "time") + " while loading" +
+             (r.kills > 0 ? " (SIGKILL: an OOM kill)" : "");
     }
     return {CotenantOutcome::kFailedToStart, why.empty() ? "it never started" : why};
   }
   if (r.kills + r.crashes > 0) {
     std::string why;
-    if (r.kills > 0) why = "killed by SIGKILL " + Plural(r.kills, "time") + " (an OOM kill, or the operator)";
-    if (r.crashes > 0) why += std::string(why.empty() ? "" : ", ") + "crashed " + Plural(r.crashes, "time");
+    if (r.kills > 0)
+      why = "killed by SIGKILL " + Plural(r.kills, "time") + " (an OOM kill, or the operator)";
+    if (r.crashes > 0)
+      why += std::string(why.empty() ? "" : ", ") + "crashed " + Plural(r.crashes, "time");
     return {CotenantOutcome::kKilled, why + restarts};
   }
   if (r.stalls > 0) {
@@ -203,9 +216,10 @@ OutcomeDecision DecideCotenantOutcome(const CotenantResult& r) {
     return {CotenantOutcome::kStalled,
             "none of the " + Plural(submitted, "submitted request") + " completed" + restarts};
   }
-  return {CotenantOutcome::kCompleted, r.requests_failed > 0
-                                           ? Plural(r.requests_failed, "request") + " failed" + restarts
-                                           : restarts.empty() ? "" : restarts.substr(2)};
+  return {CotenantOutcome::kCompleted,
+          r.requests_failed > 0 ? Plural(r.requests_failed, "request") + " failed" + restarts
+          : restarts.empty()    ? ""
+                                : restarts.substr(2)};
 }
 
 // ---- CotenantReportBuilder ----
@@ -238,7 +252,8 @@ Status CotenantReportBuilder::AddEvent(const nlohmann::json& e) {
     if (e.contains("weights_bytes")) r_.weights_bytes = U64(e, "weights_bytes");
     if (e.contains("kv_reserved_bytes")) r_.kv_reserved_bytes = U64(e, "kv_reserved_bytes");
     if (e.contains("request_kv_bytes")) r_.request_kv_bytes = U64(e, "request_kv_bytes");
-    if (e.contains("context_tokens")) r_.context_tokens = static_cast<std::uint32_t>(U64(e, "context_tokens"));
+    if (e.contains("context_tokens"))
+      r_.context_tokens = static_cast<std::uint32_t>(U64(e, "context_tokens"));
     if (e.contains("watchdog_s")) r_.watchdog_s = Num(e, "watchdog_s");
   };
   auto record = [&](bool ok) {

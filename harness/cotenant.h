@@ -35,12 +35,11 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "common/status.h"
 #include "harness/cotenant_options.h"
@@ -62,10 +61,10 @@ struct CotenantModel {
   std::string_view name;     // "qwen3-vl-2b"
   std::string_view display;  // "qwen3-vl 2B"
   std::uint64_t weights_bytes = 0;
-  std::uint64_t kv_bytes_per_token = 0;         // layers attending over the whole context
-  std::uint64_t window_bytes_per_token = 0;     // sliding-window layers (gemma3: 5 of 6)
+  std::uint64_t kv_bytes_per_token = 0;      // layers attending over the whole context
+  std::uint64_t window_bytes_per_token = 0;  // sliding-window layers (gemma3: 5 of 6)
   std::uint32_t window_tokens = 0;
-  std::uint64_t state_bytes = 0;                // fixed per sequence (linear-attention state)
+  std::uint64_t state_bytes = 0;  // fixed per sequence (linear-attention state)
 };
 [[nodiscard]] std::span<const CotenantModel> CotenantModels();
 [[nodiscard]] Result<CotenantModel> FindCotenantModel(std::string_view name);
@@ -88,9 +87,9 @@ struct CotenantConfig {
   // Self-paced requests (the program without --serve): this many (0 = until stopped), one every
   // options.request_period_s.
   std::uint32_t requests = 5;
-  std::string ledger_path;            // empty = no device ledger (the portable fallback's)
+  std::string ledger_path;                // empty = no device ledger (the portable fallback's)
   std::uint64_t ledger_device_bytes = 0;  // creates the ledger if absent; 0 = attach only
-  std::string ledger_name;            // tenant name; empty = "cotenant:<model>"
+  std::string ledger_name;                // tenant name; empty = "cotenant:<model>"
 };
 
 // [model] (name, weights) + [cotenant] of a profile; requests and ledger left at their defaults.
@@ -120,21 +119,21 @@ struct CotenantRequestRecord {
   std::uint64_t id = 0;
   std::uint32_t instance = 0;  // which start of the process served it (0 = first)
   std::int64_t pid = 0;
-  bool ok = false;             // completed; false = failed (reason says why)
+  bool ok = false;  // completed; false = failed (reason says why)
   std::string reason;
   double submitted_s = 0.0;
   double started_s = 0.0;
   double ended_s = 0.0;
-  double tokens_per_s = 0.0;   // decode
+  double tokens_per_s = 0.0;  // decode
   double prefill_tokens_per_s = 0.0;
-  double latency_ms = 0.0;     // started -> ended
-  double queue_ms = 0.0;       // submitted -> started
-  std::uint64_t kv_bytes = 0;  // KV cache at the end of the request (scaled)
+  double latency_ms = 0.0;              // started -> ended
+  double queue_ms = 0.0;                // submitted -> started
+  std::uint64_t kv_bytes = 0;           // KV cache at the end of the request (scaled)
   std::uint64_t kv_resident_bytes = 0;  // of it, resident (mincore) at the end of the request
   std::uint64_t major_faults = 0;       // during the request (refaulted weights show here)
   std::uint64_t minor_faults = 0;
   double max_token_gap_ms = 0.0;
-  std::uint32_t stalls = 0;    // watchdog events inside this request
+  std::uint32_t stalls = 0;  // watchdog events inside this request
 };
 
 // What a co-tenant run measured (one process, or every instance a supervisor started).
@@ -143,40 +142,40 @@ struct CotenantResult {
   std::string model;
   double device_scale = 1.0;
   std::uint64_t model_weights_bytes = 0;
-  std::uint64_t weights_bytes = 0;       // scaled, as mapped
-  std::uint64_t kv_reserved_bytes = 0;   // scaled KV cache for context_tokens
-  std::uint64_t request_kv_bytes = 0;    // scaled KV cache of one request
+  std::uint64_t weights_bytes = 0;      // scaled, as mapped
+  std::uint64_t kv_reserved_bytes = 0;  // scaled KV cache for context_tokens
+  std::uint64_t request_kv_bytes = 0;   // scaled KV cache of one request
   std::uint32_t context_tokens = 0;
   std::string weights_path;
-  std::string weights_load;              // "mmap" | "read"
-  std::string kv_allocation;             // "per_request" | "at_load"
+  std::string weights_load;   // "mmap" | "read"
+  std::string kv_allocation;  // "per_request" | "at_load"
   bool file_backed = false;
   bool evictable = false;
-  double load_ms = 0.0;                  // last start's weights load
-  double weights_create_ms = 0.0;        // > 0 when a start created the weights file
-  double origin_mono_s = 0.0;            // CLOCK_MONOTONIC of t = 0 in the records
+  double load_ms = 0.0;            // last start's weights load
+  double weights_create_ms = 0.0;  // > 0 when a start created the weights file
+  double origin_mono_s = 0.0;      // CLOCK_MONOTONIC of t = 0 in the records
   double watchdog_s = 0.0;
-  std::string start_failure;             // why the last failed start failed
+  std::string start_failure;  // why the last failed start failed
 
   CotenantOutcome outcome = CotenantOutcome::kFailedToStart;
-  std::string reason;                    // why it is not ○; empty when completed
-  std::uint32_t starts = 0;              // instances that started (weights + KV in memory)
+  std::string reason;        // why it is not ○; empty when completed
+  std::uint32_t starts = 0;  // instances that started (weights + KV in memory)
   std::uint32_t failed_starts = 0;
-  std::uint32_t kills = 0;               // deaths by SIGKILL
-  std::uint32_t crashes = 0;             // other unexpected deaths
-  std::uint32_t restarts = 0;            // spawns after the first
-  std::uint32_t stalls = 0;              // watchdog events
+  std::uint32_t kills = 0;     // deaths by SIGKILL
+  std::uint32_t crashes = 0;   // other unexpected deaths
+  std::uint32_t restarts = 0;  // spawns after the first
+  std::uint32_t stalls = 0;    // watchdog events
   std::uint32_t requests_submitted = 0;
-  std::uint32_t requests = 0;            // completed
-  std::uint32_t requests_failed = 0;     // refused, lost to a death, or the service was down
-  std::uint32_t requests_unfinished = 0; // in flight when the run was stopped
+  std::uint32_t requests = 0;             // completed
+  std::uint32_t requests_failed = 0;      // refused, lost to a death, or the service was down
+  std::uint32_t requests_unfinished = 0;  // in flight when the run was stopped
   std::uint64_t tokens_generated = 0;
-  std::uint64_t major_faults = 0;        // over completed requests
-  double tokens_per_s = 0.0;             // median decode rate over completed requests
-  double prefill_tokens_per_s = 0.0;     // median
+  std::uint64_t major_faults = 0;     // over completed requests
+  double tokens_per_s = 0.0;          // median decode rate over completed requests
+  double prefill_tokens_per_s = 0.0;  // median
   double latency_ms_p50 = 0.0;
   double latency_ms_p95 = 0.0;
-  std::uint64_t checksum = 0;            // the passes' reduction (keeps them from being elided)
+  std::uint64_t checksum = 0;  // the passes' reduction (keeps them from being elided)
   std::vector<CotenantRequestRecord> per_request;  // every request, completed or failed
 };
 
@@ -272,8 +271,8 @@ class CotenantProcess {
   void Reset() noexcept;  // stop, reap, close: the state of a default-constructed object
 
   pid_t pid_ = -1;
-  int out_fd_ = -1;  // the child's stdout (read end of a pipe)
-  int in_fd_ = -1;   // the child's stdin (a socket, so a dead reader is EPIPE, not SIGPIPE)
+  int out_fd_ = -1;      // the child's stdout (read end of a pipe)
+  int in_fd_ = -1;       // the child's stdin (a socket, so a dead reader is EPIPE, not SIGPIPE)
   std::string partial_;  // a line not yet complete
   double spawned_mono_s_ = 0.0;
 };

@@ -33,6 +33,8 @@ std::string Num(double v) {
 
 std::vector<std::string> CotenantCommandLine(const CotenantConfig& c, bool serve) {
   const CotenantOptions& o = c.options;
+  // Flag and value pairs, one pair a line.
+  // clang-format off
   std::vector<std::string> a = {
       "--model",          c.model,
       "--device-scale",   Num(c.device_scale),
@@ -49,6 +51,7 @@ std::vector<std::string> CotenantCommandLine(const CotenantConfig& c, bool serve
       o.cold_start ? "--cold-start" : "--no-cold-start",
       "--jsonl",
   };
+  // clang-format on
   if (o.mlock) a.emplace_back("--mlock");
   if (serve) a.emplace_back("--serve");
   if (c.weights_bytes != 0) a.insert(a.end(), {"--weights-bytes", std::to_string(c.weights_bytes)});
@@ -168,7 +171,8 @@ Result<CotenantProcess> CotenantProcess::Spawn(const CotenantConfig& config, std
   if (rc != 0) {
     close(out[0]);
     close(in[0]);
-    return IoError("cannot start the co-tenant stand-in '" + args.front() + "': " + std::strerror(rc));
+    return IoError("cannot start the co-tenant stand-in '" + args.front() +
+                   "': " + std::strerror(rc));
   }
   CotenantProcess p;
   p.spawned_mono_s_ = MonotonicSeconds();
@@ -247,12 +251,14 @@ Result<CotenantResult> CotenantProcess::Wait() {
   while (open) {
     open = ReadLines(lines, -1);
     for (const std::string& l : lines) {
-      if (Status s = builder.AddLine(l); !s.ok()) return s.Annotate("co-tenant pid " + std::to_string(pid));
+      if (Status s = builder.AddLine(l); !s.ok())
+        return s.Annotate("co-tenant pid " + std::to_string(pid));
     }
     lines.clear();
   }
   const CotenantExit exit = ClassifyCotenantExit(Reap(5.0));
-  (void)builder.Add({{"event", "exit"}, {"kind", std::string(exit.kind)}, {"code", exit.code}, {"pid", pid}});
+  (void)builder.Add(
+      {{"event", "exit"}, {"kind", std::string(exit.kind)}, {"code", exit.code}, {"pid", pid}});
   return builder.Report();
 }
 

@@ -76,8 +76,8 @@ class KvCache {
     if (p == MAP_FAILED) {
       const int e = errno;
       reserved_ = 0;
-      return ResourceExhausted("allocating the " + FormatBytes(bytes) + " KV cache failed: " +
-                               std::strerror(e));
+      return ResourceExhausted("allocating the " + FormatBytes(bytes) +
+                               " KV cache failed: " + std::strerror(e));
     }
     base_ = static_cast<unsigned char*>(p);
     return Status::Ok();
@@ -92,8 +92,9 @@ class KvCache {
   }
   // Attention reads the whole context's K and V.
   std::uint64_t Read(std::uint64_t seed) const {
-    return touched_ < 8 ? seed
-                        : StreamPass(reinterpret_cast<const std::uint64_t*>(base_), touched_ / 8, seed);
+    return touched_ < 8
+               ? seed
+               : StreamPass(reinterpret_cast<const std::uint64_t*>(base_), touched_ / 8, seed);
   }
   // Gives the pages back (MADV_DONTNEED: the next touch gets fresh zero pages).
   void Release() {
@@ -153,7 +154,8 @@ class Emitter {
 class Watchdog {
  public:
   using OnStall = std::function<void(std::uint64_t id, double gap_s)>;
-  Watchdog(double watchdog_s, OnStall on_stall) : limit_s_(watchdog_s), on_stall_(std::move(on_stall)) {
+  Watchdog(double watchdog_s, OnStall on_stall)
+      : limit_s_(watchdog_s), on_stall_(std::move(on_stall)) {
     if (limit_s_ > 0.0) thread_ = std::thread([this] { Loop(); });
   }
   Watchdog(const Watchdog&) = delete;
@@ -251,7 +253,9 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   Emitter em(std::move(hooks.emit), config.device_scale, origin);
   const CotenantOptions& o = config.options;
   auto fail = [&](const std::string& reason, const CotenantSizes* s) {
-    nlohmann::json j = {{"event", "failed_to_start"}, {"reason", reason}, {"model", config.model},
+    nlohmann::json j = {{"event", "failed_to_start"},
+                        {"reason", reason},
+                        {"model", config.model},
                         {"note", std::string(kCotenantNote)}};
     if (s != nullptr) {
       j["model_weights_bytes"] = s->model_weights_bytes;
@@ -276,7 +280,8 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   const std::uint64_t base_grant =
       sz.weights_bytes + (o.kv_allocation == KvAllocation::kAtLoad ? sz.kv_reserved_bytes : 0);
   if (!config.ledger_path.empty()) {
-    Result<DeviceLedger> opened = DeviceLedger::Open(config.ledger_path, config.ledger_device_bytes);
+    Result<DeviceLedger> opened =
+        DeviceLedger::Open(config.ledger_path, config.ledger_device_bytes);
     if (!opened.ok()) return fail(opened.status().message(), &sz);
     ledger.emplace(std::move(opened).value());
     const std::string name =
@@ -294,7 +299,8 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   mo.mlock = o.mlock;
   mo.cold_start = o.cold_start;
   Result<MappedWeights> mapped = MappedWeights::Map(file->path, mo);
-  if (!mapped.ok()) return fail("the weights could not be mapped: " + mapped.status().message(), &sz);
+  if (!mapped.ok())
+    return fail("the weights could not be mapped: " + mapped.status().message(), &sz);
   const MappedWeights& weights = *mapped;
   KvCache kv;
   if (Status s = kv.Reserve(sz.kv_reserved_bytes); !s.ok()) {
@@ -336,7 +342,8 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
            {"watchdog_s", o.watchdog_s}});
 
   Watchdog watchdog(o.watchdog_s, [&](std::uint64_t id, double gap_s) {
-    em.Emit({{"event", "stall"}, {"id", id}, {"since_token_s", gap_s}, {"watchdog_s", o.watchdog_s}});
+    em.Emit(
+        {{"event", "stall"}, {"id", id}, {"since_token_s", gap_s}, {"watchdog_s", o.watchdog_s}});
   });
 
   std::uint32_t served = 0;
@@ -350,7 +357,8 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
     return true;
   };
   std::function<bool(CotenantTicket&)> next =
-      hooks.next_request ? std::move(hooks.next_request) : std::function<bool(CotenantTicket&)>(self_paced);
+      hooks.next_request ? std::move(hooks.next_request)
+                         : std::function<bool(CotenantTicket&)>(self_paced);
 
   const std::size_t words = weights.bytes() / 8;
   const std::uint32_t prefill_passes =
@@ -379,7 +387,8 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
     for (std::uint32_t p = 0; p < prefill_passes && !aborted; ++p) {
       aborted = Stopped(stop);
       if (aborted) break;
-      context = std::min<std::uint64_t>(o.prompt_tokens, std::uint64_t{p + 1} * o.prompt_batch_tokens);
+      context =
+          std::min<std::uint64_t>(o.prompt_tokens, std::uint64_t{p + 1} * o.prompt_batch_tokens);
       kv.GrowTo(ScaledKvBytes(sz, config.device_scale, context));
       h = kv.Read(StreamPass(weights.words(), words, h));
       watchdog.Progress();
@@ -411,25 +420,26 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
     }
     const double prefill_ms = (prefilled - started) * 1000.0;
     const double decode_ms = (ended - prefilled) * 1000.0;
-    em.Emit({{"event", "request"},
-             {"id", ticket.id},
-             {"submitted_s", ticket.submitted_mono_s},
-             {"started_s", started},
-             {"ended_s", ended},
-             {"prompt_tokens", o.prompt_tokens},
-             {"answer_tokens", o.answer_tokens},
-             {"prefill_ms", prefill_ms},
-             {"decode_ms", decode_ms},
-             {"latency_ms", (ended - started) * 1000.0},
-             {"queue_ms", std::max(0.0, (started - ticket.submitted_mono_s) * 1000.0)},
-             {"tokens_per_s", decode_ms > 0.0 ? o.answer_tokens * 1000.0 / decode_ms : 0.0},
-             {"prefill_tokens_per_s", prefill_ms > 0.0 ? o.prompt_tokens * 1000.0 / prefill_ms : 0.0},
-             {"kv_bytes", kv_bytes},
-             {"kv_resident_bytes", kv_resident},
-             {"major_faults", static_cast<std::uint64_t>(u1.ru_majflt - u0.ru_majflt)},
-             {"minor_faults", static_cast<std::uint64_t>(u1.ru_minflt - u0.ru_minflt)},
-             {"max_token_gap_ms", ws.max_gap_s * 1000.0},
-             {"stalls", ws.stalls}});
+    em.Emit(
+        {{"event", "request"},
+         {"id", ticket.id},
+         {"submitted_s", ticket.submitted_mono_s},
+         {"started_s", started},
+         {"ended_s", ended},
+         {"prompt_tokens", o.prompt_tokens},
+         {"answer_tokens", o.answer_tokens},
+         {"prefill_ms", prefill_ms},
+         {"decode_ms", decode_ms},
+         {"latency_ms", (ended - started) * 1000.0},
+         {"queue_ms", std::max(0.0, (started - ticket.submitted_mono_s) * 1000.0)},
+         {"tokens_per_s", decode_ms > 0.0 ? o.answer_tokens * 1000.0 / decode_ms : 0.0},
+         {"prefill_tokens_per_s", prefill_ms > 0.0 ? o.prompt_tokens * 1000.0 / prefill_ms : 0.0},
+         {"kv_bytes", kv_bytes},
+         {"kv_resident_bytes", kv_resident},
+         {"major_faults", static_cast<std::uint64_t>(u1.ru_majflt - u0.ru_majflt)},
+         {"minor_faults", static_cast<std::uint64_t>(u1.ru_minflt - u0.ru_minflt)},
+         {"max_token_gap_ms", ws.max_gap_s * 1000.0},
+         {"stalls", ws.stalls}});
   }
   em.Emit({{"event", "end"},
            {"reason", Stopped(stop) ? "stopped" : "no more requests"},

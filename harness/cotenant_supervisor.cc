@@ -28,8 +28,8 @@ std::function<Status(pid_t)> PlaceInCgroupProcs(std::string procs_path) {
     const int e = errno;
     close(fd);
     if (n != static_cast<ssize_t>(text.size())) {
-      return IoError("writing pid " + std::to_string(pid) + " to '" + path + "': " +
-                     std::strerror(n < 0 ? e : EIO));
+      return IoError("writing pid " + std::to_string(pid) + " to '" + path +
+                     "': " + std::strerror(n < 0 ? e : EIO));
     }
     return Status::Ok();
   };
@@ -52,8 +52,8 @@ Status CotenantSupervisor::Start(CotenantSupervisorOptions options) {
   if (!options_.events_path.empty()) {
     events_ = std::fopen(options_.events_path.c_str(), "a");
     if (events_ == nullptr) {
-      return IoError("cannot open co-tenant events file '" + options_.events_path + "': " +
-                     std::strerror(errno));
+      return IoError("cannot open co-tenant events file '" + options_.events_path +
+                     "': " + std::strerror(errno));
     }
   }
   t0_ = MonotonicSeconds();
@@ -65,8 +65,8 @@ Status CotenantSupervisor::Start(CotenantSupervisorOptions options) {
   // machine, not of the co-tenant's memory (a child creating it inside a tight cgroup would be
   // charged its dirty pages). A failure is left for the child to meet and report as ×.
   if (Result<CotenantSizes> sizes = ResolveCotenantSizes(options_.config); sizes.ok()) {
-    if (Result<WeightsFileInfo> f = EnsureWeightsFile(options_.config.options.weights_dir,
-                                                      sizes->weights_bytes);
+    if (Result<WeightsFileInfo> f =
+            EnsureWeightsFile(options_.config.options.weights_dir, sizes->weights_bytes);
         f.ok()) {
       Record({{"event", "weights_file"},
               {"weights_path", f->path},
@@ -150,7 +150,7 @@ void CotenantSupervisor::Loop() {
   std::optional<CotenantProcess> child;
   std::uint32_t instance = 0;  // of the current (or next) child
   double restart_at = t0_;
-  std::uint64_t scheduled = 0;  // paced requests issued so far
+  std::uint64_t scheduled = 0;           // paced requests issued so far
   std::map<std::uint64_t, double> open;  // sent to the current child, not yet answered
   std::vector<std::string> lines;
 
@@ -164,11 +164,11 @@ void CotenantSupervisor::Loop() {
             {"pid", pid},
             {"kind", stopping ? std::string("stopped") : std::string(exit.kind)},
             {"code", exit.code}});
-    const std::string why =
-        stopping ? "in flight or queued when the run was stopped"
-                 : "lost: the co-tenant " + std::string(exit.kind) +
-                       (exit.kind == "exited" ? " with status " : " by signal ") +
-                       std::to_string(exit.code);
+    const std::string why = stopping
+                                ? "in flight or queued when the run was stopped"
+                                : "lost: the co-tenant " + std::string(exit.kind) +
+                                      (exit.kind == "exited" ? " with status " : " by signal ") +
+                                      std::to_string(exit.code);
     for (const auto& [id, submitted] : open) {
       Record({{"event", "request_failed"},
               {"id", id},
@@ -196,7 +196,8 @@ void CotenantSupervisor::Loop() {
   };
   auto submit = [&](std::uint64_t id, double submitted) {
     char cmd[96];
-    std::snprintf(cmd, sizeof cmd, "request %llu %.9f", static_cast<unsigned long long>(id), submitted);
+    std::snprintf(cmd, sizeof cmd, "request %llu %.9f", static_cast<unsigned long long>(id),
+                  submitted);
     if (child && child->SendLine(cmd)) {
       open.emplace(id, submitted);
       return;
@@ -210,8 +211,11 @@ void CotenantSupervisor::Loop() {
   while (!quit_.load()) {
     double now = MonotonicSeconds();
     if (!child && now >= restart_at && (o.max_restarts == 0 || instance <= o.max_restarts)) {
-      Result<CotenantProcess> spawned = CotenantProcess::Spawn(o.config, o.executable, /*serve=*/true);
-      Record({{"event", "spawn"}, {"instance", instance}, {"pid", spawned.ok() ? spawned->pid() : -1}});
+      Result<CotenantProcess> spawned =
+          CotenantProcess::Spawn(o.config, o.executable, /*serve=*/true);
+      Record({{"event", "spawn"},
+              {"instance", instance},
+              {"pid", spawned.ok() ? spawned->pid() : -1}});
       instances_.store(instance + 1);
       if (!spawned.ok()) {
         Record({{"event", "failed_to_start"}, {"reason", spawned.status().message()}});

@@ -77,8 +77,8 @@ class CotenantSupervisor {
 
  private:
   void Loop();
-  void Record(nlohmann::json event);  // the supervisor's own events, stamped
-  void Line(const std::string& line); // a child's line
+  void Record(nlohmann::json event);   // the supervisor's own events, stamped
+  void Line(const std::string& line);  // a child's line
   void Wake();
 
   CotenantSupervisorOptions options_;

@@ -60,15 +60,24 @@ struct Fd {
 
 std::string FsTypeName(std::int64_t type) {
   switch (static_cast<std::uint64_t>(type) & 0xFFFFFFFFu) {
-    case 0xEF53: return "ext4";
-    case 0x01021994: return "tmpfs";
-    case 0x858458f6: return "ramfs";
-    case 0x58465342: return "xfs";
-    case 0x9123683E: return "btrfs";
-    case 0x794c7630: return "overlay";
-    case 0x6969: return "nfs";
-    case 0x65735546: return "fuse";
-    default: break;
+    case 0xEF53:
+      return "ext4";
+    case 0x01021994:
+      return "tmpfs";
+    case 0x858458f6:
+      return "ramfs";
+    case 0x58465342:
+      return "xfs";
+    case 0x9123683E:
+      return "btrfs";
+    case 0x794c7630:
+      return "overlay";
+    case 0x6969:
+      return "nfs";
+    case 0x65735546:
+      return "fuse";
+    default:
+      break;
   }
   char buf[32];
   std::snprintf(buf, sizeof buf, "0x%llx", static_cast<unsigned long long>(type));
@@ -96,7 +105,8 @@ Status WriteContent(int fd, std::uint64_t bytes, const std::string& what) {
   std::uint64_t written = 0;
   bool first = true;
   while (written < bytes) {
-    const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(kChunkBytes, bytes - written));
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(kChunkBytes, bytes - written));
     const std::size_t words = n / 8;
     for (std::size_t i = 0; i < words; ++i) {
       x ^= x << 13;
@@ -240,7 +250,8 @@ void MappedWeights::Release() noexcept {
   bytes_ = 0;
 }
 
-Result<MappedWeights> MappedWeights::Map(const std::string& path, const WeightsMapOptions& options) {
+Result<MappedWeights> MappedWeights::Map(const std::string& path,
+                                         const WeightsMapOptions& options) {
   const auto t0 = Clock::now();
   Fd fd(open(path.c_str(), O_RDONLY | O_CLOEXEC));
   if (fd.fd < 0) return IoError("cannot open weights file '" + path + "': " + Errno(errno));
@@ -275,17 +286,18 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path, const WeightsM
   } else {
     void* p = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (p == MAP_FAILED) {
-      return ResourceExhausted("allocating " + FormatBytes(bytes) + " for the weights failed: " +
-                               Errno(errno));
+      return ResourceExhausted("allocating " + FormatBytes(bytes) +
+                               " for the weights failed: " + Errno(errno));
     }
     w.addr_ = p;
     w.bytes_ = size;
     std::size_t done = 0;
     while (done < size) {
-      const ssize_t r = pread(fd.fd, static_cast<char*>(p) + done, size - done,
-                              static_cast<off_t>(done));
+      const ssize_t r =
+          pread(fd.fd, static_cast<char*>(p) + done, size - done, static_cast<off_t>(done));
       if (r < 0 && errno == EINTR) continue;
-      if (r <= 0) return IoError("reading weights file '" + path + "': " + Errno(r < 0 ? errno : EIO));
+      if (r <= 0)
+        return IoError("reading weights file '" + path + "': " + Errno(r < 0 ? errno : EIO));
       done += static_cast<std::size_t>(r);
     }
     (void)mprotect(p, size, PROT_READ);
@@ -300,8 +312,8 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path, const WeightsM
         (void)setrlimit(RLIMIT_MEMLOCK, &rl);
       }
       if (mlock(w.addr_, w.bytes_) != 0) {
-        w.mlock_error_ = "mlock of " + FormatBytes(bytes) + " failed: " + Errno(errno) +
-                         " (RLIMIT_MEMLOCK)";
+        w.mlock_error_ =
+            "mlock of " + FormatBytes(bytes) + " failed: " + Errno(errno) + " (RLIMIT_MEMLOCK)";
       }
     }
     w.locked_ = w.mlock_error_.empty();

@@ -37,10 +37,10 @@ inline constexpr std::uint64_t kWeightsPageBytes = 4096;  // weights sizes are r
 struct WeightsFileInfo {
   std::string path;
   std::uint64_t bytes = 0;
-  bool created = false;     // false: reused from an earlier run
-  double create_ms = 0.0;   // writing it (0 when reused)
-  std::string fs_type;      // "ext4", "tmpfs", ... (statfs)
-  bool evictable = true;    // false on tmpfs/ramfs: shmem pages only leave memory for swap
+  bool created = false;    // false: reused from an earlier run
+  double create_ms = 0.0;  // writing it (0 when reused)
+  std::string fs_type;     // "ext4", "tmpfs", ... (statfs)
+  bool evictable = true;   // false on tmpfs/ramfs: shmem pages only leave memory for swap
 };
 
 // The weights file of `bytes` (a multiple of kWeightsPageBytes, > 0) in `dir` (empty =

@@ -71,7 +71,8 @@ TEST_CASE("paced requests: 30 in a run, submitted on one schedule, all answered"
     CHECK(r->per_request[i].id == i);
     CHECK(r->per_request[i].ok);
     // Request i is due at i * period from the supervisor's start, whatever the child does.
-    CHECK(r->per_request[i].submitted_s == doctest::Approx(0.02 * static_cast<double>(i)).epsilon(1e-6));
+    CHECK(r->per_request[i].submitted_s ==
+          doctest::Approx(0.02 * static_cast<double>(i)).epsilon(1e-6));
     CHECK(r->per_request[i].started_s >= r->per_request[i].submitted_s);
   }
 }
@@ -115,8 +116,8 @@ TEST_CASE("a SIGKILL is recorded as killed, then it restarts and every request i
              q.reason.find("stopped") != std::string::npos));
     }
   }
-  CHECK(before >= 3);        // what the first instance did survives its kill
-  CHECK(pids.size() == 2);   // both instances answered
+  CHECK(before >= 3);       // what the first instance did survives its kill
+  CHECK(pids.size() == 2);  // both instances answered
   CHECK(pids.count(first) == 1);
   const std::string log = ReadFile(events);
   CHECK(log.find("\"kind\":\"killed\"") != std::string::npos);
@@ -154,7 +155,8 @@ TEST_CASE("a frozen co-tenant: the watchdog reports the stall, the request still
   CHECK(r->per_request[0].stalls >= 1);
   CHECK(r->per_request[0].max_token_gap_ms >= 500.0);
   CHECK(ToJson(*r)["outcome_symbol"] == "\u25b3");
-  CHECK(ReadFile(events).find("\"event\":\"stall\"") != std::string::npos);  // streamed as it happened
+  CHECK(ReadFile(events).find("\"event\":\"stall\"") !=
+        std::string::npos);  // streamed as it happened
   std::filesystem::remove(events);
 }
 
@@ -174,7 +176,8 @@ TEST_CASE("a co-tenant that cannot map its weights fails to start, again at ever
   CHECK(r->kills == 0);
 }
 
-TEST_CASE("the placement hook runs before the child maps anything, and its failure is a failed start") {
+TEST_CASE(
+    "the placement hook runs before the child maps anything, and its failure is a failed start") {
   test::EmulatorLauncher launcher;
   CotenantSupervisorOptions o = Options();
   std::string maps_at_placement;
@@ -215,7 +218,8 @@ struct TestCgroup {
       if (a != std::string::npos) own = line.substr(a + 8);
     }
     if (own.empty()) return;
-    const std::string d = "/sys/fs/cgroup/memory" + own + "/zm-cotenant-test-" + std::to_string(getpid());
+    const std::string d =
+        "/sys/fs/cgroup/memory" + own + "/zm-cotenant-test-" + std::to_string(getpid());
     if (mkdir(d.c_str(), 0755) != 0) return;
     std::ofstream(d + "/memory.limit_in_bytes") << limit_bytes;
     std::ifstream check(d + "/memory.limit_in_bytes");
@@ -243,8 +247,9 @@ TEST_CASE("in a memory cgroup too small for a request's KV cache, the kernel's O
   // pages and 4 MiB of weights ~15 MiB) but not for a 272 MiB request.
   TestCgroup cg(128ull << 20);
   if (cg.dir.empty()) {
-    MESSAGE("skipped: no memory cgroup can be created here (needs a writable cgroup v1 memory "
-            "controller under this process's own cgroup)");
+    MESSAGE(
+        "skipped: no memory cgroup can be created here (needs a writable cgroup v1 memory "
+        "controller under this process's own cgroup)");
     return;
   }
   test::EmulatorLauncher launcher;

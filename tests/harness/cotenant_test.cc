@@ -33,9 +33,10 @@ constexpr std::uint64_t kMiB = 1ULL << 20;
 
 std::string TempLedgerPath() {
   static std::atomic<int> n{0};
-  const std::string p = (std::filesystem::temp_directory_path() /
-                         ("zm-cotenant-test-" + std::to_string(getpid()) + "-" + std::to_string(n++)))
-                            .string();
+  const std::string p =
+      (std::filesystem::temp_directory_path() /
+       ("zm-cotenant-test-" + std::to_string(getpid()) + "-" + std::to_string(n++)))
+          .string();
   (void)DeviceLedger::Remove(p);
   return p;
 }
@@ -79,14 +80,17 @@ TEST_CASE("the model table holds the paper's weight sizes and each model's KV ge
   // gemma3: the 29 sliding-window layers stop growing at 1024 tokens, the 5 global ones do not.
   const CotenantModel gemma = *FindCotenantModel("gemma3-4b");
   CHECK(KvCacheBytes(gemma, 512) == 512ULL * 2 * 34 * 4 * 256 * 2);
-  CHECK(KvCacheBytes(gemma, 4096) == 4096ULL * 2 * 5 * 4 * 256 * 2 + 1024ULL * 2 * 29 * 4 * 256 * 2);
+  CHECK(KvCacheBytes(gemma, 4096) ==
+        4096ULL * 2 * 5 * 4 * 256 * 2 + 1024ULL * 2 * 29 * 4 * 256 * 2);
   // qwen3.5: a fixed recurrent state besides the 6 attention layers' cache.
   const CotenantModel q35 = *FindCotenantModel("qwen3.5-0.8b");
   CHECK(KvCacheBytes(q35, 0) == q35.state_bytes);
   CHECK(KvCacheBytes(q35, 100) == q35.state_bytes + 100ULL * 2 * 6 * 2 * 256 * 2);
 }
 
-TEST_CASE("the device scale multiplies weights and KV cache together, and must be above 0 and at most 1") {
+TEST_CASE(
+    "the device scale multiplies weights and KV cache together, and must be above 0 and at most "
+    "1") {
   CotenantConfig c;
   c.options.context_tokens = 4096;
   Result<CotenantSizes> full = ResolveCotenantSizes(c);
@@ -211,7 +215,8 @@ TEST_CASE("the KV cache grows with each request's context and is resident while 
   }
   // llama.cpp's way: the whole n_ctx cache is written at load and stays.
   const auto [at_load_kv, at_load_resident] = kv_of(16, KvAllocation::kAtLoad);
-  CHECK(at_load_kv == (static_cast<std::uint64_t>(std::llround(256 * 114688 * 0.01)) + 4095) / 4096 * 4096);
+  CHECK(at_load_kv ==
+        (static_cast<std::uint64_t>(std::llround(256 * 114688 * 0.01)) + 4095) / 4096 * 4096);
   (void)at_load_resident;
 }
 
@@ -247,7 +252,8 @@ TEST_CASE("a KV cache larger than the process may allocate: failed to start (for
       (void)!write(fds[1], s.data(), s.size());
       _exit(0);
     };
-    const std::uint64_t cap = BuiltWithAddressSanitizer() ? 64 * kMiB : ProcessAddressSpaceBytes() + 64 * kMiB;
+    const std::uint64_t cap =
+        BuiltWithAddressSanitizer() ? 64 * kMiB : ProcessAddressSpaceBytes() + 64 * kMiB;
     Result<CapReport> capped = ApplyProcessCap(cap);
     if (!capped.ok()) say("SKIP setrlimit: " + capped.status().message());
     if (!capped->enforced) say("SKIP " + capped->note);
@@ -262,7 +268,8 @@ TEST_CASE("a KV cache larger than the process may allocate: failed to start (for
   close(fds[1]);
   std::string got;
   char buf[512];
-  for (ssize_t n; (n = read(fds[0], buf, sizeof buf)) > 0;) got.append(buf, static_cast<std::size_t>(n));
+  for (ssize_t n; (n = read(fds[0], buf, sizeof buf)) > 0;)
+    got.append(buf, static_cast<std::size_t>(n));
   close(fds[0]);
   int status = 0;
   REQUIRE(waitpid(pid, &status, 0) == pid);
@@ -383,7 +390,9 @@ TEST_CASE("the command line carries the configuration") {
     }
     return false;
   };
-  auto flag = [&](const std::string& f) { return std::find(args.begin(), args.end(), f) != args.end(); };
+  auto flag = [&](const std::string& f) {
+    return std::find(args.begin(), args.end(), f) != args.end();
+  };
   CHECK(has("--model", "qwen3-vl-2b"));
   CHECK(has("--device-scale", "0.002"));
   CHECK(has("--weights-bytes", "123456"));
@@ -430,7 +439,8 @@ TEST_CASE("move-assigning a process stops and reaps the one it replaces") {
     std::vector<std::string> lines;
     bool started = false;
     for (int i = 0; i < 120 && !started && p->ReadLines(lines, 1000); ++i) {
-      for (const std::string& l : lines) started = started || l.find("\"event\":\"start\"") != std::string::npos;
+      for (const std::string& l : lines)
+        started = started || l.find("\"event\":\"start\"") != std::string::npos;
     }
     REQUIRE(started);
   }

@@ -108,10 +108,12 @@ TEST_CASE("mmap load is file-backed, read-only and shared, read load is process 
 
 TEST_CASE("the mapped weights are evictable: reclaimed pages come back as major faults") {
   if (test::EmulatorLauncher::active()) {
-    MESSAGE("skipped under qemu-user: page reclaim and fault counts are the host's, not the guest's");
+    MESSAGE(
+        "skipped under qemu-user: page reclaim and fault counts are the host's, not the guest's");
     return;
   }
-  Result<WeightsFileInfo> file = EnsureWeightsFile(test::TestWeightsDir(), 1024 * kWeightsPageBytes);
+  Result<WeightsFileInfo> file =
+      EnsureWeightsFile(test::TestWeightsDir(), 1024 * kWeightsPageBytes);
   REQUIRE(file.ok());
   if (!file->evictable) {
     MESSAGE("skipped: the weights cache " << test::TestWeightsDir() << " is on " << file->fs_type
@@ -136,10 +138,12 @@ TEST_CASE("the mapped weights are evictable: reclaimed pages come back as major 
 
 TEST_CASE("the weights read into process memory are not evictable without swap") {
   if (test::EmulatorLauncher::active()) {
-    MESSAGE("skipped under qemu-user: page reclaim and fault counts are the host's, not the guest's");
+    MESSAGE(
+        "skipped under qemu-user: page reclaim and fault counts are the host's, not the guest's");
     return;
   }
-  Result<WeightsFileInfo> file = EnsureWeightsFile(test::TestWeightsDir(), 1024 * kWeightsPageBytes);
+  Result<WeightsFileInfo> file =
+      EnsureWeightsFile(test::TestWeightsDir(), 1024 * kWeightsPageBytes);
   REQUIRE(file.ok());
   WeightsMapOptions read;
   read.load = WeightsLoad::kRead;

@@ -62,7 +62,8 @@ inline std::string MappingPerms(const std::string& maps, const std::string& path
   std::istringstream in(maps);
   std::string line;
   while (std::getline(in, line)) {
-    if (line.size() >= path.size() && line.compare(line.size() - path.size(), path.size(), path) == 0) {
+    if (line.size() >= path.size() &&
+        line.compare(line.size() - path.size(), path.size(), path) == 0) {
       std::istringstream f(line);
       std::string range, perms;
       f >> range >> perms;
