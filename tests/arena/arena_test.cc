@@ -233,7 +233,9 @@ TEST_CASE("release_to_os: a slot's pages are taken on use and given back on rele
   const std::uint64_t rss_full = ProcessRssBytes();
   MESSAGE("RSS " << rss_empty / 1024 << " KiB -> " << rss_full / 1024 << " KiB after touching "
                  << total / 1024 << " KiB of slots");
-  CHECK(rss_full >= rss_empty + total * 9 / 10);
+  // mincore above is exact; the process's RSS also moves with whatever else it does (under
+  // qemu-user, the emulator's own translation buffers), so a quarter of slack.
+  CHECK(rss_full >= rss_empty + total * 3 / 4);
 
   for (SlotIndex h : held) a.Release(h);
   resident = 0;
@@ -241,7 +243,7 @@ TEST_CASE("release_to_os: a slot's pages are taken on use and given back on rele
   CHECK(resident == 0);
   const std::uint64_t rss_released = ProcessRssBytes();
   MESSAGE("RSS after release " << rss_released / 1024 << " KiB");
-  CHECK(rss_released + total * 9 / 10 <= rss_full);
+  CHECK(rss_released + total * 3 / 4 <= rss_full);
   CHECK(a.stats().released_to_os == kSlots);
   CHECK(a.stats().release_failures == 0);
   // A released slot reads as the kernel's zeroed pages, never as the keyframe it held.
