@@ -47,8 +47,9 @@ Status WriteFile(const std::string& path, const std::string& value, std::string_
   const int err = errno;
   close(fd);
   if (n != static_cast<ssize_t>(value.size())) {
-    return IoError("cgroup: writing " + value + (what.empty() ? "" : " (" + std::string(what) + ")") +
-                   " to " + path + " failed: " + Errno(n < 0 ? err : EIO));
+    return IoError("cgroup: writing " + value +
+                   (what.empty() ? "" : " (" + std::string(what) + ")") + " to " + path +
+                   " failed: " + Errno(n < 0 ? err : EIO));
   }
   return Status::Ok();
 }
@@ -71,7 +72,7 @@ bool Exists(const std::string& path) {
   return ::stat(path.c_str(), &st) == 0;
 }
 
-// `key value` lines (memory.events, memory.oom_control): the value of `key`, or nullopt.
+// `key value` lines (memory.events, memory.oom_control): true and *out = the value of `key`.
 bool FindKeyValue(std::string_view text, std::string_view key, std::uint64_t* out) noexcept {
   std::size_t pos = 0;
   while (pos < text.size()) {
@@ -159,7 +160,7 @@ std::string Unescape(std::string_view s) {
 }
 
 struct Mount {
-  std::string root;        // the part of the hierarchy mounted there
+  std::string root;  // the part of the hierarchy mounted there
   std::string mountpoint;
 };
 
@@ -296,8 +297,8 @@ Status CheckRoomFor(const std::string& parent, CgroupVersion version, std::uint6
   auto machine = MachineMemoryBytes();
   if (machine.ok() && *machine < limit) {
     return FailedPrecondition("cgroup: the device limit " + FormatBytes(limit) +
-                              " exceeds this machine's memory (MemTotal " +
-                              FormatBytes(*machine) + "; scale the device down: --device-scale)");
+                              " exceeds this machine's memory (MemTotal " + FormatBytes(*machine) +
+                              "; scale the device down: --device-scale)");
   }
   return Status::Ok();
 }
@@ -425,8 +426,8 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
     ZM_ASSIGN_OR_RETURN(parent, LocateOwnMemoryCgroup());
   } else {
     parent.dir = options.parent_dir;
-    parent.version = Exists(parent.dir + "/cgroup.controllers") ? CgroupVersion::kV2
-                                                                : CgroupVersion::kV1;
+    parent.version =
+        Exists(parent.dir + "/cgroup.controllers") ? CgroupVersion::kV2 : CgroupVersion::kV1;
   }
   {
     // For the ancestor walk: stop at the hierarchy's mount point.
@@ -530,8 +531,8 @@ Cgroup& Cgroup::operator=(Cgroup&& other) noexcept {
 Cgroup::~Cgroup() { (void)Remove(); }
 
 void Cgroup::CloseFiles() noexcept {
-  for (int* fd : {&procs_fd_, &usage_fd_, &peak_fd_, &events_fd_, &failcnt_fd_,
-                  &memsw_failcnt_fd_}) {
+  for (int* fd :
+       {&procs_fd_, &usage_fd_, &peak_fd_, &events_fd_, &failcnt_fd_, &memsw_failcnt_fd_}) {
     if (*fd >= 0) close(*fd);
     *fd = -1;
   }

@@ -111,11 +111,11 @@ class Cgroup {
   std::uint64_t limit_bytes_ = 0;
   std::uint64_t sampled_peak_ = 0;
   bool swap_limited_ = false;
-  int procs_fd_ = -1;    // cgroup.procs, O_WRONLY (EnterSelf)
+  int procs_fd_ = -1;  // cgroup.procs, O_WRONLY (EnterSelf)
   int usage_fd_ = -1;
-  int peak_fd_ = -1;     // -1 where the kernel keeps no peak (v2 before 5.19)
-  int events_fd_ = -1;   // v1 memory.oom_control, v2 memory.events
-  int failcnt_fd_ = -1;  // v1 memory.failcnt
+  int peak_fd_ = -1;           // -1 where the kernel keeps no peak (v2 before 5.19)
+  int events_fd_ = -1;         // v1 memory.oom_control, v2 memory.events
+  int failcnt_fd_ = -1;        // v1 memory.failcnt
   int memsw_failcnt_fd_ = -1;  // v1 memory.memsw.failcnt: with swap limited, memsw meets it first
 };
 

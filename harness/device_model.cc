@@ -154,7 +154,8 @@ Result<pid_t> SpawnInDevice(const SpawnRequest& request, const DeviceModel& devi
   for (const std::string& a : request.argv) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
   int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0) return IoError(std::string("spawn: pipe: ") + std::strerror(errno));
+  if (pipe2(fds, O_CLOEXEC) != 0)
+    return IoError(std::string("spawn: pipe: ") + std::strerror(errno));
   const pid_t pid = fork();
   if (pid < 0) {
     const int err = errno;
@@ -192,7 +193,8 @@ Result<pid_t> SpawnInDevice(const SpawnRequest& request, const DeviceModel& devi
 
 Result<pid_t> ForkInDevice(const DeviceModel& device) {
   int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0) return IoError(std::string("fork: pipe: ") + std::strerror(errno));
+  if (pipe2(fds, O_CLOEXEC) != 0)
+    return IoError(std::string("fork: pipe: ") + std::strerror(errno));
   const pid_t pid = fork();
   if (pid < 0) {
     const int err = errno;

@@ -90,7 +90,8 @@ struct DeviceModelOptions {
   std::string ledger_path;        // "" = DeviceLedger::DefaultLedgerPath() + "-<pid>"
 };
 
-[[nodiscard]] Result<std::unique_ptr<DeviceModel>> OpenDeviceModel(const DeviceModelOptions& options);
+[[nodiscard]] Result<std::unique_ptr<DeviceModel>> OpenDeviceModel(
+    const DeviceModelOptions& options);
 
 struct SpawnRequest {
   std::vector<std::string> argv;  // argv[0] is looked up in PATH
@@ -108,9 +109,9 @@ struct SpawnRequest {
 
 // How a child ended, from waitpid's status.
 struct ChildExit {
-  bool exited = false;     // normal exit with `code`
+  bool exited = false;  // normal exit with `code`
   int code = 0;
-  bool signaled = false;   // killed by `signal` (SIGKILL: the OOM killer, or a Remove())
+  bool signaled = false;  // killed by `signal` (SIGKILL: the OOM killer, or a Remove())
   int signal = 0;
 };
 [[nodiscard]] ChildExit DescribeWaitStatus(int wait_status) noexcept;

@@ -22,11 +22,11 @@ namespace zm {
 
 // The fields of /proc/<pid>/stat the harness uses.
 struct ProcStat {
-  char state = '?';                 // R, S, D, Z, ...
-  std::uint64_t minor_faults = 0;   // field 10
-  std::uint64_t major_faults = 0;   // field 12
-  std::uint64_t start_ticks = 0;    // field 22, clock ticks after boot
-  std::uint64_t rss_pages = 0;      // field 24
+  char state = '?';                // R, S, D, Z, ...
+  std::uint64_t minor_faults = 0;  // field 10
+  std::uint64_t major_faults = 0;  // field 12
+  std::uint64_t start_ticks = 0;   // field 22, clock ticks after boot
+  std::uint64_t rss_pages = 0;     // field 24
 };
 // Parses the text of /proc/<pid>/stat (the command name may hold spaces and parentheses: fields
 // are counted from the last ')'). False when the text is not a stat line.

@@ -3,13 +3,12 @@
 // detected, removal and stale cleanup. Where no cgroup can be created the tests say why and skip.
 #include "harness/cgroup.h"
 
+#include <doctest/doctest.h>
 #include <signal.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <doctest/doctest.h>
 
 #include <array>
 #include <cstring>
@@ -85,14 +84,14 @@ const char* const kV1Mounts =
     "32 25 0:28 / /sys/fs/cgroup/cpu rw,relatime - cgroup cgroup rw,cpu\n";
 
 TEST_CASE("v1: the memory line and the memory mount give the directory") {
-  auto loc = LocateMemoryCgroup("9:name=systemd:/\n4:memory:/process_api/abc\n1:cpu:/\n0::/\n",
-                                kV1Mounts);
+  auto loc =
+      LocateMemoryCgroup("9:name=systemd:/\n4:memory:/process_api/abc\n1:cpu:/\n0::/\n", kV1Mounts);
   REQUIRE_MESSAGE(loc.ok(), loc.status().ToString());
   CHECK(loc->version == CgroupVersion::kV1);  // v1's memory wins over v2 without it (hybrid)
   CHECK(loc->dir == "/sys/fs/cgroup/memory/process_api/abc");
 
-  auto combined = LocateMemoryCgroup(
-      "3:cpu,memory:/a\n", "30 25 0:26 / /cg rw - cgroup cgroup rw,cpu,memory\n");
+  auto combined = LocateMemoryCgroup("3:cpu,memory:/a\n",
+                                     "30 25 0:26 / /cg rw - cgroup cgroup rw,cpu,memory\n");
   REQUIRE(combined.ok());
   CHECK(combined->dir == "/cg/a");
   auto root = LocateMemoryCgroup("4:memory:/\n", kV1Mounts);
@@ -110,7 +109,8 @@ TEST_CASE("v2: the 0:: line under the cgroup2 mount") {
 }
 
 TEST_CASE("a mount of part of the hierarchy, and escaped mount points") {
-  const char* mounts = "30 25 0:26 /docker/abc /sys/fs/cgroup/mem\\040ory rw - cgroup cgroup rw,memory\n";
+  const char* mounts =
+      "30 25 0:26 /docker/abc /sys/fs/cgroup/mem\\040ory rw - cgroup cgroup rw,memory\n";
   auto inside = LocateMemoryCgroup("4:memory:/docker/abc/sub\n", mounts);
   REQUIRE(inside.ok());
   CHECK(inside->dir == "/sys/fs/cgroup/mem ory/sub");
@@ -123,7 +123,8 @@ TEST_CASE("no memory cgroup: one clear reason") {
   auto none = LocateMemoryCgroup("1:cpu:/\n", kV1Mounts);
   REQUIRE_FALSE(none.ok());
   CHECK(none.status().message().find("/proc/self/cgroup") != std::string::npos);
-  auto unmounted = LocateMemoryCgroup("4:memory:/x\n", "32 25 0:28 / /cpu rw - cgroup cgroup rw,cpu\n");
+  auto unmounted =
+      LocateMemoryCgroup("4:memory:/x\n", "32 25 0:28 / /cpu rw - cgroup cgroup rw,cpu\n");
   REQUIRE_FALSE(unmounted.ok());
   CHECK(unmounted.status().message().find("not mounted") != std::string::npos);
 }
@@ -159,7 +160,8 @@ TEST_CASE("a child cgroup: its limit, no swap, named after this process, removed
   CHECK(cg->limit_bytes() == 64 * kMiB);
   CHECK(std::filesystem::is_directory(cg->dir()));
   CgroupChildName n;
-  REQUIRE(ParseCgroupChildName(std::filesystem::path(cg->dir()).filename().string(), "zm-test", &n));
+  REQUIRE(
+      ParseCgroupChildName(std::filesystem::path(cg->dir()).filename().string(), "zm-test", &n));
   CHECK(n.pid == getpid());
   CHECK(n.start_ticks == ProcessStartTicks(getpid()));
   if (!cg->swap_limited()) MESSAGE("this kernel does not account swap: only memory is limited");
@@ -185,8 +187,12 @@ TEST_CASE("the map's residency is visible in the cgroup: slots taken and given b
   const pid_t pid = ForkInto(*cg);
   if (pid == 0) {
     // The map process: an arena like basic's (release_to_os), created inside the cgroup.
-    auto made = Arena::Create({.memory_thr_keyframes = 8, .budget_bytes = 0, .slot_bytes = kSlot,
-                               .lock = false, .prefault = false, .release_to_os = true});
+    auto made = Arena::Create({.memory_thr_keyframes = 8,
+                               .budget_bytes = 0,
+                               .slot_bytes = kSlot,
+                               .lock = false,
+                               .prefault = false,
+                               .release_to_os = true});
     if (!std::holds_alternative<Arena>(made)) _exit(3);
     Arena& arena = std::get<Arena>(made);
     std::array<SlotIndex, kTouched> held{};
@@ -223,8 +229,8 @@ TEST_CASE("the map's residency is visible in the cgroup: slots taken and given b
   CHECK(WIFEXITED(status));
   CHECK(WEXITSTATUS(status) == 0);
 
-  MESSAGE("cgroup usage " << empty.usage_bytes / kMiB << " -> " << full.usage_bytes / kMiB
-                          << " -> " << released.usage_bytes / kMiB << " MiB; child RSS "
+  MESSAGE("cgroup usage " << empty.usage_bytes / kMiB << " -> " << full.usage_bytes / kMiB << " -> "
+                          << released.usage_bytes / kMiB << " MiB; child RSS "
                           << rss_empty.rss_bytes / kMiB << " -> " << rss_full.rss_bytes / kMiB
                           << " -> " << rss_released.rss_bytes / kMiB << " MiB");
   REQUIRE((empty.ok && full.ok && released.ok));
@@ -256,9 +262,8 @@ TEST_CASE("a process over the limit is OOM-killed by the kernel, and the kill is
   const CgroupSample s = cg->Sample();
   const std::string ended = WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status))
                                                 : "exit " + std::to_string(WEXITSTATUS(status));
-  MESSAGE("child ended with " << ended << "; cgroup oom_kills " << s.oom_kills
-                              << ", limit hits " << s.limit_hits << ", peak "
-                              << s.peak_bytes / kMiB << " MiB");
+  MESSAGE("child ended with " << ended << "; cgroup oom_kills " << s.oom_kills << ", limit hits "
+                              << s.limit_hits << ", peak " << s.peak_bytes / kMiB << " MiB");
   REQUIRE(WIFSIGNALED(status));
   CHECK(WTERMSIG(status) == SIGKILL);
   CHECK(s.ok);
@@ -309,7 +314,8 @@ TEST_CASE("stale children of crashed runs are removed, live ones and others' are
   REQUIRE(start != 0);
   const std::string crashed = parent + "/" + prefix + "-" + std::to_string(dead) + "-123-0";
   const std::string reused =  // our pid, another start time: the pid was reused
-      parent + "/" + prefix + "-" + std::to_string(getpid()) + "-" + std::to_string(start + 1) + "-0";
+      parent + "/" + prefix + "-" + std::to_string(getpid()) + "-" + std::to_string(start + 1) +
+      "-0";
   const std::string live =
       parent + "/" + prefix + "-" + std::to_string(getpid()) + "-" + std::to_string(start) + "-9";
   const std::string other = parent + "/zm-stale-other-" + std::to_string(dead) + "-123-0";

@@ -3,11 +3,10 @@
 // the device before they run; errors that name what failed.
 #include "harness/device_model.h"
 
+#include <doctest/doctest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <doctest/doctest.h>
 
 #include <algorithm>
 #include <array>
@@ -120,7 +119,10 @@ TEST_CASE("a cgroup device: a spawned program is inside before it runs") {
   CHECK(dev->kind() == DeviceKind::kCgroup);
   CHECK_FALSE(dev->simulated());
   CHECK(dev->limit_bytes() == 64 * kMiB);
-  CHECK(dev->Describe().find(dev->cgroup()->dir()) != std::string::npos);
+  Cgroup* cg = dev->cgroup();
+  REQUIRE(cg != nullptr);
+  const std::string dir = cg->dir();
+  CHECK(dev->Describe().find(dir) != std::string::npos);
   MESSAGE(dev->Describe());
 
   // A program that prints the cgroup it runs in: inside from its first instruction.
@@ -139,11 +141,12 @@ TEST_CASE("a cgroup device: a spawned program is inside before it runs") {
   }
   std::string text;
   std::array<char, 512> buf{};
-  for (ssize_t n; (n = read(out[0], buf.data(), buf.size())) > 0;) text.append(buf.data(), static_cast<std::size_t>(n));
+  for (ssize_t n; (n = read(out[0], buf.data(), buf.size())) > 0;)
+    text.append(buf.data(), static_cast<std::size_t>(n));
   close(out[0]);
   const int status = Reap(*pid);
   CHECK(WIFEXITED(status));
-  const std::string leaf = std::filesystem::path(dev->cgroup()->dir()).filename().string();
+  const std::string leaf = std::filesystem::path(dir).filename().string();
   CAPTURE(text);
   CHECK(text.find(leaf) != std::string::npos);
   CHECK(dev->Remove().ok());
@@ -180,7 +183,9 @@ TEST_CASE("a forked child is inside the cgroup device and the device's sample is
   REQUIRE(read(up[0], &c, 1) == 1);
   close(up[0]);
   close(up[1]);
-  auto procs = dev->cgroup()->Processes();
+  Cgroup* cg = dev->cgroup();
+  REQUIRE(cg != nullptr);
+  auto procs = cg->Processes();
   REQUIRE(procs.ok());
   CHECK(std::find(procs->begin(), procs->end(), *pid) != procs->end());
   CHECK(std::find(procs->begin(), procs->end(), getpid()) == procs->end());

@@ -27,7 +27,7 @@ TEST_CASE("the scale must be above 0 and at most 1") {
 TEST_CASE("bytes round to the nearest, zero stays zero and a size never vanishes or grows") {
   CHECK(ScaleBytes(0, 0.125) == 0);
   CHECK(ScaleBytes(8, 0.125) == 1);
-  CHECK(ScaleBytes(3, 0.125) == 1);  // 0.375 would round to 0: "some" stays "some"
+  CHECK(ScaleBytes(3, 0.125) == 1);   // 0.375 would round to 0: "some" stays "some"
   CHECK(ScaleBytes(12, 0.125) == 2);  // 1.5 rounds away from zero
   CHECK(ScaleBytes(1000, 1.0) == 1000);
   CHECK(ScaleBytes(std::numeric_limits<std::uint64_t>::max(), 1.0) ==

@@ -3,11 +3,10 @@
 // allocation once the sampler is open (it runs every tick).
 #include "harness/process_sample.h"
 
+#include <doctest/doctest.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <doctest/doctest.h>
 
 #include <array>
 #include <cstring>
