@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "harness/device_scale.h"
 #include "harness/experiment_profile.h"
 #include "harness/weights_file.h"
 
@@ -35,11 +36,6 @@ constexpr std::array<CotenantModel, 5> kModels = {{
     {"qwen3.5-2b", "qwen3.5 2B", 2'700'000'000ULL, 12'288, 0, 0, 20'201'472},
     {"gemma3-4b", "gemma3 4B", 3'300'000'000ULL, 20'480, 118'784, 1024, 0},
 }};
-
-std::uint64_t Scale(std::uint64_t bytes, double scale) {
-  const double v = std::round(static_cast<double>(bytes) * scale);
-  return v <= 0.0 ? 0 : static_cast<std::uint64_t>(v);
-}
 
 std::uint64_t RoundUpPages(std::uint64_t bytes) {
   return (bytes + kWeightsPageBytes - 1) / kWeightsPageBytes * kWeightsPageBytes;
@@ -135,10 +131,7 @@ CotenantConfig CotenantConfigFromProfile(const ExperimentProfile& profile) {
 
 Result<CotenantSizes> ResolveCotenantSizes(const CotenantConfig& c) {
   const CotenantOptions& o = c.options;
-  if (!(c.device_scale > 0.0 && c.device_scale <= 1.0)) {
-    return InvalidArgument("co-tenant device scale " + std::to_string(c.device_scale) +
-                           " must be in (0, 1]");
-  }
+  ZM_RETURN_IF_ERROR(ValidateDeviceScale(c.device_scale).Annotate("co-tenant"));
   if (o.answer_tokens == 0 || o.prompt_batch_tokens == 0) {
     return InvalidArgument("co-tenant answer_tokens and prompt_batch_tokens must be positive");
   }
@@ -164,7 +157,7 @@ Result<CotenantSizes> ResolveCotenantSizes(const CotenantConfig& c) {
   }
   s.model_weights_bytes = c.weights_bytes != 0 ? c.weights_bytes : s.model.weights_bytes;
   s.weights_bytes = std::max<std::uint64_t>(
-      Scale(s.model_weights_bytes, c.device_scale) / kWeightsPageBytes * kWeightsPageBytes,
+      ScaleBytes(s.model_weights_bytes, c.device_scale) / kWeightsPageBytes * kWeightsPageBytes,
       kWeightsPageBytes);
   s.kv_reserved_bytes = RoundUpPages(ScaledKvBytes(s, c.device_scale, o.context_tokens));
   s.request_kv_bytes =
@@ -174,7 +167,7 @@ Result<CotenantSizes> ResolveCotenantSizes(const CotenantConfig& c) {
 
 std::uint64_t ScaledKvBytes(const CotenantSizes& s, double device_scale,
                             std::uint64_t context_tokens) {
-  return Scale(KvCacheBytes(s.model, context_tokens), device_scale);
+  return ScaleBytes(KvCacheBytes(s.model, context_tokens), device_scale);
 }
 
 Result<std::uint64_t> CotenantKvReserveBytes(const CotenantConfig& config) {

@@ -249,9 +249,13 @@ class CotenantProcess {
   // Starts `executable` (empty = FindCotenantExecutable()) with CotenantCommandLine(config,
   // serve). serve = requests come as command lines on its stdin ("start", "request ID T", "stop");
   // otherwise it paces itself (config.requests, options.request_period_s) and starts at once.
+  // enter_device, when given, runs in the child between fork and exec and must be
+  // async-signal-safe (e.g. DeviceModel::EnterSelf: one write); a nonzero errno makes the child
+  // write a failed_to_start line and exit 127 without running the program.
   [[nodiscard]] static Result<CotenantProcess> Spawn(const CotenantConfig& config,
                                                      std::string executable = {},
-                                                     bool serve = false);
+                                                     bool serve = false,
+                                                     const std::function<int()>& enter_device = {});
   // SIGTERM: it stops between passes, writes its "end" line and exits 0.
   void RequestStop() noexcept;
   // Sends one command line (serve mode). False when the child no longer reads (it died).

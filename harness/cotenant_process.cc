@@ -128,7 +128,7 @@ void CotenantProcess::Reset() noexcept {
 }
 
 Result<CotenantProcess> CotenantProcess::Spawn(const CotenantConfig& config, std::string executable,
-                                               bool serve) {
+                                               bool serve, const std::function<int()>& enter_device) {
   if (executable.empty()) executable = FindCotenantExecutable();
   // ZM_COTENANT_LAUNCHER (space-separated, e.g. "qemu-aarch64 -L /sysroot") runs the program
   // through an emulator when the kernel cannot execute it directly.
@@ -159,13 +159,40 @@ Result<CotenantProcess> CotenantProcess::Spawn(const CotenantConfig& config, std
     close(out[1]);
     return IoError(std::string("socketpair: ") + std::strerror(e));
   }
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
-  posix_spawn_file_actions_adddup2(&actions, in[1], STDIN_FILENO);
   pid_t pid = -1;
-  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
+  int rc = 0;
+  if (!enter_device) {
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
+    posix_spawn_file_actions_adddup2(&actions, in[1], STDIN_FILENO);
+    rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+  } else {
+    // Everything the child needs is prepared before fork: after it, only async-signal-safe calls.
+    const std::string failed =
+        "{\"event\":\"failed_to_start\",\"stand_in\":true,\"reason\":\"the co-tenant could not "
+        "enter the device (errno ";
+    pid = fork();
+    if (pid < 0) {
+      rc = errno;
+    } else if (pid == 0) {
+      dup2(out[1], STDOUT_FILENO);
+      dup2(in[1], STDIN_FILENO);
+      const int e = enter_device();
+      if (e != 0) {
+        char num[16];
+        int n = 0;
+        for (int v = e; v > 0 && n < 15; v /= 10) num[n++] = static_cast<char>('0' + v % 10);
+        (void)!write(STDOUT_FILENO, failed.data(), failed.size());
+        while (n > 0) (void)!write(STDOUT_FILENO, &num[--n], 1);
+        (void)!write(STDOUT_FILENO, ")\"}\n", 4);
+        _exit(127);
+      }
+      execvp(argv[0], argv.data());
+      _exit(127);
+    }
+  }
   close(out[1]);
   close(in[1]);
   if (rc != 0) {

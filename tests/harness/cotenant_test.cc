@@ -107,7 +107,7 @@ TEST_CASE(
     c.device_scale = bad;
     Result<CotenantSizes> r = ResolveCotenantSizes(c);
     REQUIRE_FALSE(r.ok());
-    CHECK(r.status().message().find("(0, 1]") != std::string::npos);
+    CHECK(r.status().message().find("must be > 0 and <= 1") != std::string::npos);
   }
   c.device_scale = 1.0;
   c.options.context_tokens = 100;
