@@ -5,6 +5,9 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <random>
+
 #include "memory/memory_test_util.h"
 
 namespace zm {
@@ -199,6 +202,75 @@ TEST_CASE("basic: memory management off and everything in WM means no retrieval"
   CHECK(t.search_queries == 0);
   CHECK(t.keyframes_loaded == 0);
   CHECK(t.keyframes_unloaded == 0);
+}
+
+
+// A long random run on a building-like map (rooms of 12 keyframes chained by neighbour links,
+// loop closures between rooms), random hypotheses, localized now and then. The digest covers
+// every tick's retrieved and transferred ids and its graph-search statements: it pins basic's
+// decisions and accounting, so a refactor that changes neither keeps it.
+struct RunDigest {
+  std::uint64_t digest = 1469598103934665603ULL;  // FNV-1a
+  std::uint64_t retrieved = 0, transferred = 0, search_statements = 0;
+};
+
+RunDigest RandomRun() {
+  test::MapSpec s;
+  std::mt19937 rng(11);
+  for (int room = 0; room < 8; ++room) {
+    for (int i = 0; i < 12; ++i) {
+      s.positions.emplace_back(25.0 * room + 2.0 * (i % 4), 2.0 * (i / 4), 0.0);
+      const auto id = static_cast<std::int64_t>(s.positions.size());
+      if (id > 1) s.links.emplace_back(id - 1, id, LinkType::kNeighbor);
+    }
+  }
+  const auto n = static_cast<std::int64_t>(s.positions.size());
+  for (int i = 0; i < 20; ++i) {
+    const std::int64_t a = 1 + static_cast<std::int64_t>(rng() % static_cast<unsigned>(n));
+    const std::int64_t b = 1 + static_cast<std::int64_t>(rng() % static_cast<unsigned>(n));
+    if (a != b) s.links.emplace_back(a, b, i % 3 == 0 ? LinkType::kLocalSpaceClosure : LinkType::kGlobalClosure);
+  }
+  BasicOptions o;
+  o.memory_thr = 20;
+  for (int i = 1; i <= 20; ++i) o.initial_wm.push_back(KeyframeId{i});
+  Harness h(s, static_cast<std::uint32_t>(n), 20, Basic(o));
+  h.verify_slots = false;
+  RunDigest d;
+  auto mix = [&](std::uint64_t v) { d.digest = (d.digest ^ v) * 1099511628211ULL; };
+  h.Start(Ctx(0, 0.0, 0.0));
+  double x = 0.0;
+  for (std::uint64_t t = 1; t <= 600; ++t) {
+    x = std::clamp(x + static_cast<double>(static_cast<int>(rng() % 7) - 3), 0.0, 185.0);
+    std::int64_t highest = 0;
+    if (rng() % 4 != 0 && !h.ws.resident().empty()) {
+      highest = h.ws.resident()[rng() % h.ws.resident().size()].id.value;
+    }
+    const std::int64_t localized = rng() % 3 == 0 ? highest : 0;
+    TickContext c = Ctx(t, 0.5 * static_cast<double>(t), x, highest, localized);
+    c.small_displacement = rng() % 5 == 0;
+    const auto tel = h.Tick(c);
+    const auto& r = Policy(h).last_tick();
+    mix(t);
+    for (auto id : Ids(h.index, r.retrieved)) mix(static_cast<std::uint64_t>(id));
+    mix(0xFFFF);
+    for (auto id : Ids(h.index, r.transferred)) mix(static_cast<std::uint64_t>(id));
+    mix(0xFFFE);
+    mix(tel.search_queries);
+    d.retrieved += r.retrieved.size();
+    d.transferred += r.transferred.size();
+    d.search_statements += tel.search_queries;
+  }
+  return d;
+}
+
+TEST_CASE("basic: decisions and search statements of a long random run are pinned") {
+  const RunDigest d = RandomRun();
+  MESSAGE("retrieved " << d.retrieved << ", transferred " << d.transferred << ", search statements "
+                       << d.search_statements);
+  CHECK(d.retrieved > 300);  // the run exercises retrieval, transfer and the searches
+  CHECK(d.transferred > 300);
+  CHECK(d.search_statements > 1000);
+  CHECK(d.digest == 2566143327634655612ULL);
 }
 
 }  // namespace
