@@ -273,8 +273,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                          std::to_string(r["keyframes_loaded"].get<std::uint64_t>()),
                          std::to_string(r["keyframes_unloaded"].get<std::uint64_t>()),
                          std::to_string(r["db_transactions"].get<std::uint64_t>()),
-                         std::to_string(r["db_queries"].get<std::uint64_t>() +
-                                        r["search_queries"].get<std::uint64_t>()),
+                         std::to_string(r["db_queries"].get<std::uint64_t>()),  // searches included
                          Fmt(r["db_bytes_read"].get<double>() / 1e6, 1), Fmt(zl, 0),
                          ok != oracle_loads.end() && ok->second > 0 && zl > 0 ? Fmt(zl / ok->second, 2) : "–"});
     }

@@ -101,7 +101,9 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
       for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
     }
   }
-  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt));
+  // basic reads the long-term-memory nodes its graph searches admit from the map database.
+  loop->ltm_graph_ = std::make_unique<SourceLtmGraph>(loop->map_index_, map);
+  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt, loop->ltm_graph_.get()));
   loop->working_set_ =
       std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map, budget.k_max);
 
@@ -273,7 +275,7 @@ Result<bool> TickLoop::Tick() {
   record_.keyframes_loaded = tel_.keyframes_loaded;
   record_.keyframes_unloaded = tel_.keyframes_unloaded;
   record_.db_transactions = tel_.db_transactions;
-  record_.db_queries = tel_.db_queries + tel_.search_queries;
+  record_.db_queries = tel_.db_queries;  // loads and searches, one unit
   record_.db_bytes_read = tel_.db_bytes_read;
   record_.load_ms = tel_.load_ms;
   record_.unload_ms = tel_.unload_ms;

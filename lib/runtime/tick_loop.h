@@ -42,6 +42,7 @@
 #include "localization/frame.h"
 #include "localization/localizer.h"
 #include "mapdb/map_db.h"
+#include "memory/ltm_graph.h"
 #include "memory/map_index.h"
 #include "memory/plan.h"
 #include "memory/policy.h"
@@ -164,6 +165,7 @@ class TickLoop {
   Budget budget_;
   ZoneSet zone_set_;
   ZoneIndex zone_index_;
+  std::unique_ptr<LtmGraph> ltm_graph_;  // before policy_: the policy reads through it
   std::unique_ptr<MemoryPolicy> policy_;
   std::unique_ptr<WorkingSet> working_set_;
   std::unique_ptr<Localizer> localizer_;

@@ -17,8 +17,11 @@ using test::Harness;
 using test::Ids;
 using V = std::vector<std::int64_t>;
 
-Harness::Factory Basic(BasicOptions o) {
-  return [o](const MapIndex& index) { return std::make_unique<BasicPolicy>(index, o); };
+// Basic reading its long-term-memory nodes from the fake source (the harness's SourceLtmGraph).
+Harness::GraphFactory Basic(BasicOptions o) {
+  return [o](const MapIndex& index, LtmGraph& graph) {
+    return std::make_unique<BasicPolicy>(index, o, &graph);
+  };
 }
 
 BasicPolicy& Policy(Harness& h) { return *static_cast<BasicPolicy*>(h.policy.get()); }
@@ -124,6 +127,7 @@ TEST_CASE("basic: local and hypothesis retrieval / immunization / WM may stay ab
   h.Start(Ctx(0, 0.0, 0));  // lastLoc = 1, L = {1..5}
   CHECK(Policy(h).local_map_size() == 5);
   // Robot at node 5 (x = 60), highest hypothesis 5, localized on 5.
+  const std::uint64_t executed_before = h.source.queries;
   auto t = h.Tick(Ctx(1, 10.0, 60, 5, 5));
   const auto& r = Policy(h).last_tick();
   // Local: 5's LTM neighbour 6 (quota 2; the 1-hop expansion from 6 may admit only 1 more
@@ -134,7 +138,12 @@ TEST_CASE("basic: local and hypothesis retrieval / immunization / WM may stay ab
   // Searches: local 2+2 queries, time 4, space 4.
   CHECK(r.search_queries == 12);
   CHECK(t.search_queries == 12);
-  CHECK(t.db_queries == 8);  // 4 point queries per loaded node (row, payload, links, calibration)
+  // One unit for loads and searches: 4 statements per loaded node (row, payload, links,
+  // calibration) + the searches' 12, each statement its own (autocommit) transaction.
+  CHECK(t.db_queries == 8 + 12);
+  CHECK(t.db_transactions == 8 + 12);
+  CHECK(t.search_transactions == 12);
+  CHECK(h.source.queries - executed_before == 8 + 12);  // what the fake database executed
   // Everything in WM was immunized (time search + local + retrieved + lastLoc): nothing to
   // transfer although |WM| = 7 > 5.
   CHECK(r.transferred.empty());
