@@ -277,9 +277,9 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
                            });
       std::sort(near_.begin(), near_.end());
       std::uint32_t imm_local = 0;
-      auto take_ltm_neighbours = [&](KfIndex from) {
-        const auto left = static_cast<std::uint32_t>(quota - local_.size());
-        Neighbors(from, 2, left, /*ignore_loops=*/false);
+      // `limit`: how many LTM nodes the search may admit (getNeighborsId's maxCheckedInDatabase).
+      auto take_ltm_neighbours = [&](KfIndex from, std::uint32_t limit) {
+        Neighbors(from, 2, limit, /*ignore_loops=*/false);
         // Returned ids by descending id; LTM ones join the local list up to the quota.
         std::sort(found_.begin(), found_.end(),
                   [&](const Found& a, const Found& b) { return index_.id(a.k) > index_.id(b.k); });
@@ -298,15 +298,20 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
       };
       for (const auto& [d, n] : near_) {
         if (local_.size() >= quota && imm_local >= max_local_imm) break;
-        if (index_.weight(n) != -1 && local_.size() < quota) take_ltm_neighbours(n);
+        if (index_.weight(n) != -1 && local_.size() < quota) {
+          take_ltm_neighbours(n, quota - static_cast<std::uint32_t>(local_.size()));
+        }
         if (imm_local < max_local_imm) {
           Immunize(n);
           ++imm_local;
         }
       }
-      // Quota not filled: expand one hop from the LTM ids already selected (R.cpp:2602-2632).
+      // Quota not filled: expand one hop from the LTM ids already selected. Each search starts
+      // at an LTM node, which is itself read and counts against the limit, so RTAB-Map asks for
+      // one more: getNeighborsId(*iter, 2, _maxLocalRetrieved - retrievalLocalIds.size() + 1,
+      // true, false) in Rtabmap.cpp's RETRIEVAL 2/3 (basic-baseline.md R.cpp:2602-2632).
       for (std::size_t i = 0; i < local_.size() && local_.size() < quota; ++i) {
-        take_ltm_neighbours(local_[i]);
+        take_ltm_neighbours(local_[i], quota - static_cast<std::uint32_t>(local_.size()) + 1);
       }
       // Ages of the nodes near the pose: now (farthest first; one clock value per tick here).
       for (auto it = near_.rbegin(); it != near_.rend(); ++it) age_s_[it->second] = now;
