@@ -126,6 +126,12 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   return loop;
 }
 
+DbWork SteadyDbWork(const LoopTotals& t) {
+  return DbWork{t.db_queries - t.startup.db_queries,
+                t.db_transactions - t.startup.db_transactions,
+                t.db_blob_reads - t.startup.db_blob_reads, t.db_bytes_read - t.startup.bytes_read};
+}
+
 void TickLoop::NoteError(const Status& s) {
   ++totals_.step_errors;
   if (totals_.first_error.ok()) totals_.first_error = s;
@@ -138,7 +144,9 @@ void TickLoop::Account(const TickTelemetry& t) {
   totals_.zone_loads += t.zones_loaded;
   totals_.db_transactions += t.db_transactions;
   totals_.db_queries += t.db_queries;
+  totals_.db_blob_reads += t.db_blob_reads;
   totals_.search_queries += t.search_queries;
+  totals_.search_transactions += t.search_transactions;
   totals_.db_bytes_read += t.db_bytes_read;
   totals_.load_ms += t.load_ms;
   totals_.unload_ms += t.unload_ms;
@@ -214,6 +222,10 @@ Result<bool> TickLoop::Tick() {
     totals_.startup.bytes_read = tel_.db_bytes_read;
     totals_.startup.db_transactions = tel_.db_transactions;
     totals_.startup.db_queries = tel_.db_queries;
+    totals_.startup.db_blob_reads = tel_.db_blob_reads;
+    record_.startup_db_queries = tel_.db_queries;
+    record_.startup_db_transactions = tel_.db_transactions;
+    record_.startup_db_blob_reads = tel_.db_blob_reads;
   }
 
   // 6. Localize on the resident set only, then the after-localization plan (basic).
@@ -277,6 +289,9 @@ Result<bool> TickLoop::Tick() {
   record_.db_transactions = tel_.db_transactions;
   record_.db_queries = tel_.db_queries;  // loads and searches, one unit
   record_.db_bytes_read = tel_.db_bytes_read;
+  record_.db_blob_reads = tel_.db_blob_reads;
+  record_.search_queries = tel_.search_queries;
+  record_.search_transactions = tel_.search_transactions;
   record_.load_ms = tel_.load_ms;
   record_.unload_ms = tel_.unload_ms;
   record_.over_budget = over;
