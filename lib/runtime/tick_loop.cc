@@ -94,11 +94,17 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
     popt.basic.memory_thr = any_limit ? budget.k_max : 0;
     popt.k_max = popt.basic.memory_thr;
     if (!popt.basic.init_wm_with_all_nodes && popt.basic.initial_wm.empty()) {
-      // Mem/InitWMWithAllNodes=false starts from the map's last working memory. A zonemap map
-      // records none: it was built without memory management, so its last working memory is
-      // every node (basic-baseline.md §3.4).
-      popt.basic.initial_wm.reserve(keyframes.size());
-      for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+      // Mem/InitWMWithAllNodes=false starts from the map's last working memory: the one an
+      // imported RTAB-Map database recorded (Node.time_enter >= the last Info.time_enter), or,
+      // for a map built without memory management (the simulator's), every node
+      // (basic-baseline.md §3.4). An RTAB-Map import that predates the record is refused.
+      ZM_ASSIGN_OR_RETURN(RecordedWorkingMemory last, map.LastWorkingMemory());
+      if (!last.every_node) {
+        popt.basic.initial_wm = std::move(last.ids);
+      } else {
+        popt.basic.initial_wm.reserve(keyframes.size());
+        for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+      }
     }
   }
   // basic reads the long-term-memory nodes its graph searches admit from the map database.
