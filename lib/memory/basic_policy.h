@@ -80,8 +80,7 @@ class BasicPolicy final : public MemoryPolicy {
   // getNeighborsId: breadth-first over margins 0..max_depth-1 from `start`; WM nodes are free,
   // LTM nodes admitted (read through ltm_) while fewer than max_ltm non-intermediate ones were.
   // Fills found_ in visit order: margin ascending, id descending within a margin.
-  void Neighbors(KfIndex start, std::uint32_t max_depth, std::uint32_t max_ltm,
-                 bool ignore_loops);
+  void Neighbors(KfIndex start, std::uint32_t max_depth, std::uint32_t max_ltm, bool ignore_loops);
   void AddToWm(KfIndex k, double now_s);
   void RemoveFromWm(KfIndex k);
   // L = WM component containing `from` (intersected with the old L if `intersect`).
@@ -97,8 +96,8 @@ class BasicPolicy final : public MemoryPolicy {
   BasicOptions options_;
   IndexLtmGraph index_graph_;  // used when no LtmGraph is given
   LtmGraph* ltm_;
-  LoadStats search_;           // this tick's search reads
-  Status search_error_;        // this tick's first failed read
+  LoadStats search_;     // this tick's search reads
+  Status search_error_;  // this tick's first failed read
   std::vector<std::uint8_t> in_wm_;
   std::vector<double> age_s_;
   std::vector<KfIndex> wm_list_;

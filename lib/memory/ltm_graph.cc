@@ -9,7 +9,9 @@ namespace zm {
 SourceLtmGraph::SourceLtmGraph(const MapIndex& index, KeyframeSource& source)
     : index_(index), source_(source) {
   std::size_t degree = 0;
-  for (KfIndex k = 0; k < index.keyframe_count(); ++k) degree = std::max(degree, index.Edges(k).size());
+  for (KfIndex k = 0; k < index.keyframe_count(); ++k) {
+    degree = std::max(degree, index.Edges(k).size());
+  }
   edges_.reserve(degree);
 }
 

@@ -133,8 +133,7 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
 }
 
 DbWork SteadyDbWork(const LoopTotals& t) {
-  return DbWork{t.db_queries - t.startup.db_queries,
-                t.db_transactions - t.startup.db_transactions,
+  return DbWork{t.db_queries - t.startup.db_queries, t.db_transactions - t.startup.db_transactions,
                 t.db_blob_reads - t.startup.db_blob_reads, t.db_bytes_read - t.startup.bytes_read};
 }
 

@@ -375,6 +375,44 @@ TEST_CASE("the last working memory of maps that predate the record") {
   }
 }
 
+TEST_CASE("the last working memory record: ids the map does not hold are clear errors") {
+  TempDir dir;
+  const std::string path = dir.File("map.db");
+  test::BuildMap(path);
+  {
+    auto w = MapDbWriter::OpenExisting(path);
+    REQUIRE(w.ok());
+    const KeyframeId missing[] = {KeyframeId{1}, KeyframeId{999999}};
+    const Status st = (*w)->SetLastWorkingMemory(missing, "test");
+    CHECK(st.code() == StatusCode::kInvalidArgument);
+    CHECK(st.message().find("keyframe 999999") != std::string::npos);
+  }
+  {
+    auto db = MapDb::Open(path);
+    REQUIRE(db.ok());
+    auto last = (*db)->LastWorkingMemory();
+    REQUIRE(last.ok());
+    CHECK(last->every_node);  // the failed write left no record behind
+  }
+  {  // a record edited behind zonemap's back
+    auto w = MapDbWriter::OpenExisting(path);
+    REQUIRE(w.ok());
+    const KeyframeId one[] = {KeyframeId{1}};
+    REQUIRE((*w)->SetLastWorkingMemory(one, "test").ok());
+  }
+  sqlite3* raw = nullptr;
+  REQUIRE(sqlite3_open(path.c_str(), &raw) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(raw, "INSERT INTO last_wm(keyframe_id) VALUES(424242)", nullptr, nullptr,
+                       nullptr) == SQLITE_OK);
+  sqlite3_close(raw);
+  auto db = MapDb::Open(path);
+  REQUIRE(db.ok());
+  auto last = (*db)->LastWorkingMemory();
+  REQUIRE_FALSE(last.ok());
+  CHECK(last.status().code() == StatusCode::kCorrupt);
+  CHECK(last.status().message().find("keyframe 424242") != std::string::npos);
+}
+
 TEST_CASE("inputs that are not RTAB-Map databases are refused") {
   TempDir dir;
   const std::string ours = dir.File("ours.db"), out = dir.File("out.db");

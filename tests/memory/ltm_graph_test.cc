@@ -41,7 +41,8 @@ struct TestMap {
     for (std::int64_t id = 1; id <= 96; ++id) {
       const Descriptor256 d{};
       const float pt[3] = {0, 0, 1}, kp[2] = {1, 1};
-      auto p = EncodePayload(PayloadParts{KeyframeId{id}, {&d, 1}, pt, kp, DenseFormat::kNone, {}, 0});
+      auto p =
+          EncodePayload(PayloadParts{KeyframeId{id}, {&d, 1}, pt, kp, DenseFormat::kNone, {}, 0});
       REQUIRE(p.ok());
       payloads.push_back(std::move(p).value());
       KeyframeMeta m;
@@ -51,7 +52,8 @@ struct TestMap {
       m.weight = id % 17 == 0 ? -1 : static_cast<std::int32_t>(rng() % 4);
       m.payload_bytes = static_cast<std::uint32_t>(payloads.back().size());
       keyframes.push_back(m);
-      if (id > 1) links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkType::kNeighbor});
+      if (id > 1)
+        links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkType::kNeighbor});
     }
     for (int i = 0; i < 20; ++i) {
       const std::int64_t a = 1 + static_cast<std::int64_t>(rng() % 96);
@@ -99,13 +101,17 @@ std::vector<std::tuple<KfIndex, LinkType>> Sorted(std::span<const GraphEdge> edg
 }
 
 Arena MakeArena(std::uint32_t slots, std::uint64_t slot_bytes) {
-  auto r = Arena::Create({.memory_thr_keyframes = slots, .budget_bytes = 0, .slot_bytes = slot_bytes,
-                          .lock = false, .prefault = false});
+  auto r = Arena::Create({.memory_thr_keyframes = slots,
+                          .budget_bytes = 0,
+                          .slot_bytes = slot_bytes,
+                          .lock = false,
+                          .prefault = false});
   REQUIRE(std::holds_alternative<Arena>(r));
   return std::move(std::get<Arena>(r));
 }
 
-TEST_CASE("SourceLtmGraph over MapDb reads each node's weight and links: 2 statements, 2 transactions") {
+TEST_CASE(
+    "SourceLtmGraph over MapDb reads each node's weight and links: 2 statements, 2 transactions") {
   TestMap m;
   SourceLtmGraph db_graph(*m.index, *m.db);
   IndexLtmGraph ram_graph(*m.index);
@@ -206,7 +212,8 @@ class FailingGraph final : public LtmGraph {
  public:
   FailingGraph(const MapIndex& index, KeyframeId fail) : ram_(index), index_(index), fail_(fail) {}
   Status Read(KfIndex k, LtmNode* node, LoadStats* stats) override {
-    if (index_.id(k) == fail_) return IoError("disk I/O error reading keyframe " + std::to_string(fail_.value));
+    if (index_.id(k) == fail_)
+      return IoError("disk I/O error reading keyframe " + std::to_string(fail_.value));
     return ram_.Read(k, node, stats);
   }
 

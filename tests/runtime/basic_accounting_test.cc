@@ -21,7 +21,8 @@
 namespace zm {
 namespace {
 
-constexpr CameraIntrinsics kCamera{.fx = 320, .fy = 320, .cx = 320, .cy = 240, .width = 640, .height = 480};
+constexpr CameraIntrinsics kCamera{
+    .fx = 320, .fy = 320, .cx = 320, .cy = 240, .width = 640, .height = 480};
 
 // Keyframes 1..6 on the x axis, 2 m apart (x = 0, 2, ..., 10), chained by neighbour links, one
 // zone holding them all; `last_wm` recorded when given (as import-rtabmap does), `source` as
@@ -32,8 +33,8 @@ struct TinyMap {
   std::filesystem::path dir;
   std::string db, frames;
 
-  TinyMap(const std::string& name, const std::vector<std::int64_t>* last_wm, const std::string& source,
-          int frame_count = 5) {
+  TinyMap(const std::string& name, const std::vector<std::int64_t>* last_wm,
+          const std::string& source, int frame_count = 5) {
     dir = std::filesystem::temp_directory_path() /
           ("zm_basic_accounting_" + std::to_string(getpid()) + "_" + name);
     std::filesystem::create_directories(dir);
@@ -48,7 +49,8 @@ struct TinyMap {
     for (std::int64_t id = 1; id <= 6; ++id) {
       const Descriptor256 d{};
       const float pt[3] = {0, 0, 1}, kp[2] = {320, 240};
-      auto p = EncodePayload(PayloadParts{KeyframeId{id}, {&d, 1}, pt, kp, DenseFormat::kNone, {}, 0});
+      auto p =
+          EncodePayload(PayloadParts{KeyframeId{id}, {&d, 1}, pt, kp, DenseFormat::kNone, {}, 0});
       REQUIRE(p.ok());
       payloads.push_back(std::move(p).value());
       KeyframeMeta m;
@@ -57,7 +59,8 @@ struct TinyMap {
       m.payload_bytes = static_cast<std::uint32_t>(payloads.back().size());
       recs.push_back({m, {}});
       members.push_back({ZoneId{0}, m.id});
-      if (id > 1) links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkType::kNeighbor});
+      if (id > 1)
+        links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkType::kNeighbor});
     }
     for (std::size_t i = 0; i < recs.size(); ++i) recs[i].payload = payloads[i];
     REQUIRE((*w)->InsertKeyframes(recs).ok());
