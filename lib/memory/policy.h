@@ -110,9 +110,15 @@ struct PolicyOptions {
 // basic and unbounded model RTAB-Map's growing heap (their arena holds the whole map).
 [[nodiscard]] bool IsBoundedPolicy(std::string_view name);
 
+class LtmGraph;
+
 // Makes the named policy over `index` (which must outlive it). Allocates everything it will
-// ever need here. Errors name the unknown policy or the bad option.
+// ever need here. Errors name the unknown policy or the bad option. `ltm_graph` is where basic
+// reads the long-term-memory nodes its graph searches admit (the run-time passes the map's
+// SourceLtmGraph, which must outlive the policy); null = the MapIndex stands in (tests and the
+// decision benchmark). The other policies ignore it.
 [[nodiscard]] Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
-                                                               const PolicyOptions& options);
+                                                               const PolicyOptions& options,
+                                                               LtmGraph* ltm_graph = nullptr);
 
 }  // namespace zm

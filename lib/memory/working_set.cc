@@ -109,11 +109,7 @@ Status WorkingSet::Load(const Plan& plan, TickTelemetry* t) {
                                   : source_.LoadZone(b.zone, arena_, *this);
     t->load_ms += MsSince(t0);
     t->keyframes_loaded += batch_loaded_;
-    if (stats.ok()) {
-      t->db_transactions += stats->transactions;
-      t->db_queries += stats->queries;
-      t->db_bytes_read += stats->bytes;
-    }
+    if (stats.ok()) AccountLoad(*stats, t);
     if (batch_loaded_ > 0) {
       const double per = MsSince(t0) / batch_loaded_;
       load_ms_per_keyframe_ =
@@ -146,6 +142,23 @@ Status WorkingSet::Load(const Plan& plan, TickTelemetry* t) {
   return Status::Ok();
 }
 
+void WorkingSet::AccountLoad(const LoadStats& stats, TickTelemetry* t) {
+  t->db_transactions += stats.transactions;
+  t->db_queries += stats.queries;
+  t->db_blob_reads += stats.blob_reads;
+  t->db_bytes_read += stats.bytes;
+}
+
+Status WorkingSet::AccountSearch(const Plan& plan, TickTelemetry* t) {
+  t->db_transactions += plan.search.transactions;
+  t->db_queries += plan.search.queries;
+  t->db_blob_reads += plan.search.blob_reads;
+  t->search_transactions += plan.search.transactions;
+  t->search_queries += plan.search.queries;
+  if (plan.search_error.ok()) return Status::Ok();
+  return plan.search_error.Annotate("the policy's graph search");
+}
+
 Status WorkingSet::Apply(const Plan& plan, TickTelemetry* telemetry) {
   TickTelemetry& t = *telemetry;
   const std::uint64_t refused_before = arena_.stats().refused;
@@ -162,7 +175,8 @@ Status WorkingSet::Apply(const Plan& plan, TickTelemetry* telemetry) {
   }
   t.zones_loaded += static_cast<std::uint32_t>(plan.zones_loaded().size());
   t.zones_unloaded += static_cast<std::uint32_t>(plan.zones_unloaded().size());
-  t.search_queries += plan.search_queries;
+  const Status searched = AccountSearch(plan, &t);
+  if (status.ok() && !searched.ok()) status = searched;
   t.resident_keyframes = resident_count();
   t.resident_bytes = resident_bytes_;
   t.peak_resident_keyframes = std::max(t.peak_resident_keyframes, apply_peak_);

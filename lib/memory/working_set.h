@@ -42,10 +42,16 @@ struct TickTelemetry {
   std::uint32_t keyframes_unloaded = 0;
   std::uint32_t zones_loaded = 0;          // zone batches started (partial loads count)
   std::uint32_t zones_unloaded = 0;
-  std::uint32_t db_transactions = 0;       // from LoadStats
-  std::uint32_t db_queries = 0;            // statements stepped by loads (LoadStats)
-  std::uint32_t search_queries = 0;        // basic: 2 per admitted LTM node in its searches
-  std::uint64_t db_bytes_read = 0;         // from LoadStats
+  // Database work in one unit for every policy, LoadStats' definitions: SQL statements
+  // executed, transactions (an autocommit statement is one), incremental blob reads. Loads and
+  // the policy's own graph searches (basic) both count; the search_* fields say how much of it
+  // was searching.
+  std::uint32_t db_transactions = 0;
+  std::uint32_t db_queries = 0;            // SQL statements executed
+  std::uint32_t db_blob_reads = 0;         // payloads read through a blob handle (zone loads)
+  std::uint32_t search_queries = 0;        // of db_queries: basic's graph-search statements
+  std::uint32_t search_transactions = 0;   // of db_transactions: the same searches'
+  std::uint64_t db_bytes_read = 0;         // payload bytes loaded
   double load_ms = 0.0;                    // wall time inside the source's load calls
   double unload_ms = 0.0;                  // wall time releasing slots
   bool over_budget = false;                // peak_resident_keyframes > k_max at some instant
@@ -92,6 +98,11 @@ class WorkingSet final : private LoadSink {
   bool Wants(KeyframeId id) override;
   void Loaded(KeyframeId id, SlotIndex slot, std::uint32_t payload_bytes) override;
 
+  // Adds one load's LoadStats to the tick's database work (every load path calls it).
+  static void AccountLoad(const LoadStats& stats, TickTelemetry* t);
+  // Adds the plan's own searches (already executed by the policy) to the tick's database work;
+  // returns the first search read that failed.
+  static Status AccountSearch(const Plan& plan, TickTelemetry* t);
   void Pin(const Plan& plan);
   void Unload(const Plan& plan, TickTelemetry* t);
   Status Load(const Plan& plan, TickTelemetry* t);

@@ -65,6 +65,20 @@ bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
   }
   if (used + 1 > sizeof line_) return false;
   line_[used++] = '}';
+  // Database work beyond the loads' (issue 17 §5): blob reads, the searching part, and on the
+  // start-up tick the part that was the start-up load.
+  n = std::snprintf(line_ + used, sizeof line_ - used,
+                    ",\"db_blob_reads\":%u,\"search_queries\":%u,\"search_transactions\":%u",
+                    r.db_blob_reads, r.search_queries, r.search_transactions);
+  if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
+  used += static_cast<std::size_t>(n);
+  if (r.startup) {
+    n = std::snprintf(line_ + used, sizeof line_ - used,
+                      ",\"startup_db\":{\"queries\":%u,\"transactions\":%u,\"blob_reads\":%u}",
+                      r.startup_db_queries, r.startup_db_transactions, r.startup_db_blob_reads);
+    if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
+    used += static_cast<std::size_t>(n);
+  }
   if (!extra.empty()) {
     if (used + 1 + extra.size() > sizeof line_) return false;
     line_[used++] = ',';

@@ -95,14 +95,22 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
     popt.basic.memory_thr = any_limit ? budget.k_max : 0;
     popt.k_max = popt.basic.memory_thr;
     if (!popt.basic.init_wm_with_all_nodes && popt.basic.initial_wm.empty()) {
-      // Mem/InitWMWithAllNodes=false starts from the map's last working memory. A zonemap map
-      // records none: it was built without memory management, so its last working memory is
-      // every node (basic-baseline.md §3.4).
-      popt.basic.initial_wm.reserve(keyframes.size());
-      for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+      // Mem/InitWMWithAllNodes=false starts from the map's last working memory: the one an
+      // imported RTAB-Map database recorded (Node.time_enter >= the last Info.time_enter), or,
+      // for a map built without memory management (the simulator's), every node
+      // (basic-baseline.md §3.4). An RTAB-Map import that predates the record is refused.
+      ZM_ASSIGN_OR_RETURN(RecordedWorkingMemory last, map.LastWorkingMemory());
+      if (!last.every_node) {
+        popt.basic.initial_wm = std::move(last.ids);
+      } else {
+        popt.basic.initial_wm.reserve(keyframes.size());
+        for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+      }
     }
   }
-  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt));
+  // basic reads the long-term-memory nodes its graph searches admit from the map database.
+  loop->ltm_graph_ = std::make_unique<SourceLtmGraph>(loop->map_index_, map);
+  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt, loop->ltm_graph_.get()));
   loop->working_set_ =
       std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map, budget.k_max);
 
@@ -125,6 +133,11 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   return loop;
 }
 
+DbWork SteadyDbWork(const LoopTotals& t) {
+  return DbWork{t.db_queries - t.startup.db_queries, t.db_transactions - t.startup.db_transactions,
+                t.db_blob_reads - t.startup.db_blob_reads, t.db_bytes_read - t.startup.bytes_read};
+}
+
 void TickLoop::NoteError(const Status& s) {
   ++totals_.step_errors;
   if (totals_.first_error.ok()) totals_.first_error = s;
@@ -137,7 +150,9 @@ void TickLoop::Account(const TickTelemetry& t) {
   totals_.zone_loads += t.zones_loaded;
   totals_.db_transactions += t.db_transactions;
   totals_.db_queries += t.db_queries;
+  totals_.db_blob_reads += t.db_blob_reads;
   totals_.search_queries += t.search_queries;
+  totals_.search_transactions += t.search_transactions;
   totals_.db_bytes_read += t.db_bytes_read;
   totals_.load_ms += t.load_ms;
   totals_.unload_ms += t.unload_ms;
@@ -213,6 +228,10 @@ Result<bool> TickLoop::Tick() {
     totals_.startup.bytes_read = tel_.db_bytes_read;
     totals_.startup.db_transactions = tel_.db_transactions;
     totals_.startup.db_queries = tel_.db_queries;
+    totals_.startup.db_blob_reads = tel_.db_blob_reads;
+    record_.startup_db_queries = tel_.db_queries;
+    record_.startup_db_transactions = tel_.db_transactions;
+    record_.startup_db_blob_reads = tel_.db_blob_reads;
   }
 
   // 6. Localize on the resident set only, then the after-localization plan (basic).
@@ -274,8 +293,11 @@ Result<bool> TickLoop::Tick() {
   record_.keyframes_loaded = tel_.keyframes_loaded;
   record_.keyframes_unloaded = tel_.keyframes_unloaded;
   record_.db_transactions = tel_.db_transactions;
-  record_.db_queries = tel_.db_queries + tel_.search_queries;
+  record_.db_queries = tel_.db_queries;  // loads and searches, one unit
   record_.db_bytes_read = tel_.db_bytes_read;
+  record_.db_blob_reads = tel_.db_blob_reads;
+  record_.search_queries = tel_.search_queries;
+  record_.search_transactions = tel_.search_transactions;
   record_.load_ms = tel_.load_ms;
   record_.unload_ms = tel_.unload_ms;
   record_.over_budget = over;

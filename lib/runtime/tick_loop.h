@@ -42,6 +42,7 @@
 #include "localization/frame.h"
 #include "localization/localizer.h"
 #include "mapdb/map_db.h"
+#include "memory/ltm_graph.h"
 #include "memory/map_index.h"
 #include "memory/plan.h"
 #include "memory/policy.h"
@@ -80,14 +81,17 @@ struct LoopPlanInputs {
   std::vector<ZoneId> oracle_future;  // the zone of every tick, from tick 0 (oracle only)
 };
 
-// Start-up, reported apart from the steady state.
+// Start-up, reported apart from the steady state: the policy's start-up load (basic: its whole
+// initial working memory), which the first tick carries before it localizes. Database work in
+// the one unit of LoadStats (statements, transactions, blob reads).
 struct StartupTotals {
   double tick_ms = 0.0;               // the whole first tick
   double load_ms = 0.0;               // of which loading
   std::uint32_t keyframes_loaded = 0;
   std::uint64_t bytes_read = 0;
   std::uint32_t db_transactions = 0;
-  std::uint32_t db_queries = 0;
+  std::uint32_t db_queries = 0;       // SQL statements executed
+  std::uint32_t db_blob_reads = 0;
 };
 
 // Totals over a run, typed (summary writers turn them into JSON).
@@ -98,9 +102,15 @@ struct LoopTotals {
   std::uint64_t keyframes_loaded = 0;
   std::uint64_t keyframes_unloaded = 0;
   std::uint64_t zone_loads = 0;
+  // Database work of the whole run, start-up included, one unit for every policy (LoadStats'
+  // definitions: statements executed, transactions with an autocommit statement counted as
+  // one, incremental blob reads), loads and basic's graph searches alike; search_* is the part
+  // that was searching. The steady state is these minus `startup` (SteadyDbWork).
   std::uint64_t db_transactions = 0;
-  std::uint64_t db_queries = 0;
-  std::uint64_t search_queries = 0;
+  std::uint64_t db_queries = 0;        // SQL statements executed
+  std::uint64_t db_blob_reads = 0;
+  std::uint64_t search_queries = 0;    // of db_queries
+  std::uint64_t search_transactions = 0;  // of db_transactions
   std::uint64_t db_bytes_read = 0;
   std::uint32_t peak_resident_keyframes = 0;
   std::uint64_t peak_resident_bytes = 0;
@@ -116,6 +126,16 @@ struct LoopTotals {
   StartupTotals startup;
   StreamingStats tick_ms;    // every tick after the first (the steady state)
 };
+
+// Database work after start-up: the run's totals minus the start-up load (the one derivation;
+// summary.json's "steady_state").
+struct DbWork {
+  std::uint64_t queries = 0;       // SQL statements executed
+  std::uint64_t transactions = 0;
+  std::uint64_t blob_reads = 0;
+  std::uint64_t bytes_read = 0;
+};
+[[nodiscard]] DbWork SteadyDbWork(const LoopTotals& totals);
 
 class TickLoop {
  public:
@@ -164,6 +184,7 @@ class TickLoop {
   Budget budget_;
   ZoneSet zone_set_;
   ZoneIndex zone_index_;
+  std::unique_ptr<LtmGraph> ltm_graph_;  // before policy_: the policy reads through it
   std::unique_ptr<MemoryPolicy> policy_;
   std::unique_ptr<WorkingSet> working_set_;
   std::unique_ptr<Localizer> localizer_;
