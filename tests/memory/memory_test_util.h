@@ -128,11 +128,13 @@ inline TickContext At(std::uint64_t tick, std::int32_t zone, Eigen::Vector3d p =
 class Harness {
  public:
   using Factory = std::function<std::unique_ptr<MemoryPolicy>(const MapIndex&)>;
-  Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max, const Factory& make)
+  // sliced: the WorkingSet only queues loads; the test steps them (Step, Drain).
+  Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max, const Factory& make,
+          bool sliced = false)
       : index(BuildIndex(spec)),
         arena(MakeArena(arena_slots)),
         source(ZoneIds(spec), 100),
-        ws(index, arena, source, k_max),
+        ws(index, arena, source, k_max, sliced),
         before(index),
         after(index),
         policy(make(index)) {}
@@ -155,6 +157,15 @@ class Harness {
     ApplyChecked(after, &t);
     return t;
   }
+  // Time-sliced loads: one slice, then the same checks as after an Apply.
+  TickTelemetry Step(const LoadSlice& slice) {
+    TickTelemetry t;
+    Status s = ws.StepLoads(slice, &t);
+    REQUIRE_MESSAGE(s.ok(), s.ToString());
+    Check();
+    return t;
+  }
+  TickTelemetry Drain() { return Step(LoadSlice{}); }
   // Keyframe ids resident now, sorted.
   std::vector<std::int64_t> ResidentIds() const {
     std::vector<std::int64_t> out;
@@ -176,6 +187,9 @@ class Harness {
   void ApplyChecked(const Plan& plan, TickTelemetry* t) {
     Status s = ws.Apply(plan, t);
     REQUIRE_MESSAGE(s.ok(), s.ToString());
+    Check();
+  }
+  void Check() {
     // Working-set invariants: slots hold what the fake wrote; counts match the arena.
     REQUIRE(ws.resident_count() == arena.in_use());
     if (!verify_slots) return;
