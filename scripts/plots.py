@@ -10,6 +10,8 @@ OUT/scenarios/<scenario>/{zones.geojson,localization_gt.tum} and writes OUT/figu
   zones_<scenario>.png         the zone map with the route, coloured by the active zone
   cotenant_<scenario>.png      co-tenant tokens/s and latency per policy (distributions), and
                                tokens/s along the robot's path (stand-in co-tenant)
+  latency_<scenario>.png       tick time per policy after start-up: its CDF (log time axis,
+                               p99 marked) and per tick along the run (issue 14)
 
 Usage: scripts/plots.py OUT
 """
@@ -90,7 +92,7 @@ def plot_memory(out, scenario, runs, fig_dir):
                 continue
             xs = [t["tick"] for t in ticks]
             ys = [t["resident_keyframes"] for t in ticks]
-            label = f'{s["policy"]} (peak {s.get("peak_resident_keyframes", max(ys))})'
+            label = f'{run_label(s)} (peak {s.get("peak_resident_keyframes", max(ys))})'
             ax.plot(xs, ys, color=colour(s["policy"]), lw=1.2, label=label)
             if s["policy"] not in ("unbounded",):
                 thr = s.get("k_max", thr)
@@ -123,7 +125,7 @@ def plot_trajectories(out, scenario, runs, fig_dir):
         est = read_tum(os.path.join(d, "estimate.tum"))
         if est:
             ax.plot([p[1] for p in est], [p[2] for p in est], color=colour(s["policy"]), lw=0.8, zorder=3,
-                    label=f'{s["policy"]} (ATE {s.get("ate_rmse_m", float("nan")):.2f} m)')
+                    label=f'{run_label(s)} (ATE {s.get("ate_rmse_m", float("nan")):.2f} m)')
         ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
         lc = [(t["x"], t["y"]) for t in ticks if t.get("loop_closure")]
         if lc:
@@ -223,6 +225,52 @@ def plot_cotenant(out, scenario, runs, fig_dir):
     plt.close(fig)
 
 
+def run_label(summary):
+    """A run's name in the figures: the policy, marked when its loads were not time-sliced."""
+    loads = summary.get("loads") or {}
+    return summary["policy"] + ("" if loads.get("sliced", True) else " (unsliced)")
+
+
+def plot_latency(out, scenario, runs, fig_dir):
+    group = [r for r in runs if not r[2].get("cotenant")] or runs
+    series = []
+    for name, d, s in group:
+        ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
+        ms = [t["tick_ms"] for t in ticks if not t.get("startup")]
+        if ms:
+            series.append((run_label(s), s["policy"], [t["tick"] for t in ticks if not t.get("startup")], ms,
+                           (s.get("startup") or {}).get("tick_ms")))
+    if not series:
+        return
+    fig, axes = plt.subplots(1, 2, figsize=(15, 4.8), gridspec_kw={"width_ratios": [1, 1.4]})
+    for lab, pol, xs, ms, startup in series:
+        v = sorted(ms)
+        n = len(v)
+        p99 = v[max(0, math.ceil(0.99 * n) - 1)]  # nearest rank, as StreamingStats
+        ls = "--" if lab.endswith("(unsliced)") else "-"
+        axes[0].step(v, [(i + 1) / n for i in range(n)], where="post", color=colour(pol), ls=ls,
+                     lw=1.3, label=f"{lab}: p99 {p99:.1f} ms, max {v[-1]:.0f} ms")
+        axes[0].plot([p99], [0.99], "o", color=colour(pol), ms=4)
+        axes[1].plot(xs, ms, color=colour(pol), ls=ls, lw=0.6, alpha=0.8,
+                     label=lab + (f" (start-up tick {startup:.0f} ms, not shown)" if startup else ""))
+    axes[0].set_xscale("log")
+    axes[0].set_xlabel("tick time after start-up (ms, log scale)")
+    axes[0].set_ylabel("fraction of ticks")
+    axes[0].axhline(0.99, color="k", lw=0.5, ls=":")
+    axes[0].set_title(f"{scenario}: tick time CDF per policy")
+    axes[0].legend(fontsize=7, loc="lower right")
+    axes[0].grid(alpha=0.3, which="both")
+    axes[1].set_yscale("log")
+    axes[1].set_xlabel("tick")
+    axes[1].set_ylabel("tick time (ms, log scale)")
+    axes[1].set_title("tick time along the run (spikes = loads inside a tick)")
+    axes[1].legend(fontsize=7, loc="upper right")
+    axes[1].grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(fig_dir, f"latency_{scenario}.png"), dpi=110)
+    plt.close(fig)
+
+
 def main():
     if len(sys.argv) != 2:
         print(__doc__, file=sys.stderr)
@@ -240,6 +288,7 @@ def main():
         plot_trajectories(out, scenario, runs, fig_dir)
         plot_zones(out, scenario, runs, fig_dir)
         plot_cotenant(out, scenario, runs, fig_dir)
+        plot_latency(out, scenario, runs, fig_dir)
     print(f"plots.py: figures in {fig_dir}")
 
 
