@@ -9,6 +9,7 @@
 #include <doctest/doctest.h>
 
 #include <random>
+#include <thread>
 
 #include "memory/memory_test_util.h"
 #include "memory/predictive_policy.h"
@@ -115,6 +116,67 @@ TEST_CASE("sliced: Apply only queues / a slice keeps its keyframe, byte and time
   CHECK(r.source.begin_calls == 1);
   CHECK(r.source.aborts == 0);
   CHECK(r.Resident() == V{1, 2, 3, 4, 5, 6, 7, 8, 9, 10});
+}
+
+// Forwards to the fake and makes every keyframe of a zone step take at least `delay`, as a
+// keyframe decoded into its slot does (milliseconds, not microseconds).
+class SlowSource final : public KeyframeSource {
+ public:
+  SlowSource(test::FakeKeyframeSource& inner, std::chrono::milliseconds delay)
+      : inner_(inner), delay_(delay) {}
+  Result<LoadStats> LoadZone(ZoneId z, Arena& a, LoadSink& s) override { return inner_.LoadZone(z, a, s); }
+  Result<LoadStats> LoadKeyframes(std::span<const KeyframeId> ids, Arena& a, LoadSink& s) override {
+    return inner_.LoadKeyframes(ids, a, s);
+  }
+  Result<LoadStats> BeginZoneLoad(ZoneId z, Arena& a, LoadSink& s) override {
+    return inner_.BeginZoneLoad(z, a, s);
+  }
+  Result<ZoneLoadStep> StepZoneLoad(const LoadBudget& budget) override {
+    std::this_thread::sleep_for(delay_);
+    return inner_.StepZoneLoad(budget);
+  }
+  void AbortZoneLoad() override { inner_.AbortZoneLoad(); }
+  [[nodiscard]] ZoneId ZoneLoadInFlight() const override { return inner_.ZoneLoadInFlight(); }
+  Result<LoadStats> ReadGraphNodes(std::span<const KeyframeId> ids, GraphNodeSink* s) override {
+    return inner_.ReadGraphNodes(ids, s);
+  }
+
+ private:
+  test::FakeKeyframeSource& inner_;
+  std::chrono::milliseconds delay_;
+};
+
+TEST_CASE("sliced: the clock is read between keyframes / a slow keyframe keeps the next from "
+          "starting past the deadline") {
+  const test::MapSpec spec = test::LineMap({6});
+  const MapIndex index = test::BuildIndex(spec);
+  Arena arena = test::MakeArena(6);
+  test::FakeKeyframeSource fake(test::ZoneIds(spec), 100);
+  SlowSource slow(fake, std::chrono::milliseconds(20));
+  WorkingSet ws(index, arena, slow, 6, /*sliced=*/true);
+  Plan plan(index);
+  plan.BeginBatch(ZoneId{0});
+  for (KfIndex k = 0; k < 6; ++k) plan.Acquire(k);
+  TickTelemetry t;
+  REQUIRE(ws.Apply(plan, &t).ok());
+  CHECK(ws.keyframe_ms_estimate() == 0.0);  // nothing measured yet
+  LoadSlice first;
+  first.max_keyframes = 1;
+  REQUIRE(ws.StepLoads(first, &t).ok());
+  CHECK(ws.keyframe_ms_estimate() >= 20.0);  // what that keyframe really took
+  // 10 ms left: the next keyframe is expected to take >= 20 ms, so it does not start...
+  LoadSlice tight;
+  tight.deadline = Clock::now() + std::chrono::milliseconds(10);
+  t = {};
+  REQUIRE(ws.StepLoads(tight, &t).ok());
+  CHECK(t.keyframes_loaded == 0);
+  // ... whatever the byte budget says, which would let every one of them start.
+  tight.max_bytes = 1ull << 40;
+  REQUIRE(ws.StepLoads(tight, &t).ok());
+  CHECK(t.keyframes_loaded == 0);
+  CHECK(ws.pending_count() == 5);
+  REQUIRE(ws.StepLoads(LoadSlice{}, &t).ok());
+  CHECK(ws.pending_count() == 0);
 }
 
 TEST_CASE("sliced: an interrupt (a frame waiting) ends the slice between two keyframes") {
