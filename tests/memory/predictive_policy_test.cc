@@ -98,6 +98,33 @@ TEST_CASE("predictive: one plan holds the current zone nearest-first, then the p
   CHECK(h.ws.max_resident_seen() <= 20);
 }
 
+TEST_CASE("predictive: with time-sliced loads the prefetched zone is resident on arrival") {
+  test::MapSpec s = test::LineMap({8, 8, 8});
+  s.adjacency = Chain(3);
+  Harness h(s, 16, 16, Predictive(16), /*sliced=*/true);
+  const std::vector<ZoneId> route{ZoneId{0}, ZoneId{1}, ZoneId{2}};
+  TickContext c = At(0, 0, {0, 0, 0});
+  c.route = route;
+  h.Start(c);
+  LoadSlice own_zone;  // what the loop's start-up does: the robot's zone, to the end
+  own_zone.zone = ZoneId{0};
+  h.Step(own_zone);
+  CHECK(h.ResidentIds() == V{1, 2, 3, 4, 5, 6, 7, 8});
+  CHECK(h.ws.loading_zone() == ZoneId{1});  // the prefetch waits for the idle part
+  h.Drain();                                // the idle part
+  for (int zone = 1; zone <= 2; ++zone) {
+    c = At(static_cast<std::uint64_t>(zone), zone, {8.0 * zone, 0, 0});
+    c.route = route;
+    // Before the tick the zone the robot walks into is complete: nothing of it to load.
+    for (KfIndex k : h.index.ZoneMembers(ZoneId{zone})) CHECK(h.ws.IsResident(k));
+    h.Tick(c);
+    CHECK(h.ws.pending_count() <= 8);  // at most the next prefetch is queued
+    CHECK(h.ws.loading_zone() != ZoneId{zone});
+    h.Drain();
+  }
+  CHECK(h.ws.max_resident_seen() <= 16);
+}
+
 TEST_CASE("predictive property: random walks / overlaps / slices never exceed K_max") {
   std::mt19937 rng(5);
   for (int trial = 0; trial < 30; ++trial) {
