@@ -57,6 +57,20 @@ nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
   s["db_bytes_read"] = t.db_bytes_read;
   s["load_ms_total"] = t.load_ms;
   s["unload_ms_total"] = t.unload_ms;
+  const LoadSliceOptions& lo = loop.config().loads;
+  s["loads"] = {{"sliced", lo.sliced},
+                {"tick_ms", lo.tick_ms},
+                {"tick_bytes", lo.tick_bytes},
+                {"idle_ms", lo.idle_ms},
+                {"idle_bytes", lo.idle_bytes},
+                {"margin_ms", lo.margin_ms},
+                {"idle_load_ms_total", t.idle_load_ms},
+                {"idle_keyframes_loaded", t.idle_keyframes_loaded},
+                {"keyframes_cancelled", t.keyframes_cancelled},
+                {"loads_preempted", t.loads_preempted},
+                {"max_pending_keyframes", t.max_pending_keyframes},
+                {"late_ticks", t.late_ticks},
+                {"max_late_ms", t.max_late_ms}};
   s["malformed_lines"] = loop.malformed_lines();
   return s;
 }

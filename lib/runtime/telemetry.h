@@ -60,6 +60,10 @@ struct TickRecord {
   std::uint32_t startup_db_blob_reads = 0;
   double load_ms = 0.0;
   double unload_ms = 0.0;
+  std::uint32_t pending_keyframes = 0;      // queued to load after this tick (time-sliced loads)
+  double idle_load_ms = 0.0;                // idle part(s) between the last tick and this one
+  std::uint32_t idle_keyframes_loaded = 0;  // loaded there (not in keyframes_loaded)
+  double late_ms = 0.0;                     // this frame's wait on that idle part (in tick_ms)
   bool over_budget = false;
   std::uint64_t refused_acquisitions = 0;  // cumulative arena refusals
   bool loop_closure = false;               // a closure was accepted this tick

@@ -137,15 +137,17 @@ class Harness {
   using Factory = std::function<std::unique_ptr<MemoryPolicy>(const MapIndex&)>;
   // For a policy that reads long-term-memory nodes (basic): it gets `graph`, over the fake.
   using GraphFactory = std::function<std::unique_ptr<MemoryPolicy>(const MapIndex&, LtmGraph&)>;
-  Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max, const Factory& make)
+  // sliced: the WorkingSet only queues loads; the test steps them (Step, Drain).
+  Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max, const Factory& make,
+          bool sliced = false)
       : Harness(spec, arena_slots, k_max,
-                GraphFactory([&make](const MapIndex& i, LtmGraph&) { return make(i); })) {}
+                GraphFactory([&make](const MapIndex& i, LtmGraph&) { return make(i); }), sliced) {}
   Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max,
-          const GraphFactory& make)
+          const GraphFactory& make, bool sliced = false)
       : index(BuildIndex(spec)),
         arena(MakeArena(arena_slots)),
         source(ZoneIds(spec), 100),
-        ws(index, arena, source, k_max),
+        ws(index, arena, source, k_max, sliced),
         graph(index, source),
         before(index),
         after(index),
@@ -174,6 +176,15 @@ class Harness {
     ApplyChecked(after, &t);
     return t;
   }
+  // Time-sliced loads: one slice, then the same checks as after an Apply.
+  TickTelemetry Step(const LoadSlice& slice) {
+    TickTelemetry t;
+    Status s = ws.StepLoads(slice, &t);
+    REQUIRE_MESSAGE(s.ok(), s.ToString());
+    Check();
+    return t;
+  }
+  TickTelemetry Drain() { return Step(LoadSlice{}); }
   // Keyframe ids resident now, sorted.
   std::vector<std::int64_t> ResidentIds() const {
     std::vector<std::int64_t> out;
@@ -196,6 +207,9 @@ class Harness {
   void ApplyChecked(const Plan& plan, TickTelemetry* t) {
     Status s = ws.Apply(plan, t);
     REQUIRE_MESSAGE(s.ok(), s.ToString());
+    Check();
+  }
+  void Check() {
     // Working-set invariants: slots hold what the fake wrote; counts match the arena.
     REQUIRE(ws.resident_count() == arena.in_use());
     if (!verify_slots) return;
