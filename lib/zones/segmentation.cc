@@ -80,6 +80,7 @@ cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res
     walls->walls = cv::Mat::zeros(cells.size(), CV_8U);
     walls->doorways = cv::Mat::zeros(cells.size(), CV_8U);
     walls->openings = cv::Mat::zeros(cells.size(), CV_8U);
+    walls->opening_ids = cv::Mat::zeros(cells.size(), CV_32S);
   }
   // Close gaps in walls (scan noise) so that rooms do not leak through them.
   const int gap = CellsFromMetres(o.wall_gap_close_m, res);
