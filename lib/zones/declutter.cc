@@ -351,13 +351,20 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length
                                       opening_px, thickness_px, stub_px);
     for (const auto& [from, to] : {std::pair{&r.walls, &out.walls},
                                    std::pair{&r.doorways, &out.doorways},
-                                   std::pair{&r.openings, &out.openings},
-                                   std::pair{&r.opening_ids, &out.opening_ids}}) {
+                                   std::pair{&r.openings, &out.openings}}) {
       cv::warpAffine(*from, *to, rot, occupied.size(), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
                      cv::BORDER_CONSTANT, cv::Scalar(0));
       // Nearest-neighbour resampling there and back can shift a cell: widen by one.
       cv::dilate(*to, *to, cv::Mat::ones(3, 3, CV_8U));
     }
+    // Opening ids likewise (OpenCV dilates no CV_32S: through float, exact for any id count
+    // a grid can hold).
+    cv::Mat ids;
+    cv::warpAffine(r.opening_ids, ids, rot, occupied.size(),
+                   cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, cv::Scalar(0));
+    ids.convertTo(ids, CV_32F);
+    cv::dilate(ids, ids, cv::Mat::ones(3, 3, CV_8U));
+    ids.convertTo(out.opening_ids, CV_32S);
     cv::Mat back;
     cv::invertAffineTransform(rot, back);
     auto unrotate = [&](cv::Point2f p) {
