@@ -433,15 +433,6 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     if (std::hypot(d.x, d.y) + 1.0f <= door_px) return 0.0;
     return line.Constriction();
   };
-  // Border cells of each pair: on an opening, and in all. Only a border that runs mostly along
-  // openings is one: a door border that an opening line merely crosses is not.
-  std::map<std::pair<int, int>, std::pair<int, int>> border;
-  auto count = [&](int a, int b, bool on_opening) {
-    if (a > b) std::swap(a, b);
-    auto& n = border[{a, b}];
-    n.first += on_opening ? 1 : 0;
-    ++n.second;
-  };
   auto note = [&](int a, int b, float d, int id_a, int id_b) {
     if (a > b) std::swap(a, b);
     float& s = saddle[{a, b}];
@@ -462,15 +453,13 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     for (int c = 0; c < labels->cols; ++c) {
       if (l[c] == 0) continue;
       peak[Idx(l[c])] = std::max(peak[Idx(l[c])], dc[c]);
-      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c]) {
-        const bool on = op[c] != 0 || op[c + 1] != 0;
-        count(l[c], l[c + 1], on);
-        if (on) note(l[c], l[c + 1], std::min(d[c], d[c + 1]), id[c], id[c + 1]);
+      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c] &&
+          (op[c] != 0 || op[c + 1] != 0)) {
+        note(l[c], l[c + 1], std::min(d[c], d[c + 1]), id[c], id[c + 1]);
       }
-      if (below != nullptr && below[c] != 0 && below[c] != l[c]) {
-        const bool on = op[c] != 0 || opbelow[c] != 0;
-        count(l[c], below[c], on);
-        if (on) note(l[c], below[c], std::min(d[c], dbelow[c]), id[c], idbelow[c]);
+      if (below != nullptr && below[c] != 0 && below[c] != l[c] &&
+          (op[c] != 0 || opbelow[c] != 0)) {
+        note(l[c], below[c], std::min(d[c], dbelow[c]), id[c], idbelow[c]);
       }
     }
   }
@@ -480,31 +469,20 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     while (parent[Idx(x)] != x) x = parent[Idx(x)] = parent[Idx(parent[Idx(x)])];
     return x;
   };
-  struct Border {
-    float saddle = 0.0f;
-    double local = 0.0;
-    int on_opening = 0, cells = 0;
-  };
   for (;;) {
-    std::map<std::pair<int, int>, Border> current;
-    for (const auto& [key, n] : border) {
+    std::map<std::pair<int, int>, std::pair<float, double>> current;
+    for (const auto& [key, s] : saddle) {
       int a = find(key.first), b = find(key.second);
       if (a == b) continue;
       if (a > b) std::swap(a, b);
-      Border& v = current[{a, b}];
-      v.on_opening += n.first;
-      v.cells += n.second;
-      if (n.first > 0) {
-        v.saddle = std::max(v.saddle, saddle[key]);
-        v.local = std::max(v.local, local[key]);
-      }
+      auto& v = current[{a, b}];
+      v.first = std::max(v.first, s);
+      v.second = std::max(v.second, local[key]);
     }
     // Every rule that is on must hold; the most open first.
     double best = 0.0;
     std::pair<int, int> best_pair{0, 0};
-    for (const auto& [key, b] : current) {
-      if (2 * b.on_opening < b.cells) continue;
-      const std::pair<float, double> v{b.saddle, b.local};
+    for (const auto& [key, v] : current) {
       const float hi = std::max(peak[Idx(key.first)], peak[Idx(key.second)]);
       const double q = hi > 0.0f ? static_cast<double>(v.first / hi) : 0.0;
       if (peak_ratio > 0.0 && q < peak_ratio) continue;
