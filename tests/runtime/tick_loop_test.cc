@@ -18,7 +18,6 @@
 #include <set>
 
 #include "runtime/frame_source.h"
-#include "runtime/line_protocol.h"
 #include "runtime/frames_file.h"
 #include "support/counting_allocator.h"
 
@@ -280,39 +279,6 @@ TEST_CASE("every warm tick allocates nothing, for every policy") {
     for (int i = 0; i < 150; ++i) REQUIRE(r.loop->Tick().value());
     CHECK(counter.allocations() == 0);
   }
-}
-
-TEST_CASE("the live line protocol drives the loop and bad lines are skipped") {
-  Scenario s;
-  Build(&s, 1);
-  int fds[2];
-  REQUIRE(::pipe(fds) == 0);
-  std::string input = "# comment\nnot a frame\n";
-  Frame f;
-  f.odom = PoseFromXYYaw(5.0, 5.0, 0.0);
-  f.descriptors.assign(3, Descriptor256{});
-  f.keypoints.assign(6, 1.0f);
-  for (int i = 0; i < 5; ++i) {
-    f.stamp_s = i;
-    f.odom.translation().x() = 5.0 + 10.0 * i;  // one room per frame
-    input += FormatFrameLine(f) + "\n";
-  }
-  input += "frame 1 2\n";
-  REQUIRE(::write(fds[1], input.data(), input.size()) == static_cast<ssize_t>(input.size()));
-  ::close(fds[1]);
-  LineFrameSource source(fds[0], 16);
-  auto db = MapDb::Open(s.db);
-  REQUIRE(db.ok());
-  auto loop = TickLoop::Create(Config("semantic", 2 * kKeyframesPerRoom), *db.value(), source);
-  REQUIRE(loop.ok());
-  int ticks = 0;
-  while (loop.value()->Tick().value()) ++ticks;
-  ::close(fds[0]);
-  CHECK(ticks == 5);
-  CHECK(source.malformed_lines() == 2);
-  CHECK(loop.value()->last_record().zone == ZoneId{4});
-  CHECK(loop.value()->totals().zone_loads == 5);
-  CHECK(loop.value()->last_record().resident_keyframes <= 2 * kKeyframesPerRoom);
 }
 
 }  // namespace
