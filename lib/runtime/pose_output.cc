@@ -88,12 +88,16 @@ PoseTracker::PoseTracker(const PoseOutputOptions& options) : options_(options) {
   const double r = options.initial_sigma_deg * kDegToRad;
   cov_ = Covariance6::Zero();
   cov_.diagonal() << s2, s2, s2, r * r, r * r, r * r;
+  const double m2 = options.map_sigma_m * options.map_sigma_m;
+  const double mr = options.map_sigma_deg * kDegToRad;
+  map_floor_ = Covariance6::Zero();
+  map_floor_.diagonal() << m2, m2, m2, mr * mr, mr * mr, mr * mr;
 }
 
 void PoseTracker::Update(const TickRecord& record) {
   const Eigen::Vector3d position = record.pose.translation();
   if (record.loop_closure && record.closure_covariance.allFinite()) {
-    cov_ = record.closure_covariance;
+    cov_ = record.closure_covariance + map_floor_;
   } else if (has_last_) {
     // EKF prediction with the frame's displacement (see the header). A closure whose PnP
     // covariance could not be computed (singular normal equations) keeps the propagated one.

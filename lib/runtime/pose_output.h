@@ -25,7 +25,12 @@
 // Covariance (6x6, x y z then rotation about the map's X Y Z axes, as geometry_msgs/
 // PoseWithCovariance; m^2, rad^2):
 //   on a closure    the PnP solution's: sigma^2 (J^T J)^-1 over its inliers, sigma^2 from their
-//                   reprojection residuals, carried from the camera to the body (localizer.h);
+//                   reprojection residuals, carried from the camera to the body (localizer.h),
+//                   plus diag(map_sigma_m^2 x3, map_sigma_deg^2 x3): the map's own error, which
+//                   the residuals of one solve cannot see (keyframe point and pose errors shared
+//                   by every frame localized on that keyframe, RANSAC truncating the residual
+//                   distribution at its threshold). Without it the 95 % ellipse held 29 % of the
+//                   fixes on a simulated hospital; docs/runtime.md has the calibration;
 //   dead reckoning  propagated per frame like an EKF prediction with a random-walk odometry:
 //                   C <- F C F^T + Q, F = [[I, -[dp]x], [0, I]] (dp = the frame's map-frame
 //                   displacement: a heading error turns into a lateral one as the robot drives),
@@ -59,6 +64,8 @@ using Covariance6 = Eigen::Matrix<double, 6, 6>;
 
 // [output] in a profile (docs/runtime.md): the uncertainty model above.
 struct PoseOutputOptions {
+  double map_sigma_m = 0.015;               // the map's own position error, added to every fix
+  double map_sigma_deg = 0.5;               // the map's own rotation error, added to every fix
   double initial_sigma_m = 10.0;            // position uncertainty before the first closure
   double initial_sigma_deg = 180.0;         // rotation uncertainty before the first closure
   double odom_sigma_m_per_sqrt_m = 0.05;    // odometry position noise after 1 m travelled
@@ -85,6 +92,7 @@ class PoseTracker {
 
  private:
   PoseOutputOptions options_;
+  Covariance6 map_floor_;  // diag(map_sigma_m^2 x3, map_sigma_deg^2 x3), added to every fix
   Covariance6 cov_;
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();
   bool has_last_ = false;

@@ -116,6 +116,8 @@ Result<Profile> ReadProfile(ProfileDocument& doc) {
 
   TableReader output = top.Sub("output");
   PoseOutputOptions& o = p.output;
+  output.Double("map_sigma_m", o.map_sigma_m, 0.0, 1e3);
+  output.Double("map_sigma_deg", o.map_sigma_deg, 0.0, 180.0);
   output.Double("initial_sigma_m", o.initial_sigma_m, 0.0, 1e6);
   output.Double("initial_sigma_deg", o.initial_sigma_deg, 0.0, 180.0);
   output.Double("odom_sigma_m_per_sqrt_m", o.odom_sigma_m_per_sqrt_m, 0.0, 100.0);

@@ -126,9 +126,16 @@ TickRecord Record(double x, bool closure = false) {
   return r;
 }
 
+// The model without the map's own error, so the fix's covariance is the closure's exactly.
+PoseOutputOptions NoMapError() {
+  PoseOutputOptions o;
+  o.map_sigma_m = 0.0;
+  o.map_sigma_deg = 0.0;
+  return o;
+}
+
 TEST_CASE("status: lost until the first closure, localized on one, then dead reckoning") {
-  PoseOutputOptions o;  // initial 10 m, lost beyond 2 m
-  PoseTracker t(o);
+  PoseTracker t(NoMapError());  // initial 10 m, lost beyond 2 m
   t.Update(Record(0.0));
   CHECK(t.status() == LocalizationStatus::kLost);
   CHECK(t.frames_since_fix() == 1);
@@ -159,7 +166,7 @@ TEST_CASE("status: lost until the first closure, localized on one, then dead rec
 }
 
 TEST_CASE("standing still does not grow the uncertainty") {
-  PoseTracker t(PoseOutputOptions{});
+  PoseTracker t(NoMapError());
   t.Update(Record(3.0, true));
   for (int i = 0; i < 1000; ++i) t.Update(Record(3.0));
   CHECK(t.status() == LocalizationStatus::kDeadReckoning);
@@ -175,6 +182,19 @@ TEST_CASE("a robot that starts at a known pose (small initial sigma) is dead rec
   t.Update(Record(0.0));
   CHECK(t.status() == LocalizationStatus::kDeadReckoning);
   CHECK_FALSE(t.ever_localized());
+}
+
+TEST_CASE("the map's own error is added to every fix") {
+  PoseOutputOptions o;
+  o.map_sigma_m = 0.02;
+  o.map_sigma_deg = 1.0;
+  PoseTracker t(o);
+  t.Update(Record(0.0, true));
+  CHECK(t.covariance()(0, 0) == doctest::Approx(1e-4 + 4e-4));
+  CHECK(t.covariance()(2, 2) == doctest::Approx(1e-4 + 4e-4));
+  const double r = M_PI / 180.0;
+  CHECK(t.covariance()(5, 5) == doctest::Approx(1e-4 + r * r));
+  CHECK(t.covariance()(0, 1) == 0.0);
 }
 
 TEST_CASE("a closure without a usable covariance keeps the propagated one") {
