@@ -4,16 +4,17 @@
 A robot-side feeder (examples/robot/zonemap_protocol.py) replays a small simulated scenario's
 frames over and over (stamps keep increasing, pass after pass) into `zonemapd --stdin`; every
 `--features-every`-th frame carries its features (a loop-closure attempt), the others odometry
-only, so a million ticks take minutes, not hours. It also pulls the levers a robot pulls: a
-`route` line every 100,000 ticks, a `budget` down to half of K_max every 50,000 ticks and back
-up 10,000 ticks later, and a burst of insane lines (a stamp going back, a position of 1e308 m,
-a non-unit quaternion, garbage) every 10,000 ticks. A reader parses every pose line zonemapd
+only, so a million ticks take minutes, not hours. It also pulls the levers a robot pulls, every
+--period P ticks (50,000): a `route` line every 2P ticks, a `budget` down to half of K_max at
+P/2 and back up P/5 later, and a burst of insane lines (a stamp going back, a position of
+1e308 m, a non-unit quaternion, garbage) every P/5 ticks, starting at P/10. A reader parses every pose line zonemapd
 writes back; a sampler reads zonemapd's resident set size (/proc/PID/status VmRSS).
 
 Checks (exit 1 when one fails): one pose line per frame sent; resident <= K_max on every pose
 line (and summary.json: no tick over budget at any instant); every insane line refused and
 counted with its reason; RSS after warm-up (the first 10 % of ticks) flat: least-squares slope
-within --max-slope bytes per 1,000 ticks and growth within --max-growth-mib.
+within --max-slope bytes per 1,000 ticks and growth within --max-growth-mib (--no-rss-check:
+not checked, for short runs, still warming, or under ASan, whose allocator is not ours).
 
     scripts/soak.py --build build/host-release --ticks 1000000 --out out/soak \\
         --plot out/soak/soak.png              # the documented run (docs/reliability.md)
@@ -88,6 +89,10 @@ def main():
     ap.add_argument("--max-slope", type=float, default=64.0,
                     help="bytes per 1,000 ticks allowed after warm-up")
     ap.add_argument("--max-growth-mib", type=float, default=2.0)
+    ap.add_argument("--no-rss-check", action="store_true",
+                    help="report the RSS figures without failing on them (short or ASan runs)")
+    ap.add_argument("--period", type=int, default=50000,
+                    help="ticks between budget levers (routes every 2x, insane bursts every /5)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--plot", help="write the figure here (PNG)")
     args = ap.parse_args()
@@ -130,6 +135,7 @@ def main():
     expected = {}
     state = {"poses": 0, "violations": 0, "acks": [], "samples": [], "bad": 0}
     sample_every = max(1, args.ticks // args.samples)
+    lever = max(10, args.period)
 
     def read():
         for raw in proc.stdout:
@@ -143,7 +149,9 @@ def main():
                     state["violations"] += 1
                 state["poses"] += 1
                 if state["poses"] % sample_every == 0:
-                    state["samples"].append((state["poses"], rss_kib(proc.pid), resident, kmax))
+                    rss = rss_kib(proc.pid)
+                    if rss:  # 0: zonemapd has already exited (the last lines of a run)
+                        state["samples"].append((state["poses"], rss, resident, kmax))
             elif raw.startswith(b"ack "):
                 state["acks"].append(zp.parse_ack(raw.decode()))
 
@@ -156,13 +164,13 @@ def main():
         for tick in range(args.ticks):
             p, i = divmod(tick, len(rows))
             stamp = rows[i][0] + p * pass_s
-            if tick % 100000 == 0:
+            if tick % (2 * lever) == 0:
                 out.write((route + "\n").encode())
-            if tick % 50000 == 25000:
+            if tick % lever == lever // 2:
                 out.write(("budget %d\n" % max(1, k_max // 2)).encode())
-            if tick % 50000 == 35000:
+            if tick % lever == lever // 2 + lever // 5:
                 out.write(("budget %d\n" % k_max).encode())
-            if tick % 10000 == 5000 and last_stamp is not None:
+            if tick % (lever // 5) == lever // 10 and last_stamp is not None:
                 for text, reason in INSANE:
                     out.write((text.format(back=last_stamp - 1.0, next=last_stamp + 1e-4)
                                + "\n").encode())
@@ -195,14 +203,16 @@ def main():
     budgets = [a for a in state["acks"] if a["what"] == "budget"]
     if any(a["resident"] > a["k_max"] for a in budgets):
         failures.append("a budget ack with resident above the new K_max")
+    if args.ticks >= lever and not budgets:
+        failures.append("no budget line acknowledged")
 
     samples = state["samples"]
     warm = [s for s in samples if s[0] > args.ticks // 10]
     slope_b = slope_per_1000([s[0] for s in warm], [1024.0 * s[1] for s in warm])
     growth_mib = (max(s[1] for s in warm) - warm[0][1]) / 1024.0 if warm else 0.0
-    if abs(slope_b) > args.max_slope:
+    if abs(slope_b) > args.max_slope and not args.no_rss_check:
         failures.append("RSS slope %.1f bytes / 1000 ticks after warm-up" % slope_b)
-    if growth_mib > args.max_growth_mib:
+    if growth_mib > args.max_growth_mib and not args.no_rss_check:
         failures.append("RSS grew %.2f MiB after warm-up" % growth_mib)
 
     with open(os.path.join(args.out, "soak.csv"), "w") as f:
@@ -224,6 +234,7 @@ def main():
         "rss_end_kib": samples[-1][1] if samples else None,
         "rss_max_after_warmup_kib": max(s[1] for s in warm) if warm else None,
         "rss_slope_bytes_per_1000_ticks": round(slope_b, 2),
+        "rss_checked": not args.no_rss_check,
         "failures": failures,
     }
     with open(os.path.join(args.out, "soak.json"), "w") as f:

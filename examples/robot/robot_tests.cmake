@@ -38,16 +38,18 @@ foreach(transport pipe udp)
 endforeach()
 
 # The soak's short version: the real daemon through the line protocol, resident <= K_max on every
-# tick, insane lines counted, RSS flat after warm-up (scripts/soak.py; the 1,000,000-tick run is
-# documented in docs/reliability.md).
+# pose line, budgets lowered and raised, insane lines counted by reason (scripts/soak.py, levers
+# every 1,000 ticks). RSS is reported, not checked: a few thousand ticks are still warm-up, and
+# under ASan the allocator is ASan's; the 1,000,000-tick Release run in docs/reliability.md is
+# the flat-memory proof.
 if(CMAKE_CROSSCOMPILING)
-  set(ZM_SOAK_TICKS 3000)
+  set(ZM_SOAK_TICKS 1000)
 else()
-  set(ZM_SOAK_TICKS 20000)
+  set(ZM_SOAK_TICKS 2000)
 endif()
 add_test(NAME zonemapd_soak_short COMMAND ${Python3_EXECUTABLE}
   ${PROJECT_SOURCE_DIR}/scripts/soak.py --zonemapd $<TARGET_FILE:zonemapd>
-  --scenario ${ZM_ROBOT_SCENARIO} --ticks ${ZM_SOAK_TICKS} --memory-thr 120
-  --out ${CMAKE_CURRENT_BINARY_DIR}/soak_short --emulator "${ZM_ROBOT_EMULATOR}")
+  --scenario ${ZM_ROBOT_SCENARIO} --ticks ${ZM_SOAK_TICKS} --period 1000 --memory-thr 120
+  --no-rss-check --out ${CMAKE_CURRENT_BINARY_DIR}/soak_short --emulator "${ZM_ROBOT_EMULATOR}")
 set_tests_properties(zonemapd_soak_short PROPERTIES
   FIXTURES_REQUIRED zm_robot_scenario LABELS app TIMEOUT 1200)
