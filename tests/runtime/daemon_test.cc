@@ -483,7 +483,9 @@ TEST_CASE("every warm Step allocates nothing, for every policy, over a live feed
   // As zonemapd runs: SQLite on its fixed heap (sqlite_heap.h), installed before any database.
   auto heap = SqliteHeap::Install(64 << 20);
   REQUIRE_MESSAGE(heap.ok(), heap.status().ToString());
-  RoomsMap map(8, 10, "alloc");
+  // Dense keyframes (small RGB-D images), so every zone load also runs the dense decoder
+  // (libjpeg on its own pools, RVL into the slot), as with a `zonemap sim` map.
+  RoomsMap map(8, 10, "alloc", /*dense=*/true);
   for (const std::string policy : {"semantic", "basic", "radius", "predictive", "oracle", "unbounded"}) {
     CAPTURE(policy);
     DaemonOptions o;

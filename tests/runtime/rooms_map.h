@@ -16,7 +16,10 @@
 
 #include "localization/camera.h"
 #include "localization/frame.h"
+#include "mapdb/dense_codec.h"
+#include "mapdb/keyframe_payload.h"
 #include "mapdb/map_db.h"
+#include "mapdb/rvl.h"
 #include "runtime/line_protocol.h"
 
 namespace zm::test {
@@ -26,8 +29,10 @@ class RoomsMap {
   static constexpr double kRoomM = 10.0;
   static constexpr int kPoints = 40;
 
-  RoomsMap(int rooms, int keyframes_per_room, const std::string& tag)
-      : rooms_(rooms), per_room_(keyframes_per_room) {
+  // dense: every keyframe also carries a small RGB-D image (JPEG + RVL, as `zonemap sim` writes
+  // them), decoded into its slot on every load, so the load path includes the dense decoder.
+  RoomsMap(int rooms, int keyframes_per_room, const std::string& tag, bool dense = false)
+      : rooms_(rooms), per_room_(keyframes_per_room), dense_(dense) {
     dir_ = std::filesystem::temp_directory_path() /
            ("zm_rooms_" + tag + "_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir_);
@@ -128,13 +133,40 @@ class RoomsMap {
         points_.push_back(pts);
         descriptors_.push_back(desc);
         const KeyframeId id{k + 1};
-        auto payload = EncodePayload(PayloadParts{id, desc, xyz, kps, DenseFormat::kNone, {}, 0});
-        REQUIRE(payload.ok());
+        PayloadParts parts{id, desc, xyz, kps, DenseFormat::kNone, {}, 0};
+        std::vector<std::byte> both;
+        if (dense_) {
+          std::vector<std::uint8_t> rgb(kDenseW * kDenseH * 3);
+          const auto kk = static_cast<std::size_t>(k);
+          for (std::size_t j = 0; j < rgb.size(); ++j) rgb[j] = static_cast<std::uint8_t>(j * 7 + kk);
+          DepthImage16 depth{kDenseW, kDenseH, std::vector<std::uint16_t>(kDenseW * kDenseH)};
+          for (std::size_t j = 0; j < depth.pixels.size(); ++j) {
+            depth.pixels[j] = static_cast<std::uint16_t>(1000 + (j * 13 + kk) % 3000);
+          }
+          auto jpeg = EncodeJpegRgb(rgb, kDenseW, kDenseH, 90);
+          REQUIRE(jpeg.ok());
+          const std::vector<std::byte> rvl = EncodeRvlDepth(depth);
+          both = std::move(jpeg).value();
+          parts.dense_split = static_cast<std::uint32_t>(both.size());
+          both.insert(both.end(), rvl.begin(), rvl.end());
+          parts.dense_format = DenseFormat::kJpegColourRvlDepth;
+          parts.dense = both;
+          parts.dense_width = kDenseW;
+          parts.dense_height = kDenseH;
+          parts.cloud_step = 4;
+        }
+        auto payload = EncodePayload(parts);
+        REQUIRE_MESSAGE(payload.ok(), payload.status().ToString());
         payloads.push_back(std::move(payload).value());
         KeyframeMeta m;
         m.id = id;
         m.pose = pose;
-        m.payload_bytes = static_cast<std::uint32_t>(payloads.back().size());
+        // The slot bytes the keyframe needs: the decoded layout for a dense one.
+        m.payload_bytes = static_cast<std::uint32_t>(
+            dense_ ? DecodedLayoutFor(payloads.back().size(), static_cast<std::uint32_t>(desc.size()),
+                                      kDenseW, kDenseH, 4, /*points_from_depth=*/false)
+                         .end
+                   : payloads.back().size());
         members.push_back({z.id, m.id});
         recs.push_back({m, {}});
       }
@@ -146,7 +178,9 @@ class RoomsMap {
     REQUIRE((*w)->Finish().ok());
   }
 
+  static constexpr std::uint32_t kDenseW = 32, kDenseH = 24;
   int rooms_, per_room_;
+  bool dense_ = false;
   std::filesystem::path dir_;
   std::string db_;
   std::mt19937 rng_{42};
