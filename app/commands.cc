@@ -32,7 +32,6 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddSimCommand(app, ctx);
   AddRunCommand(app, ctx);
   AddBenchCommand(app, ctx);
-  AddSoakCommand(app, ctx);
 }
 
 }  // namespace zm::app

@@ -32,6 +32,5 @@ void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx);
 void AddSimCommand(CLI::App& app, CommandContext& ctx);
 void AddRunCommand(CLI::App& app, CommandContext& ctx);
 void AddBenchCommand(CLI::App& app, CommandContext& ctx);
-void AddSoakCommand(CLI::App& app, CommandContext& ctx);
 
 }  // namespace zm::app

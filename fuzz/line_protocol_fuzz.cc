@@ -1,7 +1,9 @@
-// libFuzzer target: the live line protocol (lib/runtime/line_protocol.h). Any line must parse
-// as a frame, be ignored or be reported malformed with a column inside the line; a frame never
-// holds more features than the capacity given; a parsed frame formats back to a line that
-// parses to the same feature count.
+// libFuzzer target: the live line protocol IN (lib/runtime/line_protocol.h) and the pose line OUT
+// (lib/runtime/pose_output.h). Any input line must parse as a frame, a route or a budget, be
+// ignored, or be reported malformed with a column inside the line and a reason; a frame never
+// holds more features than reserved, a route more waypoints; a parsed frame or route formats back
+// to a line that parses to the same counts. The same bytes given to ParsePoseLine must either be
+// refused or parse to a line that formats within the documented size.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -9,33 +11,61 @@
 #include <string_view>
 
 #include "runtime/line_protocol.h"
+#include "runtime/pose_output.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  constexpr std::size_t kMaxFeatures = 16;
-  static zm::Frame frame = [] {
-    zm::Frame f;
-    f.Reserve(kMaxFeatures);
-    return f;
+  constexpr std::uint32_t kMaxFeatures = 16;
+  constexpr std::uint32_t kMaxWaypoints = 16;
+  static zm::InputLine input = [] {
+    zm::InputLine in;
+    in.Reserve(kMaxFeatures, kMaxWaypoints);
+    return in;
   }();
   // Exactly `size` bytes on the heap so ASan catches a read past the end of the line.
   const std::string line(reinterpret_cast<const char*>(data), size);
   zm::LineError error;
-  const zm::LineKind kind = zm::ParseFrameLine(line, kMaxFeatures, &frame, &error);
+  const zm::LineKind kind = zm::ParseInputLine(line, &input, &error);
   if (kind == zm::LineKind::kMalformed) {
-    if (error.what == nullptr || error.column > size) std::abort();
+    if (error.what == nullptr || error.column > size ||
+        error.reason >= zm::RejectReason::kCount) {
+      std::abort();
+    }
   } else if (kind == zm::LineKind::kFrame) {
-    if (frame.descriptors.size() > kMaxFeatures || frame.keypoints.size() != 2 * frame.descriptors.size()) {
+    const zm::Frame& frame = input.frame;
+    if (frame.descriptors.size() > kMaxFeatures ||
+        frame.keypoints.size() != 2 * frame.descriptors.size()) {
       std::abort();
     }
     const std::uint32_t n = frame.feature_count();
     const std::string again = zm::FormatFrameLine(frame);
-    zm::Frame back;
-    back.Reserve(kMaxFeatures);
+    zm::InputLine back;
+    back.Reserve(kMaxFeatures, kMaxWaypoints);
     zm::LineError e2;
-    if (zm::ParseFrameLine(again, kMaxFeatures, &back, &e2) != zm::LineKind::kFrame ||
-        back.feature_count() != n) {
+    if (zm::ParseInputLine(again, &back, &e2) != zm::LineKind::kFrame ||
+        back.frame.feature_count() != n) {
       std::abort();
     }
+  } else if (kind == zm::LineKind::kRoute) {
+    if (input.waypoints.size() > kMaxWaypoints) std::abort();
+    const std::string again = zm::FormatRouteLine(input.waypoints);
+    zm::InputLine back;
+    back.Reserve(kMaxFeatures, kMaxWaypoints);
+    zm::LineError e2;
+    if (zm::ParseInputLine(again, &back, &e2) != zm::LineKind::kRoute ||
+        back.waypoints.size() != input.waypoints.size()) {
+      std::abort();
+    }
+  } else if (kind == zm::LineKind::kBudget) {
+    if (input.budget_keyframes == 0) std::abort();
+  }
+  zm::PoseLine pose;
+  if (zm::ParsePoseLine(line, &pose)) {
+    char buf[zm::kPoseLineMaxBytes];
+    // A parsed line may hold huge numbers, which then need more room than 2048 bytes: only a
+    // line that fits must fit exactly once more, and parse back.
+    const std::size_t n = zm::FormatPoseLine(pose, buf, sizeof buf);
+    zm::PoseLine again;
+    if (n > 0 && !zm::ParsePoseLine(std::string_view(buf, n), &again)) std::abort();
   }
   return 0;
 }

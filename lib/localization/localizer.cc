@@ -206,6 +206,8 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
     r.inliers = solved.inliers;
     r.t_map_cam = t_map_cam;
     r.t_map_body = t_map_body;
+    r.body_covariance = BodyCovarianceFromCamera(solved.covariance, t_map_cam);
+    r.reprojection_rms_px = solved.rms_px;
     r.closures_accepted = 1;
   }
   stats_.closures_accepted += r.closures_accepted;
@@ -218,6 +220,14 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
 Pose3 MapFromOdomCorrection(const Pose3& t_map_cam, const Pose3& t_odom_body) {
   const Pose3 t_odom_cam = t_odom_body * BodyToCamera();
   return t_map_cam * t_odom_cam.inverse();
+}
+
+Eigen::Matrix<double, 6, 6> BodyCovarianceFromCamera(
+    const Eigen::Matrix<double, 6, 6>& t_cam_map_covariance, const Pose3& t_map_cam) {
+  Eigen::Matrix<double, 6, 6> m = Eigen::Matrix<double, 6, 6>::Zero();
+  m.topLeftCorner<3, 3>() = t_map_cam.linear();
+  m.bottomRightCorner<3, 3>() = t_map_cam.linear();
+  return m * t_cam_map_covariance * m.transpose();
 }
 
 }  // namespace zm

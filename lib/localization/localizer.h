@@ -92,6 +92,10 @@ struct LocalizeResult {
   std::uint32_t matches = 0;  // descriptor matches of the accepted (or last tried) candidate
   Pose3 t_map_cam = Pose3::Identity();   // camera pose in the map (valid when accepted)
   Pose3 t_map_body = Pose3::Identity();  // body pose in the map (valid when accepted)
+  // Covariance of t_map_body when accepted (BodyCovarianceFromCamera of the PnP solution's):
+  // position in the map frame, then rotation about the map's axes (ROS PoseWithCovariance).
+  Eigen::Matrix<double, 6, 6> body_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double reprojection_rms_px = 0.0;      // of the accepted solution's inliers
   std::uint32_t candidates_examined = 0;
   std::uint32_t closures_accepted = 0;  // 0 or 1 this tick
   std::uint32_t closures_rejected = 0;  // candidates examined and not accepted this tick
@@ -146,5 +150,13 @@ class Localizer {
 // The drift correction from an accepted closure: T_map_odom = T_map_cam * T_odom_cam^-1 with
 // T_odom_cam = t_odom_body * BodyToCamera(). Predicted pose next tick: T_map_odom * odom.
 [[nodiscard]] Pose3 MapFromOdomCorrection(const Pose3& t_map_cam, const Pose3& t_odom_body);
+
+// The body pose's covariance from a PnP solution's (pnp.h: left perturbation of T_cam_map).
+// T_map_body = T_cam_map^-1 * BodyToCamera()^-1, so a left perturbation xi of T_cam_map is a
+// right perturbation -Ad(BodyToCamera) xi of T_map_body, i.e. position and rotation errors of
+// R_map_cam * (-v) and R_map_cam * (-w) in the map frame: C_body = M C_cam M^T with
+// M = diag(R_map_cam, R_map_cam) (first order). Order: x y z, rotation about X Y Z (ROS).
+[[nodiscard]] Eigen::Matrix<double, 6, 6> BodyCovarianceFromCamera(
+    const Eigen::Matrix<double, 6, 6>& t_cam_map_covariance, const Pose3& t_map_cam);
 
 }  // namespace zm

@@ -5,6 +5,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -190,6 +191,41 @@ void PnpRansac::Refine(Eigen::Matrix3d* r, Eigen::Vector3d* t) const {
   }
 }
 
+void PnpRansac::Covariance(const Eigen::Matrix3d& r, const Eigen::Vector3d& t,
+                           PnpSolution* sol) const {
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  // The Gauss-Newton normal matrix of Refine() at the final pose (same Jacobian), and the
+  // residual variance with 2 equations per inlier and 6 unknowns.
+  Mat6 h = Mat6::Zero();
+  double sse = 0.0;
+  std::uint32_t n = 0;
+  for (std::size_t i = 0; i < count_; ++i) {
+    if (mask_[i] == 0) continue;
+    const Eigen::Vector3d p = r * world_[i] + t;
+    const double iz = 1.0 / p.z();
+    const double xz = p.x() * iz;
+    const double yz = p.y() * iz;
+    const double du = fx_ * (xz - ray_[i].x());
+    const double dv = fy_ * (yz - ray_[i].y());
+    Eigen::Matrix<double, 2, 3> jp;
+    jp << fx_ * iz, 0.0, -fx_ * xz * iz, 0.0, fy_ * iz, -fy_ * yz * iz;
+    Eigen::Matrix<double, 2, 6> j;
+    j.leftCols<3>() = jp;
+    j.rightCols<3>() = -jp * Hat(p);
+    h.noalias() += j.transpose() * j;
+    sse += du * du + dv * dv;
+    ++n;
+  }
+  sol->rms_px = n > 0 ? std::sqrt(sse / n) : 0.0;
+  const double dof = 2.0 * n - 6.0;
+  const Eigen::FullPivLU<Mat6> lu(h);
+  if (dof <= 0.0 || !lu.isInvertible()) {
+    sol->covariance = Mat6::Constant(std::numeric_limits<double>::infinity());
+    return;
+  }
+  sol->covariance = (sse / dof) * lu.inverse();
+}
+
 PnpSolution PnpRansac::Solve(std::span<const cv::Point3f> object,
                              std::span<const cv::Point2f> image) {
   PnpSolution sol;
@@ -281,6 +317,7 @@ PnpSolution PnpRansac::Solve(std::span<const cv::Point3f> object,
   sol.t_cam_map.linear() = q.normalized().toRotationMatrix();
   sol.t_cam_map.translation() = best_t;
   sol.inliers = best.inliers;
+  Covariance(sol.t_cam_map.linear(), best_t, &sol);
   sol.found = true;
   sol.outcome = PnpOutcome::kOk;
   return sol;

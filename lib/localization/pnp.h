@@ -56,6 +56,13 @@ struct PnpSolution {
   std::uint32_t inliers = 0;     // of the final (refined) pose
   std::uint32_t iterations = 0;  // RANSAC samples drawn
   Pose3 t_cam_map = Pose3::Identity();
+  // Uncertainty of t_cam_map from the normal equations on the inliers: sigma^2 (J^T J)^-1 for a
+  // left perturbation t_cam_map <- Exp(xi) t_cam_map, xi = (v, w) (metres, radians; the LM
+  // refinement's parametrisation), sigma^2 = sum of squared pixel residuals / (2 inliers - 6).
+  // Only reprojection noise is in it (not map-point noise): a lower bound on the true spread.
+  // Not finite when J^T J is singular.
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double rms_px = 0.0;  // RMS reprojection error over the inliers
 };
 
 class PnpRansac {
@@ -79,6 +86,8 @@ class PnpRansac {
   Score Evaluate(const Eigen::Matrix3d& r, const Eigen::Vector3d& t, std::uint8_t* mask) const;
   // Levenberg-Marquardt on the points flagged in mask_; updates (r, t) in place.
   void Refine(Eigen::Matrix3d* r, Eigen::Vector3d* t) const;
+  // PnpSolution::covariance and rms_px of (r, t) over the points flagged in mask_.
+  void Covariance(const Eigen::Matrix3d& r, const Eigen::Vector3d& t, PnpSolution* sol) const;
   void Reserve(std::size_t n);
   std::uint64_t NextRandom();
 

@@ -51,6 +51,11 @@ class BasicPolicy final : public MemoryPolicy {
   void Start(const TickContext& ctx, Plan* plan) override;
   void PlanBeforeLocalize(const TickContext& /*ctx*/, Plan* /*plan*/) override {}
   void PlanAfterLocalize(const TickContext& ctx, Plan* plan) override;
+  // RTAB-Map-style: a new Rtabmap/MemoryThr; nothing unloads now, the transfer (retrieved + 1
+  // nodes a tick) brings WM down over the next ticks.
+  void ChangeBudget(std::uint32_t k_max, const TickContext& /*ctx*/, Plan* /*plan*/) override {
+    options_.memory_thr = k_max;
+  }
 
   // What the last PlanAfterLocalize did (for telemetry and tests).
   struct TickReport {

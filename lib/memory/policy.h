@@ -50,6 +50,15 @@ class MemoryPolicy {
   virtual void PlanAfterLocalize(const TickContext& ctx, Plan* plan) = 0;
   // Zone batches this policy has started so far (0 for the keyframe-level policies).
   [[nodiscard]] virtual std::uint64_t zone_loads() const { return 0; }
+  // MemoryThr changes to k_max at run time (zonemapd's `budget` line), between ticks; ctx is the
+  // last tick's. A bounded policy that holds more than k_max writes releases only (no acquire of
+  // a keyframe not yet resident) until it fits, so residency never exceeds the new budget at any
+  // instant; basic changes its MemoryThr and lets its transfer shed nodes over the next ticks
+  // (RTAB-Map's behaviour); unbounded ignores it. k_max never exceeds the arena's capacity (the
+  // loop clamps). No allocation.
+  virtual void ChangeBudget(std::uint32_t k_max, const TickContext& ctx, Plan* plan) = 0;
+  // ctx.route was replaced (zonemapd's `route` line). Only predictive follows a route.
+  virtual void RouteChanged(const TickContext& /*ctx*/) {}
 };
 
 // Options of every policy, plain structs (read once from a profile).

@@ -158,4 +158,41 @@ void PredictivePolicy::PlanBeforeLocalize(const TickContext& ctx, Plan* plan) {
   }
 }
 
+
+void PredictivePolicy::ChangeBudget(std::uint32_t k_max, const TickContext& ctx, Plan* plan) {
+  options_.k_max = k_max;
+  while (residency_.resident() > k_max) {
+    ZoneId victim = kNoZone;
+    std::pair<std::int64_t, std::uint64_t> worst{};
+    for (ZoneId a : residency_.active_zones()) {
+      if (a == z_curr_) continue;
+      const auto v = Value(a, ctx.route);
+      if (victim == kNoZone || v < worst) {
+        worst = v;
+        victim = a;
+      }
+    }
+    if (victim == kNoZone) break;
+    residency_.Evict(victim, plan);
+  }
+  if (residency_.resident() <= k_max || z_curr_ == kNoZone || !residency_.active(z_curr_)) return;
+  // The current zone alone is over the new budget. What it holds is a prefix of its load order
+  // (nearest-first from where its loading started): keep the first k_max. Evict + Hold of a
+  // subset of resident keyframes only bumps references (WorkingSet pins): nothing is read.
+  const std::size_t held = residency_.held_members(z_curr_).size();
+  const KfIndex* order = order_.data() + index_.ZoneOffset(z_curr_);
+  residency_.Evict(z_curr_, plan);
+  residency_.Hold(z_curr_, std::span<const KfIndex>(order, std::min<std::size_t>(held, k_max)), plan);
+}
+
+void PredictivePolicy::RouteChanged(const TickContext& ctx) {
+  route_cursor_ = 0;
+  for (std::size_t i = 0; i < ctx.route.size(); ++i) {
+    if (ctx.route[i] == z_curr_) {
+      route_cursor_ = i;
+      break;
+    }
+  }
+}
+
 }  // namespace zm

@@ -40,6 +40,11 @@ class PredictivePolicy final : public MemoryPolicy {
   void PlanBeforeLocalize(const TickContext& ctx, Plan* plan) override;
   void PlanAfterLocalize(const TickContext& /*ctx*/, Plan* /*plan*/) override {}
   [[nodiscard]] std::uint64_t zone_loads() const override { return zone_loads_; }
+  // Evicts the least valuable other zones until it fits; if the current zone alone is larger,
+  // keeps the first k_max of its load order (releases only).
+  void ChangeBudget(std::uint32_t k_max, const TickContext& ctx, Plan* plan) override;
+  // A new route: the cursor restarts at the current zone's first place on it.
+  void RouteChanged(const TickContext& ctx) override;
 
   [[nodiscard]] ZoneId current_zone() const { return z_curr_; }
   [[nodiscard]] ZoneId last_prefetch() const { return last_prefetch_; }

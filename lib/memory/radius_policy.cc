@@ -132,4 +132,10 @@ void RadiusPolicy::Update(const Eigen::Vector3d& p, Plan* plan) {
   }
 }
 
+
+void RadiusPolicy::ChangeBudget(std::uint32_t k_max, const TickContext& /*ctx*/, Plan* plan) {
+  options_.k_max = k_max;
+  if (updated_once_ && resident() > k_max) Update(last_update_, plan);
+}
+
 }  // namespace zm

@@ -28,6 +28,9 @@ class RadiusPolicy final : public MemoryPolicy {
   void Start(const TickContext& ctx, Plan* plan) override;
   void PlanBeforeLocalize(const TickContext& ctx, Plan* plan) override;
   void PlanAfterLocalize(const TickContext& /*ctx*/, Plan* /*plan*/) override {}
+  // Redoes the last update (same centre) within k_max: the wanted set is then a subset of what
+  // is resident (tiles nearest first, the partial tile nearest-first), so releases only.
+  void ChangeBudget(std::uint32_t k_max, const TickContext& ctx, Plan* plan) override;
 
   [[nodiscard]] std::uint32_t resident() const { return static_cast<std::uint32_t>(resident_list_.size()); }
   [[nodiscard]] std::uint64_t updates() const { return updates_; }

@@ -70,4 +70,32 @@ void SemanticPolicy::Enter(const TickContext& ctx, ZoneId z_new, Plan* plan) {
   assert(residency_.resident() <= k_max_);
 }
 
+
+void SemanticPolicy::ChangeBudget(std::uint32_t k_max, const TickContext& ctx, Plan* plan) {
+  k_max_ = k_max;
+  while (residency_.resident() > k_max_) {
+    const ZoneId victim = SelectUnloadZone(z_curr_);  // never the current zone
+    if (victim == kNoZone) break;
+    residency_.Evict(victim, plan);
+  }
+  if (residency_.resident() <= k_max_ || z_curr_ == kNoZone || !residency_.active(z_curr_)) return;
+  // Only the current zone is left and it alone is over the new budget: the oversize rule of
+  // Enter, nearest-first to the pose. Evict + Hold of a subset of what it holds: the WorkingSet
+  // pins the kept keyframes (their references are bumped before the releases), so nothing is
+  // read and nothing new is ever resident.
+  const Eigen::Vector3d p = ctx.pose.translation();
+  nearest_.clear();
+  for (KfIndex k : residency_.held_members(z_curr_)) {
+    nearest_.emplace_back((index_.position(k) - p).squaredNorm(), k);
+  }
+  const auto take = static_cast<std::ptrdiff_t>(std::min<std::size_t>(k_max_, nearest_.size()));
+  std::nth_element(nearest_.begin(), nearest_.begin() + take, nearest_.end());
+  std::sort(nearest_.begin(), nearest_.begin() + take);
+  chosen_.clear();
+  for (std::ptrdiff_t i = 0; i < take; ++i) chosen_.push_back(nearest_[static_cast<std::size_t>(i)].second);
+  residency_.Evict(z_curr_, plan);
+  residency_.Hold(z_curr_, chosen_, plan);
+  assert(residency_.resident() <= k_max_);
+}
+
 }  // namespace zm

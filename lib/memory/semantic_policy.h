@@ -34,6 +34,9 @@ class SemanticPolicy : public MemoryPolicy {
   void PlanBeforeLocalize(const TickContext& ctx, Plan* plan) override;
   void PlanAfterLocalize(const TickContext& /*ctx*/, Plan* /*plan*/) override {}
   [[nodiscard]] std::uint64_t zone_loads() const override { return zone_loads_; }
+  // Evicts other zones (SelectUnloadZone's order) until it fits; if the current zone alone is
+  // larger, keeps its k_max members nearest to ctx.pose (releases only).
+  void ChangeBudget(std::uint32_t k_max, const TickContext& ctx, Plan* plan) override;
 
   [[nodiscard]] ZoneId current_zone() const { return z_curr_; }
   [[nodiscard]] const ZoneResidency& residency() const { return residency_; }

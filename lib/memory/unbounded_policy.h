@@ -16,6 +16,8 @@ class UnboundedPolicy final : public MemoryPolicy {
   }
   void PlanBeforeLocalize(const TickContext& /*ctx*/, Plan* /*plan*/) override {}
   void PlanAfterLocalize(const TickContext& /*ctx*/, Plan* /*plan*/) override {}
+  // No budget: everything stays resident.
+  void ChangeBudget(std::uint32_t /*k_max*/, const TickContext& /*ctx*/, Plan* /*plan*/) override {}
 
  private:
   const MapIndex& index_;

@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "runtime/text_line.h"
+
 namespace zm {
 namespace {
 constexpr std::size_t kStdioBufferBytes = 1 << 16;
@@ -28,8 +30,11 @@ bool EstimateWriter::Write(double stamp_s, const Pose3& pose) {
   if (file_ == nullptr) return false;
   const Eigen::Quaterniond q(pose.linear());
   const Eigen::Vector3d& t = pose.translation();
-  return std::fprintf(file_, "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", stamp_s, t.x(), t.y(),
-                      t.z(), q.x(), q.y(), q.z(), q.w()) > 0;
+  char line[256];
+  TextLine l(line, sizeof line);
+  l.Fixed(stamp_s, 6).Sp().Fixed(t.x(), 6).Sp().Fixed(t.y(), 6).Sp().Fixed(t.z(), 6);
+  l.Sp().Fixed(q.x(), 9).Sp().Fixed(q.y(), 9).Sp().Fixed(q.z(), 9).Sp().Fixed(q.w(), 9).Char('\n');
+  return l.ok() && std::fwrite(line, 1, l.size(), file_) == l.size();
 }
 
 void EstimateWriter::Flush() {

@@ -1,6 +1,7 @@
 // Line protocol parser: std::from_chars over a string_view, writing into reserved vectors.
 #include "runtime/line_protocol.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -26,6 +27,8 @@ class Cursor {
     while (pos_ < s_.size() && s_[pos_] != ' ' && s_[pos_] != '\t' && s_[pos_] != '\r') ++pos_;
     return s_.substr(start, pos_ - start);
   }
+  // A finite number (from_chars refuses "inf", "nan" parses but is refused here; 1e309 is out of
+  // range). Finite but absurd values (1e308 m) are the input gate's business.
   bool Double(double* out) {
     const std::string_view t = Token();
     if (t.empty()) return false;
@@ -52,38 +55,40 @@ int HexValue(char c) {
   return -1;
 }
 
-LineKind Fail(LineError* e, const char* what, std::size_t column) {
-  if (e != nullptr) *e = {what, column};
+LineKind Fail(LineError* e, const char* what, std::size_t column,
+              RejectReason reason = RejectReason::kSyntax) {
+  if (e != nullptr) *e = {what, column, reason};
   return LineKind::kMalformed;
 }
 
-}  // namespace
-
-LineKind ParseFrameLine(std::string_view line, std::size_t max_features, Frame* frame,
-                        LineError* error) {
-  Cursor c(line);
-  if (c.AtEnd()) return LineKind::kIgnored;
-  const std::string_view head = c.Token();
-  if (!head.empty() && head.front() == '#') return LineKind::kIgnored;
-  if (head != "frame") return Fail(error, "line does not start with 'frame'", 0);
-
+LineKind ParseFrame(Cursor& c, InputLine* out, LineError* error) {
   double v[8];
   for (double& x : v) {
     if (!c.Double(&x)) return Fail(error, "bad number in stamp/pose", c.pos());
   }
   const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);  // w last on the wire, first in Eigen
   const double norm = q.norm();
-  if (norm < 0.5 || norm > 1.5) return Fail(error, "quaternion is not unit length", c.pos());
+  // Only a quaternion that cannot be normalised at all is refused here; how far from unit a
+  // sane one may be is the input gate's tolerance ([input] quaternion_tolerance).
+  if (!(norm > 1e-12) || !std::isfinite(norm)) {
+    return Fail(error, "quaternion has no length", c.pos(), RejectReason::kQuaternionNotUnit);
+  }
   std::uint64_t n = 0;
   if (!c.Uint(&n)) return Fail(error, "bad feature count", c.pos());
-  if (n > max_features) return Fail(error, "more features than the frame's capacity", c.pos());
-
-  frame->stamp_s = v[0];
-  frame->odom = Pose3::Identity();
-  frame->odom.linear() = q.normalized().toRotationMatrix();
-  frame->odom.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
-  frame->descriptors.clear();  // keeps capacity: no allocation
-  frame->keypoints.clear();
+  if (n > out->max_features()) {
+    return Fail(error, "more features than the frame's capacity", c.pos(),
+                RejectReason::kTooManyFeatures);
+  }
+  Frame& frame = out->frame;
+  frame.stamp_s = v[0];
+  frame.odom = Pose3::Identity();
+  Eigen::Quaterniond unit = q;
+  unit.coeffs() /= norm;
+  frame.odom.linear() = unit.toRotationMatrix();
+  frame.odom.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
+  out->quaternion_norm = norm;
+  frame.descriptors.clear();  // keeps capacity: no allocation
+  frame.keypoints.clear();
   for (std::uint64_t i = 0; i < n; ++i) {
     double u = 0, w = 0;
     if (!c.Double(&u) || !c.Double(&w)) return Fail(error, "bad keypoint", c.pos());
@@ -104,12 +109,87 @@ LineKind ParseFrameLine(std::string_view line, std::size_t max_features, Frame* 
       if (hi < 0 || lo < 0) return Fail(error, "bad hex digit in descriptor", c.pos());
       d[b] = static_cast<std::uint8_t>(hi * 16 + lo);
     }
-    frame->descriptors.push_back(d);
-    frame->keypoints.push_back(static_cast<float>(u));
-    frame->keypoints.push_back(static_cast<float>(w));
+    frame.descriptors.push_back(d);
+    frame.keypoints.push_back(static_cast<float>(u));
+    frame.keypoints.push_back(static_cast<float>(w));
   }
   if (!c.AtEnd()) return Fail(error, "trailing data after the last feature", c.pos());
   return LineKind::kFrame;
+}
+
+LineKind ParseRoute(Cursor& c, InputLine* out, LineError* error) {
+  std::uint64_t n = 0;
+  if (!c.Uint(&n)) return Fail(error, "bad waypoint count", c.pos());
+  if (n > out->max_waypoints()) {
+    return Fail(error, "more waypoints than reserved ([input] max_route_waypoints)", c.pos(),
+                RejectReason::kRouteTooLong);
+  }
+  out->waypoints.clear();  // keeps capacity
+  for (std::uint64_t i = 0; i < n; ++i) {
+    double x = 0, y = 0, z = 0;
+    if (!c.Double(&x) || !c.Double(&y) || !c.Double(&z)) {
+      return Fail(error, "bad waypoint coordinate", c.pos());
+    }
+    out->waypoints.emplace_back(x, y, z);
+  }
+  if (!c.AtEnd()) return Fail(error, "trailing data after the last waypoint", c.pos());
+  return LineKind::kRoute;
+}
+
+LineKind ParseBudget(Cursor& c, InputLine* out, LineError* error) {
+  std::uint64_t k = 0;
+  if (!c.Uint(&k)) return Fail(error, "bad keyframe count", c.pos());
+  if (!c.AtEnd()) return Fail(error, "trailing data after the keyframe count", c.pos());
+  if (k == 0 || k > std::numeric_limits<std::uint32_t>::max()) {
+    return Fail(error, "budget must be 1 .. 4294967295 keyframes", c.pos(),
+                RejectReason::kBudgetInvalid);
+  }
+  out->budget_keyframes = k;
+  return LineKind::kBudget;
+}
+
+}  // namespace
+
+const char* RejectReasonName(RejectReason reason) {
+  switch (reason) {
+    case RejectReason::kSyntax: return "syntax";
+    case RejectReason::kLineTooLong: return "line_too_long";
+    case RejectReason::kTooManyFeatures: return "too_many_features";
+    case RejectReason::kStampNotIncreasing: return "stamp_not_increasing";
+    case RejectReason::kStampOutOfRange: return "stamp_out_of_range";
+    case RejectReason::kPositionOutsideMap: return "position_outside_map";
+    case RejectReason::kQuaternionNotUnit: return "quaternion_not_unit";
+    case RejectReason::kRouteTooLong: return "route_too_long";
+    case RejectReason::kRouteOutsideMap: return "route_outside_map";
+    case RejectReason::kBudgetInvalid: return "budget_invalid";
+    case RejectReason::kCount: break;
+  }
+  return "unknown";
+}
+
+void InputLine::Reserve(std::uint32_t max_features, std::uint32_t max_waypoints) {
+  frame.Reserve(max_features);
+  waypoints.reserve(max_waypoints);
+  max_features_ = max_features;
+  max_waypoints_ = max_waypoints;
+}
+
+std::size_t MaxInputLineBytes(std::uint32_t max_features, std::uint32_t max_waypoints) {
+  // Numbers up to 24 characters (%.17g of any double), one separator each.
+  const std::size_t frame = 512 + std::size_t{max_features} * (2 * 25 + 2 * kDescriptorBytes + 1);
+  const std::size_t route = 64 + std::size_t{max_waypoints} * 3 * 25;
+  return std::max(frame, route);
+}
+
+LineKind ParseInputLine(std::string_view line, InputLine* out, LineError* error) {
+  Cursor c(line);
+  if (c.AtEnd()) return LineKind::kIgnored;
+  const std::string_view head = c.Token();
+  if (!head.empty() && head.front() == '#') return LineKind::kIgnored;
+  if (head == "frame") return ParseFrame(c, out, error);
+  if (head == "route") return ParseRoute(c, out, error);
+  if (head == "budget") return ParseBudget(c, out, error);
+  return Fail(error, "line does not start with 'frame', 'route' or 'budget'", 0);
 }
 
 std::string FormatFrameLine(const Frame& frame) {
@@ -128,6 +208,16 @@ std::string FormatFrameLine(const Frame& frame) {
       out += kHex[b >> 4];
       out += kHex[b & 15];
     }
+  }
+  return out;
+}
+
+std::string FormatRouteLine(std::span<const Eigen::Vector3d> waypoints) {
+  std::string out = "route " + std::to_string(waypoints.size());
+  char buf[96];
+  for (const Eigen::Vector3d& p : waypoints) {
+    std::snprintf(buf, sizeof buf, " %.9g %.9g %.9g", p.x(), p.y(), p.z());
+    out += buf;
   }
   return out;
 }

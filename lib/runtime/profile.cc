@@ -117,6 +117,23 @@ Result<Profile> ReadProfile(ProfileDocument& doc) {
   loop.U32("telemetry_flush_ticks", p.telemetry.flush_ticks, 1);
   loop.Finish();
 
+  TableReader input = top.Sub("input");
+  input.Double("max_distance_from_map_m", p.input.max_distance_from_map_m, 0.0, 1e6);
+  input.Double("quaternion_tolerance", p.input.quaternion_tolerance, 0.0, 0.5);
+  input.U32("max_route_waypoints", p.input.max_route_waypoints, 0, 1u << 20);
+  input.Finish();
+
+  TableReader output = top.Sub("output");
+  PoseOutputOptions& o = p.output;
+  output.Double("map_sigma_m", o.map_sigma_m, 0.0, 1e3);
+  output.Double("map_sigma_deg", o.map_sigma_deg, 0.0, 180.0);
+  output.Double("initial_sigma_m", o.initial_sigma_m, 0.0, 1e6);
+  output.Double("initial_sigma_deg", o.initial_sigma_deg, 0.0, 180.0);
+  output.Double("odom_sigma_m_per_sqrt_m", o.odom_sigma_m_per_sqrt_m, 0.0, 100.0);
+  output.Double("odom_sigma_deg_per_sqrt_m", o.odom_sigma_deg_per_sqrt_m, 0.0, 180.0);
+  output.Double("lost_sigma_m", o.lost_sigma_m, 0.0, 1e6);
+  output.Finish();
+
   if (!doc.error().ok()) return doc.error();
   ZM_RETURN_IF_ERROR(ValidateMemorySplit(p));
   return p;

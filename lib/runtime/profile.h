@@ -26,6 +26,8 @@
 #include "localization/localizer.h"
 #include "memory/policy.h"
 #include "runtime/budget.h"
+#include "runtime/input_gate.h"
+#include "runtime/pose_output.h"
 #include "runtime/profile_reader.h"
 #include "runtime/telemetry.h"
 #include "runtime/tick_loop.h"
@@ -34,11 +36,14 @@
 namespace zm {
 
 // A profile is the loop's configuration (tick_loop.h's LoopConfig: device, model, map, policy,
-// zones, localizer, loop) plus what only the process around the loop reads.
+// zones, localizer, loop) plus what only the process around the loop reads (telemetry, the
+// input gate, the pose lines to the robot).
 struct Profile : LoopConfig {
   std::string source;          // the file it was read from
   std::string description;
   TelemetryOptions telemetry;  // [loop] telemetry_flush_ticks
+  InputOptions input;          // [input]: the input gate (input_gate.h)
+  PoseOutputOptions output;    // [output]: status and covariance of the pose lines (pose_output.h)
 };
 
 // Sections of the profile file that belong to the evaluation harness, not to the core: the core

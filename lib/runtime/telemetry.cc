@@ -4,6 +4,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "runtime/text_line.h"
+
 namespace zm {
 namespace {
 constexpr std::size_t kStdioBufferBytes = 1 << 16;
@@ -39,58 +41,50 @@ Status TelemetryWriter::Open(const std::string& path) {
 
 bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
   if (file_ == nullptr) return false;
-  int n = std::snprintf(
-      line_, sizeof line_,
-      "{\"tick\":%llu,\"stamp\":%.6f,\"x\":%.4f,\"y\":%.4f,\"yaw\":%.5f,\"zone\":%d,"
-      "\"resident_keyframes\":%u,\"resident_bytes\":%llu,\"loaded\":%u,\"unloaded\":%u,"
-      "\"db_transactions\":%u,\"db_queries\":%u,\"db_bytes_read\":%llu,\"load_ms\":%.4f,"
-      "\"unload_ms\":%.4f,\"pending\":%u,\"idle_load_ms\":%.4f,\"idle_loaded\":%u,"
-      "\"late_ms\":%.4f,\"over_budget\":%s,\"refused\":%llu,\"loop_closure\":%s,"
-      "\"matched\":%lld,\"inliers\":%u,\"highest\":%lld,\"candidates\":%u,"
-      "\"startup\":%s,\"stalled\":%s,\"tick_ms\":%.4f,\"steps_ms\":{",
-      static_cast<unsigned long long>(r.tick), r.stamp_s, r.x_m, r.y_m, r.yaw_rad, r.zone.value,
-      r.resident_keyframes, static_cast<unsigned long long>(r.resident_bytes), r.keyframes_loaded,
-      r.keyframes_unloaded, r.db_transactions, r.db_queries,
-      static_cast<unsigned long long>(r.db_bytes_read), r.load_ms, r.unload_ms,
-      r.pending_keyframes, r.idle_load_ms, r.idle_keyframes_loaded, r.late_ms,
-      r.over_budget ? "true" : "false", static_cast<unsigned long long>(r.refused_acquisitions),
-      r.loop_closure ? "true" : "false", static_cast<long long>(r.matched_keyframe), r.inliers,
-      static_cast<long long>(r.highest_hypothesis), r.candidates, r.startup ? "true" : "false",
-      r.stalled ? "true" : "false", r.tick_ms);
-  if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_) return false;
-  std::size_t used = static_cast<std::size_t>(n);
+  // std::to_chars through TextLine, not snprintf: glibc's printf takes a slow path that mallocs
+  // its spec table once a format has more than a handful of conversions (this line has about 30), and
+  // the C locale could turn "1.5" into "1,5".
+  const auto b = [](bool v) { return v ? "true" : "false"; };
+  TextLine t(line_, sizeof line_);
+  t.Str("{\"tick\":").U64(r.tick).Str(",\"stamp\":").Fixed(r.stamp_s, 6);
+  t.Str(",\"x\":").Fixed(r.x_m, 4).Str(",\"y\":").Fixed(r.y_m, 4);
+  t.Str(",\"yaw\":").Fixed(r.yaw_rad, 5).Str(",\"zone\":").I64(r.zone.value);
+  t.Str(",\"resident_keyframes\":").U64(r.resident_keyframes);
+  t.Str(",\"resident_bytes\":").U64(r.resident_bytes);
+  t.Str(",\"loaded\":").U64(r.keyframes_loaded).Str(",\"unloaded\":").U64(r.keyframes_unloaded);
+  t.Str(",\"db_transactions\":").U64(r.db_transactions).Str(",\"db_queries\":").U64(r.db_queries);
+  t.Str(",\"db_bytes_read\":").U64(r.db_bytes_read);
+  t.Str(",\"load_ms\":").Fixed(r.load_ms, 4).Str(",\"unload_ms\":").Fixed(r.unload_ms, 4);
+  t.Str(",\"pending\":").U64(r.pending_keyframes);
+  t.Str(",\"idle_load_ms\":").Fixed(r.idle_load_ms, 4);
+  t.Str(",\"idle_loaded\":").U64(r.idle_keyframes_loaded);
+  t.Str(",\"late_ms\":").Fixed(r.late_ms, 4);
+  t.Str(",\"over_budget\":").Str(b(r.over_budget));
+  t.Str(",\"refused\":").U64(r.refused_acquisitions);
+  t.Str(",\"loop_closure\":").Str(b(r.loop_closure));
+  t.Str(",\"matched\":").I64(r.matched_keyframe).Str(",\"inliers\":").U64(r.inliers);
+  t.Str(",\"highest\":").I64(r.highest_hypothesis).Str(",\"candidates\":").U64(r.candidates);
+  t.Str(",\"startup\":").Str(b(r.startup)).Str(",\"stalled\":").Str(b(r.stalled));
+  t.Str(",\"tick_ms\":").Fixed(r.tick_ms, 4).Str(",\"steps_ms\":{");
   for (int s = 0; s < kTickStepCount; ++s) {
-    n = std::snprintf(line_ + used, sizeof line_ - used, "%s\"%s\":%.4f", s == 0 ? "" : ",",
-                      TickStepName(static_cast<TickStep>(s)), r.step_ms[s]);
-    if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
-    used += static_cast<std::size_t>(n);
+    if (s != 0) t.Char(',');
+    t.Char('"').Str(TickStepName(static_cast<TickStep>(s))).Str("\":").Fixed(r.step_ms[s], 4);
   }
-  if (used + 1 > sizeof line_) return false;
-  line_[used++] = '}';
+  t.Char('}');
   // Database work beyond the loads' (issue 17 §5): blob reads, the searching part, and on the
   // start-up tick the part that was the start-up load.
-  n = std::snprintf(line_ + used, sizeof line_ - used,
-                    ",\"db_blob_reads\":%u,\"search_queries\":%u,\"search_transactions\":%u",
-                    r.db_blob_reads, r.search_queries, r.search_transactions);
-  if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
-  used += static_cast<std::size_t>(n);
+  t.Str(",\"db_blob_reads\":").U64(r.db_blob_reads);
+  t.Str(",\"search_queries\":").U64(r.search_queries);
+  t.Str(",\"search_transactions\":").U64(r.search_transactions);
   if (r.startup) {
-    n = std::snprintf(line_ + used, sizeof line_ - used,
-                      ",\"startup_db\":{\"queries\":%u,\"transactions\":%u,\"blob_reads\":%u}",
-                      r.startup_db_queries, r.startup_db_transactions, r.startup_db_blob_reads);
-    if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
-    used += static_cast<std::size_t>(n);
+    t.Str(",\"startup_db\":{\"queries\":").U64(r.startup_db_queries);
+    t.Str(",\"transactions\":").U64(r.startup_db_transactions);
+    t.Str(",\"blob_reads\":").U64(r.startup_db_blob_reads).Char('}');
   }
-  if (!extra.empty()) {
-    if (used + 1 + extra.size() > sizeof line_) return false;
-    line_[used++] = ',';
-    std::memcpy(line_ + used, extra.data(), extra.size());
-    used += extra.size();
-  }
-  if (used + 2 > sizeof line_) return false;
-  line_[used++] = '}';
-  line_[used++] = '\n';
-  if (std::fwrite(line_, 1, used, file_) != used) return false;
+  if (!extra.empty()) t.Char(',').Str(extra);
+  t.Str("}\n");
+  if (!t.ok()) return false;
+  if (std::fwrite(line_, 1, t.size(), file_) != t.size()) return false;
   ++lines_;
   return true;
 }

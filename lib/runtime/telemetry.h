@@ -1,6 +1,7 @@
 // Per-tick telemetry: one fixed-size record per tick (what TickLoop fills), written as one JSON
-// line to RUNDIR/ticks.jsonl. Formatting goes through snprintf into a member buffer and a FILE* whose
-// buffer is set once at open, so writing a tick never allocates. SIGINT/SIGTERM handling only
+// line to RUNDIR/ticks.jsonl. Formatting goes through std::to_chars (text_line.h) into a member
+// buffer and a FILE* whose buffer is set once at open, so writing a tick never allocates (not
+// even inside glibc's printf, which mallocs for formats of many conversions). SIGINT/SIGTERM handling only
 // sets a flag; the loop then flushes and closes the file normally.
 #pragma once
 
@@ -69,6 +70,11 @@ struct TickRecord {
   bool loop_closure = false;               // a closure was accepted this tick
   std::int64_t matched_keyframe = 0;       // 0 = none
   std::uint32_t inliers = 0;
+  // The accepted closure's pose covariance (LocalizeResult::body_covariance: position in the map
+  // frame, then rotation about the map's axes, ROS order) and its RMS reprojection error; zero
+  // when no closure was accepted. pose_output.h turns it into the covariance the robot gets.
+  Eigen::Matrix<double, 6, 6> closure_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double reprojection_rms_px = 0.0;
   std::int64_t highest_hypothesis = 0;
   std::uint32_t candidates = 0;
   bool stalled = false;                    // a step failed this tick (counted in the totals)

@@ -339,6 +339,8 @@ Result<bool> TickLoop::Tick() {
   record_.loop_closure = loc.accepted;
   record_.matched_keyframe = loc.matched.value;
   record_.inliers = loc.inliers;
+  record_.closure_covariance = loc.body_covariance;
+  record_.reprojection_rms_px = loc.reprojection_rms_px;
   record_.highest_hypothesis = loc.highest_hypothesis.value;
   record_.candidates = loc.candidates_examined;
   record_.step_ms[static_cast<int>(TickStep::kRecord)] = MsSince(t0);
@@ -402,6 +404,88 @@ TickLoop::IdleReport TickLoop::Idle(Clock::time_point frame_due) {
   late_ms_ += report.late_ms;
   idle_over_budget_ = idle_over_budget_ || t.over_budget;
   return report;
+}
+
+const char* BudgetOutcomeName(BudgetChange::Outcome outcome) {
+  switch (outcome) {
+    case BudgetChange::Outcome::kApplied: return "ok";
+    case BudgetChange::Outcome::kClamped: return "clamped";
+    case BudgetChange::Outcome::kIgnored: return "ignored";
+    case BudgetChange::Outcome::kRefused: return "refused";
+  }
+  return "refused";
+}
+
+void TickLoop::ReserveRoute(std::size_t zones) {
+  route_.reserve(zones);
+  route_scratch_.reserve(std::max(zones, route_.capacity()));
+  route_.reserve(route_scratch_.capacity());
+  ctx_.route = route_;
+}
+
+bool TickLoop::SetRoute(std::span<const Eigen::Vector3d> waypoints) {
+  route_scratch_.clear();
+  const std::size_t capacity = route_scratch_.capacity();
+  bool fits = true;
+  const auto note = [&](const Eigen::Vector3d& p) {
+    const ZoneId z = zone_index_.Lookup(p);
+    if (z == kNoZone || (!route_scratch_.empty() && route_scratch_.back() == z)) return;
+    if (route_scratch_.size() == capacity) {
+      fits = false;
+      return;
+    }
+    route_scratch_.push_back(z);
+  };
+  for (std::size_t i = 0; i < waypoints.size() && fits; ++i) {
+    if (i > 0) {
+      const Eigen::Vector3d a = waypoints[i - 1];
+      const Eigen::Vector3d d = waypoints[i] - a;
+      const double steps = std::ceil(d.norm() / kRouteSampleStepM);
+      for (double s = 1.0; s < steps && fits; s += 1.0) note(a + d * (s / steps));
+    }
+    note(waypoints[i]);
+  }
+  if (!fits) return false;
+  std::swap(route_, route_scratch_);  // capacities travel with the buffers: both reserved
+  ctx_.route = route_;
+  policy_->RouteChanged(ctx_);
+  return true;
+}
+
+BudgetChange TickLoop::SetBudget(std::uint64_t k_max) {
+  BudgetChange c;
+  c.requested = k_max;
+  c.k_max = budget_.k_max;
+  c.resident = working_set_->resident_count();
+  if (k_max == 0) {
+    c.outcome = BudgetChange::Outcome::kRefused;
+    return c;
+  }
+  if (config_.policy.policy == "unbounded") {
+    c.outcome = BudgetChange::Outcome::kIgnored;
+    return c;
+  }
+  const std::uint32_t capacity = arena_.capacity();
+  const auto applied = static_cast<std::uint32_t>(std::min<std::uint64_t>(k_max, capacity));
+  c.outcome = k_max > capacity ? BudgetChange::Outcome::kClamped : BudgetChange::Outcome::kApplied;
+  plan_.Clear();
+  policy_->ChangeBudget(applied, ctx_, &plan_);
+  TickTelemetry t;
+  if (!plan_.empty()) {
+    const Status s = working_set_->Apply(plan_, &t);
+    if (!s.ok()) {
+      ++totals_.step_errors;
+      if (totals_.first_error.ok()) totals_.first_error = s;
+    }
+  }
+  plan_.Clear();
+  totals_.keyframes_unloaded += t.keyframes_unloaded;
+  totals_.unload_ms += t.unload_ms;
+  budget_.k_max = applied;
+  c.k_max = applied;
+  c.resident = working_set_->resident_count();
+  c.unloaded = t.keyframes_unloaded;
+  return c;
 }
 
 }  // namespace zm

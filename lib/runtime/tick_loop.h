@@ -169,6 +169,22 @@ struct DbWork {
 };
 [[nodiscard]] DbWork SteadyDbWork(const LoopTotals& totals);
 
+// What TickLoop::SetBudget did (acknowledged to the robot as `ack budget ...`).
+struct BudgetChange {
+  enum class Outcome : std::uint8_t {
+    kApplied,  // the requested K_max is in force
+    kClamped,  // more than the arena holds was asked: K_max = the arena's capacity
+    kIgnored,  // the unbounded policy has no budget
+    kRefused,  // 0 keyframes: K_max stays
+  };
+  Outcome outcome = Outcome::kApplied;
+  std::uint64_t requested = 0;
+  std::uint32_t k_max = 0;     // the budget in force afterwards
+  std::uint32_t resident = 0;  // resident keyframes afterwards
+  std::uint32_t unloaded = 0;  // keyframes unloaded by the change (at once)
+};
+[[nodiscard]] const char* BudgetOutcomeName(BudgetChange::Outcome outcome);
+
 class TickLoop {
  public:
   // Opens nothing itself: the map and the frames are handed in (they outlive the loop). Reads
@@ -218,6 +234,29 @@ class TickLoop {
   [[nodiscard]] const TickRecord& last_record() const { return record_; }
   [[nodiscard]] std::uint64_t malformed_lines() const { return frames_.malformed_lines(); }
   [[nodiscard]] double frame_period_s() const { return frame_period_s_; }
+  // The current map<-odom correction T_map_odom: the last processed frame's pose is
+  // map_from_odom() * its odometry, and so is the next frame's prediction.
+  [[nodiscard]] const Pose3& map_from_odom() const { return t_map_odom_; }
+
+  // The robot steers the memory manager (issue 18 §2). Both are called between ticks.
+  //
+  // Reserves room for a live route of up to `zones` zones (start-up only: allocates).
+  void ReserveRoute(std::size_t zones);
+  // Replaces the planned route (predictive follows it) with the zones the path through
+  // `waypoints` (map frame) crosses, in order: the segments between waypoints are sampled every
+  // kRouteSampleStepM, each sample looked up with ZoneIndex::Lookup, samples outside every zone
+  // and repeats dropped. false (the previous route kept) when the sequence would exceed the
+  // reserve. An empty list clears the route. No allocation.
+  [[nodiscard]] bool SetRoute(std::span<const Eigen::Vector3d> waypoints);
+  [[nodiscard]] std::span<const ZoneId> route() const { return route_; }
+  static constexpr double kRouteSampleStepM = 0.25;
+  // Changes MemoryThr from now on. Down: the policy unloads at once until the working set fits
+  // (MemoryPolicy::ChangeBudget; releases only, so residency never exceeds the new budget at any
+  // instant; basic instead lowers its MemoryThr and transfers over the next ticks, as RTAB-Map
+  // does). Up: at most the arena's capacity (fixed at start, the profile's budget for the
+  // bounded policies): more is clamped to it, never grown. 0 is refused; unbounded ignores it.
+  // Keyframes unloaded count in totals(). No allocation.
+  [[nodiscard]] BudgetChange SetBudget(std::uint64_t k_max);
 
  private:
   TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index);
@@ -245,6 +284,7 @@ class TickLoop {
   std::unique_ptr<WorkingSet> working_set_;
   std::unique_ptr<Localizer> localizer_;
   std::vector<ZoneId> route_;
+  std::vector<ZoneId> route_scratch_;  // SetRoute builds here, then swaps (same capacity)
   double frame_period_s_ = 1.0;
 
   // Per-tick state, reserved in Create.

@@ -1,7 +1,11 @@
-// The live protocol: round trip, every malformed shape counted not fatal, no allocation.
+// The live protocol IN: round trips of frames and routes, budgets, every malformed shape counted
+// with its reason and never fatal, no allocation.
 #include "runtime/line_protocol.h"
 
 #include <doctest/doctest.h>
+
+#include <set>
+#include <string>
 
 #include "support/counting_allocator.h"
 
@@ -22,60 +26,132 @@ Frame MakeFrame(std::uint32_t n) {
   return f;
 }
 
+InputLine Reserved(std::uint32_t features, std::uint32_t waypoints) {
+  InputLine in;
+  in.Reserve(features, waypoints);
+  return in;
+}
+
 TEST_CASE("a formatted frame parses back to the same frame") {
   const Frame in = MakeFrame(3);
-  Frame out;
-  out.Reserve(8);
+  InputLine out = Reserved(8, 4);
   LineError err;
-  REQUIRE(ParseFrameLine(FormatFrameLine(in), 8, &out, &err) == LineKind::kFrame);
-  CHECK(out.stamp_s == doctest::Approx(12.25));
-  CHECK(out.odom.translation().isApprox(in.odom.translation(), 1e-6));
-  CHECK(out.odom.linear().isApprox(in.odom.linear(), 1e-6));
-  REQUIRE(out.feature_count() == 3);
-  CHECK(out.descriptors == in.descriptors);
-  CHECK(out.keypoints == in.keypoints);
+  REQUIRE(ParseInputLine(FormatFrameLine(in), &out, &err) == LineKind::kFrame);
+  CHECK(out.frame.stamp_s == doctest::Approx(12.25));
+  CHECK(out.frame.odom.translation().isApprox(in.odom.translation(), 1e-6));
+  CHECK(out.frame.odom.linear().isApprox(in.odom.linear(), 1e-6));
+  CHECK(out.quaternion_norm == doctest::Approx(1.0));
+  REQUIRE(out.frame.feature_count() == 3);
+  CHECK(out.frame.descriptors == in.descriptors);
+  CHECK(out.frame.keypoints == in.keypoints);
+}
+
+TEST_CASE("a non-unit quaternion is normalised and its length reported to the gate") {
+  InputLine out = Reserved(2, 2);
+  LineError err;
+  REQUIRE(ParseInputLine("frame 1 0 0 0 0 0 0 2 0", &out, &err) == LineKind::kFrame);
+  CHECK(out.quaternion_norm == doctest::Approx(2.0));
+  CHECK(out.frame.odom.linear().isApprox(Eigen::Matrix3d::Identity(), 1e-12));
+  CHECK(ParseInputLine("frame 1 0 0 0 0 0 0 0 0", &out, &err) == LineKind::kMalformed);
+  CHECK(err.reason == RejectReason::kQuaternionNotUnit);
+}
+
+TEST_CASE("routes and budgets") {
+  InputLine out = Reserved(2, 3);
+  LineError err;
+  const std::vector<Eigen::Vector3d> wp{{0, 0, 0}, {10.5, 2, 0}, {20, 2.25, 3}};
+  REQUIRE(ParseInputLine(FormatRouteLine(wp), &out, &err) == LineKind::kRoute);
+  CHECK(out.waypoints == wp);
+  REQUIRE(ParseInputLine("route 0", &out, &err) == LineKind::kRoute);
+  CHECK(out.waypoints.empty());
+  CHECK(ParseInputLine("route 4 0 0 0 1 1 0 2 2 0 3 3 0", &out, &err) == LineKind::kMalformed);
+  CHECK(err.reason == RejectReason::kRouteTooLong);
+  REQUIRE(ParseInputLine("budget 250", &out, &err) == LineKind::kBudget);
+  CHECK(out.budget_keyframes == 250);
+  CHECK(ParseInputLine("budget 0", &out, &err) == LineKind::kMalformed);
+  CHECK(err.reason == RejectReason::kBudgetInvalid);
 }
 
 TEST_CASE("comments and blank lines are ignored") {
-  Frame f;
+  InputLine f = Reserved(4, 4);
   LineError err;
-  CHECK(ParseFrameLine("", 4, &f, &err) == LineKind::kIgnored);
-  CHECK(ParseFrameLine("   ", 4, &f, &err) == LineKind::kIgnored);
-  CHECK(ParseFrameLine("# hello", 4, &f, &err) == LineKind::kIgnored);
+  CHECK(ParseInputLine("", &f, &err) == LineKind::kIgnored);
+  CHECK(ParseInputLine("   ", &f, &err) == LineKind::kIgnored);
+  CHECK(ParseInputLine("# hello", &f, &err) == LineKind::kIgnored);
 }
 
 TEST_CASE("malformed lines are reported with a reason, never fatal") {
-  Frame f;
-  f.Reserve(2);
+  InputLine f = Reserved(2, 2);
   LineError err;
   const std::string hex(64, 'a');
-  struct Case { std::string line; const char* why; };
+  struct Case {
+    std::string line;
+    const char* why;
+    RejectReason reason;
+  };
+  const RejectReason syntax = RejectReason::kSyntax;
   const Case cases[] = {
-      {"pose 1 2 3", "start"},
-      {"frame 1 2 3", "number"},
-      {"frame 1 0 0 0 0 0 0 1 x", "count"},
-      {"frame 1 0 0 0 0 0 0 0 0", "quaternion"},
-      {"frame 1 0 0 0 0 0 0 1 3 1 2 " + hex + " 1 2 " + hex + " 1 2 " + hex, "capacity"},
-      {"frame 1 0 0 0 0 0 0 1 1 1 2 abc", "64 hex"},
-      {"frame 1 0 0 0 0 0 0 1 1 1 2 " + std::string(63, 'a') + "g", "hex digit"},
-      {"frame 1 0 0 0 0 0 0 1 1 1 2 " + hex + " extra", "trailing"},
-      {"frame nan 0 0 0 0 0 0 1 0", "number"},
+      {"pose 1 2 3", "start", syntax},
+      {"frame 1 2 3", "number", syntax},
+      {"frame 1 0 0 0 0 0 0 1 x", "count", syntax},
+      {"frame 1 0 0 0 0 0 0 0 0", "quaternion", RejectReason::kQuaternionNotUnit},
+      {"frame 1 0 0 0 0 0 0 1 3 1 2 " + hex + " 1 2 " + hex + " 1 2 " + hex, "capacity",
+       RejectReason::kTooManyFeatures},
+      {"frame 1 0 0 0 0 0 0 1 1 1 2 abc", "64 hex", syntax},
+      {"frame 1 0 0 0 0 0 0 1 1 1 2 " + std::string(63, 'a') + "g", "hex digit", syntax},
+      {"frame 1 0 0 0 0 0 0 1 1 1 2 " + hex + " extra", "trailing", syntax},
+      {"frame nan 0 0 0 0 0 0 1 0", "number", syntax},
+      {"frame 1 1e309 0 0 0 0 0 1 0", "number", syntax},  // out of double range
+      {"route 1 0 0", "waypoint", syntax},
+      {"route 1 0 0 inf", "waypoint", syntax},
+      {"route x", "count", syntax},
+      {"budget -3", "count", syntax},
+      {"budget 5 6", "trailing", syntax},
   };
   for (const Case& c : cases) {
     CAPTURE(c.line);
-    CHECK(ParseFrameLine(c.line, 2, &f, &err) == LineKind::kMalformed);
+    CHECK(ParseInputLine(c.line, &f, &err) == LineKind::kMalformed);
     CHECK(std::string(err.what).find(c.why) != std::string::npos);
+    CHECK(err.reason == c.reason);
+    CHECK(err.column <= c.line.size());
   }
 }
 
-TEST_CASE("parsing into a reserved frame allocates nothing") {
-  const std::string line = FormatFrameLine(MakeFrame(16));
-  Frame f;
-  f.Reserve(16);
+TEST_CASE("every reason has a distinct name") {
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < kRejectReasonCount; ++i) {
+    names.insert(RejectReasonName(static_cast<RejectReason>(i)));
+  }
+  CHECK(names.size() == kRejectReasonCount);
+  CHECK(names.count("unknown") == 0);
+}
+
+TEST_CASE("parsing into reserved storage allocates nothing") {
+  const std::string frame = FormatFrameLine(MakeFrame(16));
+  const std::vector<Eigen::Vector3d> wp(64, Eigen::Vector3d(1, 2, 3));
+  const std::string route = FormatRouteLine(wp);
+  InputLine f = Reserved(16, 64);
   LineError err;
   test::AllocationCounter counter;
-  for (int i = 0; i < 100; ++i) REQUIRE(ParseFrameLine(line, 16, &f, &err) == LineKind::kFrame);
+  test::MallocCounter mallocs;
+  for (int i = 0; i < 100; ++i) {
+    REQUIRE(ParseInputLine(frame, &f, &err) == LineKind::kFrame);
+    REQUIRE(ParseInputLine(route, &f, &err) == LineKind::kRoute);
+    REQUIRE(ParseInputLine("budget 3", &f, &err) == LineKind::kBudget);
+    REQUIRE(ParseInputLine("frame 1 2", &f, &err) == LineKind::kMalformed);
+  }
   CHECK(counter.allocations() == 0);
+  CHECK(mallocs.mallocs() == 0);
+}
+
+TEST_CASE("the line buffer holds the longest valid frame and route") {
+  const std::uint32_t features = 40, waypoints = 30;
+  Frame big = MakeFrame(features);
+  big.stamp_s = -1.2345678901234567e9;
+  big.odom.translation() = Eigen::Vector3d(-123456.78901234567, 1e-300, -0.000123456789);
+  const std::vector<Eigen::Vector3d> wp(waypoints, Eigen::Vector3d(-12345.678912345, 1e-300, -7));
+  CHECK(FormatFrameLine(big).size() <= MaxInputLineBytes(features, waypoints));
+  CHECK(FormatRouteLine(wp).size() <= MaxInputLineBytes(features, waypoints));
 }
 
 }  // namespace

@@ -21,8 +21,8 @@
 #include <set>
 
 #include "runtime/frame_source.h"
-#include "runtime/line_protocol.h"
 #include "runtime/frames_file.h"
+#include "runtime/line_input.h"
 #include "support/counting_allocator.h"
 
 namespace zm {
@@ -269,41 +269,68 @@ TEST_CASE("time-sliced: the idle part ends at the next frame's due time") {
   CHECK(idle.pending_keyframes == 0);
 }
 
+// zonemapd's session answers FrameWaiting() through its line readers (InputProbe); here a flag.
+struct FlagProbe final : InputProbe {
+  bool waiting = false;
+  bool Waiting() override { return waiting; }
+};
+
 TEST_CASE("time-sliced: the idle part stops when a frame is waiting at the source") {
   Scenario s;
   Build(&s, 1);
-  int fds[2];
-  REQUIRE(::pipe(fds) == 0);
-  Frame f;
-  f.descriptors.assign(3, Descriptor256{});
-  f.keypoints.assign(6, 1.0f);
-  const auto send = [&](int i, double x) {
+  StagedFrameSource source(16);
+  FlagProbe probe;
+  source.set_probe(&probe);
+  const auto stage = [&](int i, double x) {
+    Frame& f = source.staging();
+    f.descriptors.assign(3, Descriptor256{});
+    f.keypoints.assign(6, 1.0f);
     f.stamp_s = i;
     f.odom = PoseFromXYYaw(x, 5.0, 0.0);
-    const std::string line = FormatFrameLine(f) + "\n";
-    REQUIRE(::write(fds[1], line.data(), line.size()) == static_cast<ssize_t>(line.size()));
+    source.Stage();
   };
-  LineFrameSource source(fds[0], 16);
   auto db = MapDb::Open(s.db);
   REQUIRE(db.ok());
   auto loop = TickLoop::Create(Sliced(Config("semantic", 2 * kKeyframesPerRoom), s, 1, 1000),
                                *db.value(), source);
   REQUIRE(loop.ok());
   TickLoop& l = *loop.value();
-  send(0, 5.0);
+  stage(0, 5.0);
   REQUIRE(l.Tick().value());  // start-up in room 0
-  send(1, 15.0);
-  send(2, 15.5);
+  stage(1, 15.0);
   REQUIRE(l.Tick().value());  // room 1 entered: 1 keyframe in the tick, the rest queued
   REQUIRE(l.working_set().pending_count() > 0);
-  CHECK(source.FrameWaiting());  // frame 2 is in the buffer already
+  CHECK_FALSE(source.FrameWaiting());
+  probe.waiting = true;  // the robot's next line is in the reader's buffer
+  CHECK(source.FrameWaiting());
   CHECK(l.Idle().keyframes_loaded == 0);
+  probe.waiting = false;
+  stage(2, 15.5);
+  CHECK(source.FrameWaiting());  // staged, not yet taken
   REQUIRE(l.Tick().value());
-  CHECK_FALSE(source.FrameWaiting());  // nothing more written yet
+  CHECK_FALSE(source.FrameWaiting());  // nothing more arrived
   const TickLoop::IdleReport idle = l.Idle();
   CHECK(idle.keyframes_loaded > 0);
   CHECK(idle.pending_keyframes == 0);
+}
+
+TEST_CASE("a line reader says whether input is waiting, without blocking") {
+  int fds[2];
+  REQUIRE(::pipe(fds) == 0);
+  FdLineReader reader(fds[0], 256);
+  CHECK_FALSE(reader.Waiting());
+  REQUIRE(::write(fds[1], "a\nb\n", 4) == 4);
+  CHECK(reader.Waiting());
+  std::string_view line;
+  REQUIRE(reader.NextLine(&line).value() == LineRead::kLine);
+  CHECK(line == "a");
+  CHECK(reader.Waiting());  // "b" is buffered already
+  REQUIRE(reader.NextLine(&line).value() == LineRead::kLine);
+  CHECK(line == "b");
+  CHECK_FALSE(reader.Waiting());
   ::close(fds[1]);
+  CHECK(reader.Waiting());  // the end of input: a read would not block
+  CHECK(reader.NextLine(&line).value() == LineRead::kEnd);
   ::close(fds[0]);
 }
 
@@ -425,39 +452,6 @@ TEST_CASE("every warm tick allocates nothing, for every policy, sliced loads inc
     // The small slices made loads lag: zones were left (or evicted) before they finished.
     if (zone_policy) CHECK(r.loop->totals().keyframes_cancelled > 0);
   }
-}
-
-TEST_CASE("the live line protocol drives the loop and bad lines are skipped") {
-  Scenario s;
-  Build(&s, 1);
-  int fds[2];
-  REQUIRE(::pipe(fds) == 0);
-  std::string input = "# comment\nnot a frame\n";
-  Frame f;
-  f.odom = PoseFromXYYaw(5.0, 5.0, 0.0);
-  f.descriptors.assign(3, Descriptor256{});
-  f.keypoints.assign(6, 1.0f);
-  for (int i = 0; i < 5; ++i) {
-    f.stamp_s = i;
-    f.odom.translation().x() = 5.0 + 10.0 * i;  // one room per frame
-    input += FormatFrameLine(f) + "\n";
-  }
-  input += "frame 1 2\n";
-  REQUIRE(::write(fds[1], input.data(), input.size()) == static_cast<ssize_t>(input.size()));
-  ::close(fds[1]);
-  LineFrameSource source(fds[0], 16);
-  auto db = MapDb::Open(s.db);
-  REQUIRE(db.ok());
-  auto loop = TickLoop::Create(Config("semantic", 2 * kKeyframesPerRoom), *db.value(), source);
-  REQUIRE(loop.ok());
-  int ticks = 0;
-  while (loop.value()->Tick().value()) ++ticks;
-  ::close(fds[0]);
-  CHECK(ticks == 5);
-  CHECK(source.malformed_lines() == 2);
-  CHECK(loop.value()->last_record().zone == ZoneId{4});
-  CHECK(loop.value()->totals().zone_loads == 5);
-  CHECK(loop.value()->last_record().resident_keyframes <= 2 * kKeyframesPerRoom);
 }
 
 }  // namespace

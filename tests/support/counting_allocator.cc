@@ -1,9 +1,91 @@
-// Replacement global operator new/delete that count per thread, then forward to malloc/free.
+// Replacement global operator new/delete that count per thread, then forward to malloc/free;
+// and the C allocator's count (see counting_allocator.h).
 #include "support/counting_allocator.h"
 
+#include <cerrno>
 #include <cstddef>
 #include <cstdlib>
 #include <new>
+
+#if defined(__SANITIZE_ADDRESS__)
+#define ZM_COUNTING_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define ZM_COUNTING_ASAN 1
+#endif
+#endif
+#ifndef ZM_COUNTING_ASAN
+#define ZM_COUNTING_ASAN 0
+#endif
+
+namespace {
+// Initial-exec TLS of the executable: reading it inside malloc never allocates.
+thread_local std::uint64_t t_mallocs = 0;
+}  // namespace
+
+#if ZM_COUNTING_ASAN
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*,
+                                                                             std::size_t),
+                                                         void (*free_hook)(const volatile void*));
+namespace {
+void OnMalloc(const volatile void*, std::size_t) { ++t_mallocs; }
+void OnFree(const volatile void*) {}
+}  // namespace
+#else
+// glibc supports replacing malloc by defining it in the executable; the originals stay
+// reachable as __libc_*. Everything glibc allocates (posix_memalign, strdup...) ends in the same
+// heap, so every pointer is freed by the allocator that made it.
+extern "C" {
+void* __libc_malloc(std::size_t n);
+void* __libc_calloc(std::size_t n, std::size_t size);
+void* __libc_realloc(void* p, std::size_t n);
+void __libc_free(void* p);
+void* __libc_memalign(std::size_t align, std::size_t n);
+
+void* malloc(std::size_t n) noexcept {
+  ++t_mallocs;
+  return __libc_malloc(n);
+}
+void* calloc(std::size_t n, std::size_t size) noexcept {
+  ++t_mallocs;
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, std::size_t n) noexcept {
+  ++t_mallocs;
+  return __libc_realloc(p, n);
+}
+void free(void* p) noexcept { __libc_free(p); }
+void* aligned_alloc(std::size_t align, std::size_t n) noexcept {
+  ++t_mallocs;
+  return __libc_memalign(align, n);
+}
+void* memalign(std::size_t align, std::size_t n) noexcept {
+  ++t_mallocs;
+  return __libc_memalign(align, n);
+}
+int posix_memalign(void** out, std::size_t align, std::size_t n) noexcept {
+  if (align < sizeof(void*) || (align & (align - 1)) != 0) return EINVAL;
+  ++t_mallocs;
+  void* p = __libc_memalign(align, n);
+  if (p == nullptr) return ENOMEM;
+  *out = p;
+  return 0;
+}
+}  // extern "C"
+#endif
+
+namespace zm::test {
+std::uint64_t ThreadMallocs() { return t_mallocs; }
+MallocCounter::MallocCounter() {
+#if ZM_COUNTING_ASAN
+  // Without the hooks nothing would be counted and every "no malloc" check would pass
+  // silently: refuse to run instead.
+  static const bool installed = __sanitizer_install_malloc_and_free_hooks(OnMalloc, OnFree) != 0;
+  if (!installed) std::abort();
+#endif
+  start_ = t_mallocs;
+}
+}  // namespace zm::test
 
 namespace {
 thread_local std::uint64_t t_allocs = 0;

@@ -7,6 +7,13 @@
 //
 // The replacement operator new lives in counting_allocator.cc and is linked into every test
 // executable; it forwards to malloc (so ASan still sees every block).
+//
+// MallocCounter counts the C allocator too (malloc, calloc, realloc, aligned allocations: what
+// SQLite, zlib or stdio use, which never touch operator new), exactly, on the calling thread:
+//   - AddressSanitizer builds: through the sanitizer's malloc hooks (ASan owns malloc);
+//   - other builds (the aarch64 tests under qemu): counting_allocator.cc interposes malloc,
+//     calloc, realloc and free and forwards them to glibc's __libc_* entry points.
+// So both builds prove "no malloc", not only "no net growth".
 #pragma once
 
 #include <cstdint>
@@ -28,6 +35,19 @@ class AllocationCounter {
 
  private:
   std::uint64_t allocs_, frees_, bytes_;
+};
+
+// Thread-local count of C allocator calls (malloc, calloc, realloc, aligned) since the thread
+// started; see MallocCounter.
+std::uint64_t ThreadMallocs();
+
+class MallocCounter {
+ public:
+  MallocCounter();  // installs the ASan hooks on first use
+  [[nodiscard]] std::uint64_t mallocs() const { return ThreadMallocs() - start_; }
+
+ private:
+  std::uint64_t start_;
 };
 
 }  // namespace zm::test

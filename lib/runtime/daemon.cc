@@ -1,0 +1,346 @@
+// zonemapd's session (see daemon.h).
+#include "runtime/daemon.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <utility>
+
+#include "runtime/summary.h"
+#include "runtime/text_line.h"
+
+namespace zm {
+namespace {
+
+// Writes all of `bytes` to a blocking fd. A signal interrupting a blocked write is retried: the
+// line is finished, the stop takes effect at the next tick boundary.
+bool WriteAll(int fd, std::string_view bytes) {
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return false;
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
+bool IsPowerOfTwo(std::uint64_t n) { return n != 0 && (n & (n - 1)) == 0; }
+
+MapExtent ExtentOf(const MapIndex& index) {
+  MapExtent e;
+  if (index.keyframe_count() == 0) return e;
+  e.min = e.max = index.position(0);
+  for (KfIndex k = 1; k < index.keyframe_count(); ++k) {
+    e.min = e.min.cwiseMin(index.position(k));
+    e.max = e.max.cwiseMax(index.position(k));
+  }
+  return e;
+}
+
+}  // namespace
+
+Daemon::Daemon(const Profile& profile, const DaemonOptions& options, std::uint32_t max_features)
+    : profile_(profile), options_(options), staged_(max_features), tracker_(profile.output) {}
+
+Daemon::~Daemon() = default;
+
+Result<std::unique_ptr<Daemon>> Daemon::Create(const Profile& profile, MapReader& map,
+                                               const DaemonInput& input,
+                                               const DaemonOptions& options) {
+  if (options.max_features == 0) return InvalidArgument("--max-features must be at least 1");
+  std::unique_ptr<FrameReader> replay;
+  std::uint32_t max_features = options.max_features;
+  if (input.kind == DaemonInput::Kind::kReplay) {
+    ZM_ASSIGN_OR_RETURN(FrameReader reader, FrameReader::Open(input.frames_path));
+    max_features = std::max(max_features, reader.max_features());
+    replay = std::make_unique<FrameReader>(std::move(reader));
+  }
+  std::unique_ptr<Daemon> d(new Daemon(profile, options, max_features));
+  const std::uint32_t waypoints = profile.input.max_route_waypoints;
+  const std::size_t line_bytes = MaxInputLineBytes(max_features, waypoints);
+  switch (input.kind) {
+    case DaemonInput::Kind::kFd:
+      d->fd_reader_ = std::make_unique<FdLineReader>(input.fd, line_bytes);
+      break;
+    case DaemonInput::Kind::kUdp: {
+      ZM_ASSIGN_OR_RETURN(d->udp_, UdpLineReader::Bind(input.udp_port, line_bytes));
+      break;
+    }
+    case DaemonInput::Kind::kReplay:
+      d->replay_ = std::move(replay);
+      break;
+  }
+  d->input_.Reserve(max_features, waypoints);
+  d->staged_.set_probe(d.get());
+  ZM_ASSIGN_OR_RETURN(d->loop_, TickLoop::Create(profile, map, d->staged_));
+  d->loop_->ReserveRoute(waypoints);
+  d->gate_ = std::make_unique<InputGate>(profile.input, ExtentOf(d->loop_->map_index()));
+  d->out_.resize(std::max(kPoseLineMaxBytes, RouteAckMaxBytes(waypoints)));
+  if (!options.telemetry_path.empty()) {
+    ZM_RETURN_IF_ERROR(d->telemetry_.Open(options.telemetry_path));
+    d->has_telemetry_ = true;
+  }
+  if (!options.estimate_path.empty()) {
+    ZM_RETURN_IF_ERROR(d->estimate_.Open(options.estimate_path));
+    d->has_estimate_ = true;
+  }
+  d->counters_.k_max_min = d->loop_->k_max();
+  return d;
+}
+
+std::uint16_t Daemon::udp_port() const { return udp_ ? udp_->port() : 0; }
+
+void Daemon::Hello() {
+  const TickLoop& l = *loop_;
+  const char* input = udp_ ? "udp" : (replay_ ? "frames" : "stream");
+  char buf[512];
+  const int n = std::snprintf(
+      buf, sizeof buf,
+      "hello zonemapd %d policy %s k_max %u arena_slots %u slot_bytes %llu keyframes %u "
+      "zones %zu max_features %u max_route_waypoints %u input %s\n",
+      kPoseProtocolVersion, l.config().policy.policy.c_str(), l.k_max(), l.arena().capacity(),
+      static_cast<unsigned long long>(l.slot_bytes()), l.map_index().keyframe_count(),
+      l.zone_set().size(), staged_.max_features(), profile_.input.max_route_waypoints, input);
+  if (n > 0 && static_cast<std::size_t>(n) < sizeof buf) {
+    if (options_.pose_fd >= 0 && !WriteAll(options_.pose_fd, {buf, static_cast<std::size_t>(n)})) {
+      ++counters_.output_errors;
+    }
+  }
+}
+
+Result<bool> Daemon::Step() {
+  if (!fatal_.ok()) return fatal_;
+  if (ended_) return false;
+  if (replay_) {
+    ZM_ASSIGN_OR_RETURN(const bool more, replay_->Next(&input_.frame));
+    if (!more) return false;
+    ++counters_.lines;
+    HandleFrame(1.0);  // a recorded pose is a rotation matrix already
+  } else {
+    std::string_view line;
+    ZM_ASSIGN_OR_RETURN(const LineRead r,
+                        fd_reader_ ? fd_reader_->NextLine(&line) : udp_->NextLine(&line));
+    if (r == LineRead::kEnd) return false;
+    ++counters_.lines;
+    if (r == LineRead::kTooLong) {
+      Refuse(RejectReason::kLineTooLong, "line longer than the longest valid line", 0);
+    } else {
+      Dispatch(line);
+    }
+  }
+  if (!fatal_.ok()) return fatal_;
+  return !ended_;
+}
+
+void Daemon::Dispatch(std::string_view line) {
+  LineError err;
+  switch (ParseInputLine(line, &input_, &err)) {
+    case LineKind::kIgnored:
+      return;
+    case LineKind::kFrame:
+      return HandleFrame(input_.quaternion_norm);
+    case LineKind::kRoute:
+      return HandleRoute();
+    case LineKind::kBudget:
+      return HandleBudget(input_.budget_keyframes);
+    case LineKind::kMalformed:
+      Refuse(err.reason, err.what, err.column);
+      // The robot waits for an answer to a control line: refusals are acknowledged too.
+      if (err.reason == RejectReason::kRouteTooLong) {
+        ++counters_.routes_rejected;
+        Emit({out_.data(), FormatRouteAck(false, 0, {}, out_.data(), out_.size())});
+      } else if (err.reason == RejectReason::kBudgetInvalid) {
+        ++counters_.budget_changes;
+        HandleBudget(0);
+      }
+      return;
+  }
+}
+
+void Daemon::HandleFrame(double quaternion_norm) {
+  RejectReason why = RejectReason::kSyntax;
+  if (!gate_->AcceptFrame(input_.frame, quaternion_norm, loop_->map_from_odom(), &why)) {
+    const char* what = "";
+    switch (why) {
+      case RejectReason::kStampNotIncreasing:
+        what = "stamp not greater than the last processed frame's";
+        break;
+      case RejectReason::kStampOutOfRange:
+        what = "stamp beyond 2^32 s";
+        break;
+      case RejectReason::kQuaternionNotUnit:
+        what = "quaternion length beyond [input] quaternion_tolerance";
+        break;
+      case RejectReason::kPositionOutsideMap:
+        what = "position beyond the map's extent + [input] max_distance_from_map_m";
+        break;
+      default:
+        break;
+    }
+    Refuse(why, what, 0);
+    return;
+  }
+  std::swap(input_.frame, staged_.staging());  // both reserved: no allocation
+  staged_.Stage();
+  staged_.set_malformed_lines(rejects_.total);
+  Result<bool> more = loop_->Tick();
+  if (!more.ok()) {
+    fatal_ = more.status();
+    return;
+  }
+  if (!more.value()) {  // --max-ticks reached: the staged frame is not processed
+    ended_ = true;
+    return;
+  }
+  ++counters_.frames;
+  AfterTick(loop_->last_record());
+  // The idle part, once the robot has its pose: queued zone loads advance until the next frame
+  // is due or a line is already waiting (TickLoop::Idle; an error is counted by the loop).
+  (void)loop_->Idle();
+}
+
+bool Daemon::Waiting() {
+  if (fd_reader_) return fd_reader_->Waiting();
+  if (udp_) return udp_->Waiting();
+  return false;  // a recorded replay has no arrival times
+}
+
+void Daemon::AfterTick(const TickRecord& r) {
+  tracker_.Update(r);
+  const LocalizationStatus status = tracker_.status();
+  ++counters_.status_frames[static_cast<int>(status)];
+
+  PoseLine p;
+  p.stamp_s = r.stamp_s;
+  p.pose = r.pose;
+  p.map_from_odom = loop_->map_from_odom();
+  p.status = status;
+  p.frames_since_fix = tracker_.frames_since_fix();
+  p.zone = r.zone.value;
+  p.loop_closure = r.loop_closure;
+  p.inliers = r.inliers;
+  p.resident_keyframes = r.resident_keyframes;
+  p.k_max = loop_->k_max();
+  p.tick_ms = r.tick_ms;
+  p.malformed = rejects_.total;
+  p.covariance = tracker_.covariance();
+  const std::size_t n = FormatPoseLine(p, out_.data(), out_.size());
+  if (n > 0) {
+    Emit({out_.data(), n});
+    ++counters_.pose_lines;
+  }
+
+  if (has_telemetry_) {
+    TextLine extra(extra_, sizeof extra_);
+    extra.Str("\"status\":\"").Str(LocalizationStatusName(status)).Str("\",\"frames_since_fix\":");
+    extra.U64(tracker_.frames_since_fix()).Str(",\"sigma_xy_m\":").General(tracker_.sigma_xy_m(), 6);
+    extra.Str(",\"k_max\":").U64(loop_->k_max()).Str(",\"malformed\":").U64(rejects_.total);
+    telemetry_.Write(r, extra.ok() ? extra.view() : std::string_view());
+  }
+  if (has_estimate_) estimate_.Write(r.stamp_s, r.pose);
+  const std::uint32_t every = profile_.telemetry.flush_ticks;
+  if (every != 0 && (r.tick + 1) % every == 0) Flush();
+}
+
+void Daemon::HandleRoute() {
+  const auto waypoints = static_cast<std::uint64_t>(input_.waypoints.size());
+  bool ok = gate_->AcceptRoute(input_.waypoints);
+  if (!ok) {
+    Refuse(RejectReason::kRouteOutsideMap,
+           "a waypoint beyond the map's extent + [input] max_distance_from_map_m", 0);
+  } else if (!loop_->SetRoute(input_.waypoints)) {
+    ok = false;
+    Refuse(RejectReason::kRouteTooLong, "the route crosses more zones than reserved", 0);
+  }
+  if (ok) {
+    ++counters_.routes_accepted;
+  } else {
+    ++counters_.routes_rejected;
+  }
+  const std::span<const ZoneId> zones = ok ? loop_->route() : std::span<const ZoneId>();
+  Emit({out_.data(), FormatRouteAck(ok, waypoints, zones, out_.data(), out_.size())});
+}
+
+void Daemon::HandleBudget(std::uint64_t requested) {
+  const std::uint32_t before = loop_->k_max();
+  const BudgetChange c = loop_->SetBudget(requested);
+  if (requested != 0) ++counters_.budget_changes;
+  counters_.k_max_min = std::min(counters_.k_max_min, c.k_max);
+  Emit({out_.data(), FormatBudgetAck(BudgetOutcomeName(c.outcome), c.requested, c.k_max,
+                                     c.resident, c.unloaded, out_.data(), out_.size())});
+  TextLine t(diag_, sizeof diag_);
+  t.Str("zonemapd: budget ").U64(requested).Str(": K_max ").U64(before).Str(" -> ").U64(c.k_max);
+  t.Str(" (").Str(BudgetOutcomeName(c.outcome)).Str("), ").U64(c.unloaded);
+  t.Str(" keyframes unloaded, ").U64(c.resident).Str(" resident\n");
+  if (t.ok()) Diagnose(t.view());
+}
+
+void Daemon::Refuse(RejectReason reason, const char* what, std::size_t column) {
+  rejects_.Add(reason);
+  staged_.set_malformed_lines(rejects_.total);
+  const std::uint64_t count = rejects_[reason];
+  if (count > 10 && !IsPowerOfTwo(count)) return;  // rate limit: 1..10, then 16, 32, 64, ...
+  TextLine t(diag_, sizeof diag_);
+  t.Str("zonemapd: input line ").U64(counters_.lines).Str(" refused (").Str(RejectReasonName(reason));
+  t.Str("): ").Str(what);
+  if (column != 0) t.Str(" at column ").U64(column);
+  t.Str(" [").U64(count).Str(" so far");
+  if (count == 10) t.Str("; further ones reported at powers of two");
+  t.Str("]\n");
+  if (t.ok()) Diagnose(t.view());
+}
+
+void Daemon::Emit(std::string_view bytes) {
+  if (bytes.empty()) return;
+  if (options_.pose_fd >= 0 && !WriteAll(options_.pose_fd, bytes)) {
+    // The robot closed its end (EPIPE: zonemapd ignores SIGPIPE) or the fd broke: count it, say
+    // it once, stop writing there, keep localizing (the estimate and telemetry still record).
+    ++counters_.output_errors;
+    options_.pose_fd = -1;
+    Diagnose("zonemapd: writing pose lines failed; no further pose lines on that output\n");
+  }
+  if (udp_ && !udp_->Reply(bytes)) ++counters_.udp_reply_errors;
+}
+
+void Daemon::Diagnose(std::string_view text) {
+  if (options_.diagnostics_fd >= 0) (void)WriteAll(options_.diagnostics_fd, text);
+}
+
+void Daemon::Flush() {
+  if (has_telemetry_) telemetry_.Flush();
+  if (has_estimate_) estimate_.Flush();
+}
+
+nlohmann::json Daemon::Summary(bool interrupted) const {
+  nlohmann::json s = LoopSummary(*loop_, interrupted);
+  nlohmann::json by_reason = nlohmann::json::object();
+  for (std::size_t i = 0; i < kRejectReasonCount; ++i) {
+    by_reason[RejectReasonName(static_cast<RejectReason>(i))] = rejects_.by_reason[i];
+  }
+  s["malformed_lines"] = rejects_.total;
+  s["malformed_by_reason"] = by_reason;
+  s["input"] = {{"lines", counters_.lines}, {"frames", counters_.frames}};
+  s["control"] = {{"routes_accepted", counters_.routes_accepted},
+                  {"routes_rejected", counters_.routes_rejected},
+                  {"route_zones", loop_->route().size()},
+                  {"budget_changes", counters_.budget_changes},
+                  {"k_max_min", counters_.k_max_min},
+                  {"k_max_end", loop_->k_max()}};
+  s["output"] = {{"pose_protocol_version", kPoseProtocolVersion},
+                 {"pose_lines", counters_.pose_lines},
+                 {"write_errors", counters_.output_errors},
+                 {"udp_reply_errors", counters_.udp_reply_errors}};
+  s["localization_status_frames"] = {
+      {"localized", counters_.status_frames[static_cast<int>(LocalizationStatus::kLocalized)]},
+      {"dead_reckoning",
+       counters_.status_frames[static_cast<int>(LocalizationStatus::kDeadReckoning)]},
+      {"lost", counters_.status_frames[static_cast<int>(LocalizationStatus::kLost)]}};
+  return s;
+}
+
+}  // namespace zm
