@@ -13,7 +13,7 @@
 #      the four figures (scripts/plots.py, run by bench) in $out/figures
 #
 # Knobs (environment): ZM_DEMO_OUT (out/demo), ZM_DEMO_SCALE (device scale, 1), ZM_DEMO_COMPRESSION
-# (time compression, 10), ZM_DEMO_AREA (m², 2000), ZM_DEMO_TASKS (patrol tasks, 6),
+# (time compression, 10), ZM_DEMO_AREA (m², 2100: 2,429 keyframes), ZM_DEMO_TASKS (patrol tasks, 12),
 # ZM_DEMO_DEVICE (cgroup; ledger = simulated), ZM_DEMO_POLICIES (basic,semantic).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,8 +21,8 @@ t0=$(date +%s)
 out=${ZM_DEMO_OUT:-out/demo}
 scale=${ZM_DEMO_SCALE:-1}
 compression=${ZM_DEMO_COMPRESSION:-10}
-area=${ZM_DEMO_AREA:-2000}
-tasks=${ZM_DEMO_TASKS:-6}
+area=${ZM_DEMO_AREA:-2100}
+tasks=${ZM_DEMO_TASKS:-12}
 device=${ZM_DEMO_DEVICE:-cgroup}
 policies=${ZM_DEMO_POLICIES:-basic,semantic}
 zonemap=build/host-release/app/zonemap
@@ -46,7 +46,7 @@ print(f'demo: {s["counts"]["keyframes"]:,} keyframes resident {r["min"]:,}-{r["m
       f'(median {r["median"]:,}), {s["counts"]["frames"]:,} frames at '
       f'{s["localization"]["rate_hz"]:g} Hz in the scenario')
 EOF
-"$py" scripts/sweep.py demo >&2
+"$py" scripts/sweep.py demo --scale "$scale" --scenario "$scen" >&2
 
 "$zonemap" bench --scenarios "dir:$scen" --policies "$policies" --models none,qwen3-vl-2b \
   --budgets 1 --device "$device" --device-scale "$scale" --time-compression "$compression" \

@@ -26,7 +26,7 @@ Modes:
       generates maps around Basic's crossing at device scale S (default 1/8, with the memory
       cgroup device), runs Basic + VLM and Semantic + VLM on each, then the table and figure with
       the measured points on them. A few minutes: `make sweep`, kept out of `make test`.
-  scripts/sweep.py demo [--profile P]
+  scripts/sweep.py demo [--profile P] [--scenario DIR]
       the arithmetic that picks `make demo`'s map (README, "The demo's arithmetic")
 
 The K_max arithmetic here mirrors lib/runtime/budget.cc's DeriveBudget (the one derivation of
@@ -99,6 +99,16 @@ def load_profile(name):
     }
 
 
+def scale_profile(prof, scale):
+    """--device-scale S (harness/device_scale.h): every byte of the memory split times S (nearest
+    byte), keyframe counts unchanged. The model's weights and KV scale with it (scale_models)."""
+    p = dict(prof)
+    for k in ("memory", "os_reserve", "weights", "kv_cache", "share", "headroom", "overhead"):
+        p[k] = int(round(p[k] * scale)) if p[k] else 0
+    p["scale"] = scale
+    return p
+
+
 def kv_bytes(model, tokens):
     """KV cache of one sequence at a context of `tokens` (docs/harness.md's formula)."""
     _, per, win_per, win, state = MODELS[model]
@@ -110,6 +120,12 @@ def cotenant_kv(prof, model):
     n_ctx from start-up (at_load, llama.cpp's)."""
     tokens = prof["request_tokens"] if prof["kv_allocation"] == "per_request" else prof["context_tokens"]
     return kv_bytes(model, tokens)
+
+
+def model_bytes(prof, model):
+    """The co-tenant's weights and KV cache at the profile's device scale."""
+    sc = prof.get("scale", 1.0)
+    return int(round(MODELS[model][0] * sc)), int(round(cotenant_kv(prof, model) * sc))
 
 
 def map_share(prof, weights, kv_cache):
@@ -132,8 +148,7 @@ def k_max(prof, slot, n, share):
 
 
 def grid_point(prof, n, slot, model):
-    w = MODELS[model][0]
-    kv = cotenant_kv(prof, model)
+    w, kv = model_bytes(prof, model)
     base = prof["os_reserve"] + prof["overhead"] + w + kv
     basic = base + n * slot
     own_share = map_share(prof, w, prof["kv_cache"])
@@ -154,7 +169,7 @@ def grid_point(prof, n, slot, model):
 
 def crossing(prof, slot, model):
     """The largest map Basic + this model fits: N* = (memory - OS - overhead - weights - KV) / slot."""
-    room = prof["memory"] - prof["os_reserve"] - prof["overhead"] - MODELS[model][0] - cotenant_kv(prof, model)
+    room = prof["memory"] - prof["os_reserve"] - prof["overhead"] - sum(model_bytes(prof, model))
     return max(0, room // slot)
 
 
@@ -248,8 +263,9 @@ def plot(prof, measured, path):
     seen = set()
     for p in measured:
         n, m, pol = p["keyframes"], p["model"], p["policy"]
-        dem = grid_point(prof, n, slot, m)["basic_demand_bytes" if pol == "basic" else
-                                           "semantic_demand_bytes"]
+        # placed by the share of the device it demanded at its own scale (the crossing in
+        # keyframes shifts a little with the scale: the footprint does not scale exactly)
+        dem = p["demand_fraction"] * prof["memory"]
         mk, lab = marks[p["verdict"]]
         ax.scatter([n], [dem / 1e9], marker=mk, s=80, facecolor=colours.get(m, "k") if pol == "basic" else "white",
                    edgecolor="k", zorder=5,
@@ -278,7 +294,7 @@ def plot(prof, measured, path):
 
 def demo_arithmetic(prof, slot=2_156_976, median=2_098_464):
     m = prof["model"]
-    w, kv = MODELS[m][0], cotenant_kv(prof, m)
+    w, kv = model_bytes(prof, m)
     limit = prof["memory"] - prof["os_reserve"]
     share = map_share(prof, prof["weights"], prof["kv_cache"])
     k = k_max(prof, slot, 10**9, share)
@@ -288,8 +304,15 @@ def demo_arithmetic(prof, slot=2_156_976, median=2_098_464):
             "n_lo": n_lo, "n_hi": n_hi, "slot": slot, "median": median}
 
 
-def print_demo(prof):
-    a = demo_arithmetic(prof)
+def print_demo(prof, scenario=None):
+    info = None
+    if scenario:
+        with open(os.path.join(scenario, "scenario.json")) as f:
+            info = json.load(f)
+        a = demo_arithmetic(prof, slot=info["resident_bytes"]["max"],
+                            median=info["resident_bytes"]["median"])
+    else:
+        a = demo_arithmetic(prof)
     print(f"""device limit  = memory - OS reserve = {prof['memory']:,} - {prof['os_reserve']:,} = {a['limit']:,} B ({a['limit'] / 2**30:.2f} GiB)
 map share     = memory - OS reserve - weights - kv_cache_bytes - headroom
               = {prof['memory']:,} - {prof['os_reserve']:,} - {prof['weights']:,} - {prof['kv_cache']:,} - {prof['headroom']:,} = {a['share']:,} B
@@ -298,6 +321,15 @@ co-tenant     = weights {a['weights']:,} B + KV {a['kv']:,} B ({prof['kv_allocat
 Basic alone fits          : N x slot + overhead <= limit               -> N <= {a['n_hi']:,}
 Basic + model overflows   : N x slot + overhead + weights + KV > limit -> N >= {a['n_lo']:,}
 the demo's window         : {a['n_lo']:,} <= N <= {a['n_hi']:,} (and N > K_max = {a['k_max']:,}, so Basic's start-up overshoots MemoryThr)""")
+    if info:
+        n = info["counts"]["keyframes"]
+        alone = n * a["slot"] + prof["overhead"]
+        both = alone + a["weights"] + a["kv"]
+        inside = a["n_lo"] <= n <= a["n_hi"]
+        print(f"this map ({scenario}): N = {n:,} keyframes of at most {a['slot']:,} B: Basic alone "
+              f"{alone / 1e9:.2f} GB = {100 * alone / a['limit']:.0f} % of the limit, Basic + model "
+              f"{both / 1e9:.2f} GB = {100 * both / a['limit']:.0f} %: "
+              + ("inside the window" if inside else "OUTSIDE the window"))
 
 
 # Measured runs -----------------------------------------------------------------------------
@@ -354,13 +386,20 @@ def measure(prof, args):
     out = args.out
     os.makedirs(out, exist_ok=True)
     log = os.path.join(out, "sweep.log")
-    slot = 2_156_976
     model = prof["model"]
-    n_star = crossing(prof, slot, model)
-    k = demo_arithmetic(prof)["k_max"]
+    # The slot at this scale: the largest resident keyframe of a probe map (the footprint does
+    # not scale exactly with S: docs/sim.md, "Footprint scale").
+    probe, _ = ensure_map(out, 2400, args.scale, log)
+    with open(os.path.join(probe, "scenario.json")) as f:
+        slot = json.load(f)["resident_bytes"]["max"]
+    sprof = scale_profile(prof, args.scale)
+    n_star = crossing(sprof, slot, model)
+    k = demo_arithmetic(sprof, slot=slot)["k_max"]
+    print(f"sweep: at scale {args.scale:g} the slot is {slot:,} B: K_max {k:,}, Basic + {model} "
+          f"crosses above N* = {n_star:,} keyframes", file=sys.stderr)
     # Grid points by arithmetic: below and above Basic + model's crossing, all above K_max so
     # Basic's start-up overshoots MemoryThr; plus the largest Basic alone fits.
-    targets = sorted({max(k + 100, int(n_star * f)) for f in (0.85, 1.1, 1.3)})
+    targets = sorted({max(k + 100, int(n_star * f)) for f in (0.85, 1.1, 1.3, 1.6)})
     measured = []
     for n_target in targets:
         scen, n = ensure_map(out, n_target, args.scale, log)
@@ -387,12 +426,13 @@ def measure(prof, args):
                 "cotenant_outcome": ct.get("outcome"), "tokens_per_s": ct.get("tokens_per_s"),
                 "latency_ms": R.latency_p50(ct), "update_rate_hz": s.get("update_rate_hz"),
                 "frames_dropped": s.get("frames_dropped"), "verdict": verdict(s),
-                "demand_full_size_bytes": grid_point(prof, n, slot, model)[
-                    "basic_demand_bytes" if policy == "basic" else "semantic_demand_bytes"],
+                # by arithmetic at this scale, this map's slot: the share of the device demanded
+                "demand_fraction": grid_point(sprof, n, slot, model)[
+                    "basic_demand_bytes" if policy == "basic" else "semantic_demand_bytes"]
+                / sprof["memory"],
             })
-            mine = k_max(prof, s.get("slot_bytes") or slot, n,
-                         map_share(prof, prof["weights"], prof["kv_cache"]) and
-                         int(map_share(prof, prof["weights"], prof["kv_cache"]) * args.scale))
+            mine = k_max(sprof, s.get("slot_bytes") or slot, n,
+                         map_share(sprof, sprof["weights"], sprof["kv_cache"]))
             if policy == "semantic" and s.get("k_max") and mine and abs(mine - s["k_max"]) > 2:
                 raise SystemExit(f"sweep: K_max here {mine} != the program's {s['k_max']} "
                                  f"({rdir}): this script's DeriveBudget mirror is out of date")
@@ -403,12 +443,12 @@ def measured_table(measured):
     def num(v, decimals):
         return "–" if v is None else f"{v:,.{decimals}f}"
 
-    lines = ["| keyframes | policy | demand at full size (GB) | device peak / limit (MB, scaled) | "
+    lines = ["| keyframes | policy | demand / device by arithmetic | device peak / limit (MB) | "
              "OOM kills | map | co-tenant | TPS | latency ms | update rate (Hz) | frames dropped |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for p in measured:
         lines.append(
-            f"| {p['keyframes']:,} | {p['policy']} | {gb(p['demand_full_size_bytes'])} | "
+            f"| {p['keyframes']:,} | {p['policy']} | {100 * p['demand_fraction']:.0f} % | "
             f"{num((p['peak_bytes'] or 0) / 1e6, 0)} / {num((p['limit_bytes'] or 0) / 1e6, 0)} | "
             f"{num(p['oom_kills'], 0)} | {p['map_outcome'] or '–'} | {p['cotenant_outcome'] or '–'} | "
             f"{num(p['tokens_per_s'], 2)} | {num(p['latency_ms'], 0)} | "
@@ -421,15 +461,19 @@ def main():
     ap.add_argument("mode", choices=["derive", "measure", "demo"])
     ap.add_argument("--profile", default="orin-nano-8gb")
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "sweep"))
-    ap.add_argument("--scale", type=float, default=0.125)
+    ap.add_argument("--scale", type=float, default=None,
+                    help="device scale (measure: default 0.125; demo: 1)")
     ap.add_argument("--device", default="cgroup")
     ap.add_argument("--ticks", type=int, default=150)
     ap.add_argument("--compression", type=float, default=10.0)
+    ap.add_argument("--scenario", help="demo: a generated scenario directory to check")
     args = ap.parse_args()
     prof = load_profile(args.profile)
     if args.mode == "demo":
-        print_demo(prof)
+        print_demo(scale_profile(prof, args.scale or 1.0), args.scenario)
         return
+    if args.scale is None:
+        args.scale = 0.125
     os.makedirs(args.out, exist_ok=True)
     rows = derive(prof)
     write_csv(rows, os.path.join(args.out, f"sweep_{prof['name']}.csv"))
