@@ -152,8 +152,11 @@ def render(out):
         first = next((c for c in cols if c), runs[0])
         k = sorted({c.k_max for c in cols if c and c.k_max})
         parts.append(f"## {scenario}: the paper's tables\n")
-        parts.append(R.device_text(first) + (f"; MemoryThr (K_max) {', '.join(map(str, k))}"
-                                             if k else "") +
+        tcs = sorted({c.time_compression or 0 for c in cols if c})
+        differ = (f" (first run; NOT the same in every run: "
+                  f"{', '.join(f'{t:g}x' if t else 'unpaced' for t in tcs)})" if len(tcs) > 1 else "")
+        parts.append(R.device_text(first) + differ +
+                     (f"; MemoryThr (K_max) {', '.join(map(str, k))}" if k else "") +
                      ". The co-tenant is a stand-in for VLM decoding. Each cell: ours (the "
                      "paper's, Jetson Orin Nano 8 GB).\n")
         if t1:
