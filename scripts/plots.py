@@ -147,6 +147,9 @@ def plot_memory(scenario, runs, fig_dir):
             ax.annotate(f"OOM x{n}" if n > 1 else "OOM", (x, 0.0),
                         xycoords=("data", "axes fraction"), xytext=(2, 4),
                         textcoords="offset points", fontsize=7, color="#9467bd")
+        for i, x in enumerate(run.cotenant_deaths()):
+            ax.plot([x], [0.97], marker="v", color="#2ca02c", ms=9, transform=ax.get_xaxis_transform(),
+                    ls="none", label="co-tenant killed (restarted)" if i == 0 else None)
         outcome = (run.s.get("map") or {}).get("outcome")
         ct = run.s.get("cotenant") or {}
         title = run.label + (f" ({run.model})" if run.with_vlm else "")

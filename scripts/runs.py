@@ -158,10 +158,21 @@ class Run:
         self._requests = out
         return out
 
-    def cotenant_events(self, kind):
-        """Wall-clock seconds of co-tenant lines of one event (e.g. "exit" with kind killed)."""
-        lines = read_jsonl(os.path.join(self.path, "cotenant.jsonl"))
-        return [l for l in lines if l.get("event") == kind]
+    def cotenant_deaths(self):
+        """Wall-clock seconds at which the supervisor saw the co-tenant die by a signal (its
+        `exit` lines of kind killed or crashed: an OOM kill is a SIGKILL)."""
+        rp = os.path.join(self.path, "cotenant.json")
+        origin = read_json(rp).get("origin_mono_s") if os.path.exists(rp) else None
+        if origin is None:
+            origin = (self.s.get("cotenant") or {}).get("origin_mono_s")
+        out = []
+        for l in read_jsonl(os.path.join(self.path, "cotenant.jsonl")):
+            if l.get("event") == "exit" and l.get("kind") in ("killed", "crashed"):
+                if "wall_s" in l:
+                    out.append(l["wall_s"])
+                elif "mono_s" in l and origin is not None:
+                    out.append(l["mono_s"] - origin)
+        return out
 
 
 def find_runs(out):

@@ -85,9 +85,11 @@ def write_run(out, name, policy, with_vlm):
                 f.write(json.dumps(r) + "\n")
             if killed:
                 f.write(json.dumps({"event": "stall", "wall_s": 3.0, "id": 6}) + "\n")
+                f.write(json.dumps({"event": "exit", "source": "supervisor", "kind": "killed",
+                                    "mono_s": 1002.0, "instance": 0}) + "\n")
             f.write('{"event": "end", "torn')  # a writer killed mid-line
         s["cotenant"] = {
-            "model": "qwen3-vl-2b", "outcome": "stalled" if killed else "completed",
+            "model": "qwen3-vl-2b", "origin_mono_s": 1000.0, "outcome": "stalled" if killed else "completed",
             "symbol": "△" if killed else "○", "requests_completed": len(reqs), "restarts": 0,
             "tokens_per_s": sorted(r["tokens_per_s"] for r in reqs)[len(reqs) // 2],
             "latency_ms": {"p50": sorted(r["latency_ms"] for r in reqs)[len(reqs) // 2],

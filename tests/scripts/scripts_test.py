@@ -38,6 +38,7 @@ bv = runs.pick(found["tiny"], "basic", True)
 check(bv is not None and bv.with_vlm and bv.model == "qwen3-vl-2b", "Basic + VLM picked")
 check(bv is not None and len(bv.requests()) == 12, "12 requests read, the torn line skipped")
 check(runs.pick(found["tiny"], "semantic", False).with_vlm is False, "Semantic only has no VLM")
+check(bv is not None and bv.cotenant_deaths() == [2.0], "the co-tenant's kill on the wall clock")
 
 # Paper-form tables: device stated, ours beside the paper's, outcomes and OOM kills shown.
 text = paper_tables.render(WORK)
