@@ -45,7 +45,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--max-ticks", o->max_ticks, "stop after this many ticks (0 = all)");
   cmd->add_flag("--verify-checksums", o->verify, "CRC-check every payload as it lands in its slot");
   cmd->add_flag("--quiet", o->quiet, "print nothing on success");
-  cmd->callback([o, &ctx] {
+  cmd->callback([o, &ctx, device_opt] {
     auto profile = LoadExperimentProfile(o->profile);
     if (!profile.ok()) return ctx.Fail("run", profile.status());
     ProfileOverrides ov;
