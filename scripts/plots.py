@@ -150,6 +150,13 @@ def plot_memory(scenario, runs, fig_dir):
         for i, x in enumerate(run.cotenant_deaths()):
             ax.plot([x], [0.97], marker="v", color="#2ca02c", ms=9, transform=ax.get_xaxis_transform(),
                     ls="none", label="co-tenant killed (restarted)" if i == 0 else None)
+        if xlabel == "wall clock (s)" and ticks[0].get("startup") and xs[0] > 0:
+            # The start-up tick loads the map's last working memory before any frame is
+            # processed: its wall time, and the frames that arrived meanwhile, are dropped frames.
+            ax.axvspan(0, xs[0], color="#dddddd", alpha=0.6, zorder=0,
+                       label=f"start-up load ({xs[0]:.0f} s, {ticks[0].get('tick_ms', 0) / 1e3:.0f} s"
+                             " tick; frames dropped)")
+            ax.set_xlim(left=0)
         outcome = (run.s.get("map") or {}).get("outcome")
         ct = run.s.get("cotenant") or {}
         title = run.label + (f" ({run.model})" if run.with_vlm else "")
@@ -333,7 +340,8 @@ def position_at(run, wall_s):
     t = ticks[i]
     if "x" not in t:
         return None
-    return t["x"], t["y"], wall_s > xs[-1] + 1.0  # past the last tick: the map had stopped
+    when = "after" if wall_s > xs[-1] + 1.0 else "startup" if wall_s < xs[0] else "during"
+    return t["x"], t["y"], when  # after the last tick the map had stopped; before the first it loaded
 
 
 def plot_cotenant_path(out, scenario, runs, fig_dir):
@@ -368,21 +376,24 @@ def plot_cotenant_path(out, scenario, runs, fig_dir):
             if ticks and "x" in ticks[0]:
                 ax.plot([t["x"] for t in ticks], [t["y"] for t in ticks], color="#666666",
                         lw=0.6, zorder=2)
-            during = [p for p in pts if not p[4]]
-            after = [p for p in pts if p[4]]
+            during = [p for p in pts if p[4] == "during"]
+            after = [p for p in pts if p[4] == "after"]
+            startup = [p for p in pts if p[4] == "startup"]
             sc = None
             for sub, marker, note in ((during, "o", None),
+                                      (startup, "s", "ended during the map's start-up load "
+                                                     "(placed at the start pose)"),
                                       (after, "X", "ended after the map stopped (placed at its "
                                                    "last pose)")):
                 if sub:
                     sc = ax.scatter([p[0] for p in sub], [p[1] for p in sub],
                                     c=[p[key] for p in sub], cmap=cmap, vmin=ranges[row][0],
-                                    vmax=ranges[row][1], s=36 if marker == "o" else 70,
+                                    vmax=ranges[row][1], s=36 if marker == "o" else 60,
                                     marker=marker, edgecolor="k", linewidth=0.3, zorder=3,
                                     label=f"{len(sub)} {note}" if note else None)
             if sc is not None:
                 fig.colorbar(sc, ax=ax, label=lab, shrink=0.8)
-            if after:
+            if after or startup:
                 ax.legend(fontsize=7, loc="lower right")
             ax.set_aspect("equal")
             ax.set_title(f"{run.label}: {lab} ({len(pts)} requests)", fontsize=10)
