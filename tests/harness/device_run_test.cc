@@ -268,6 +268,9 @@ TEST_CASE("device run (cgroup): the map process OOM-killed by the kernel, the ru
   CHECK(j["ticks"].get<std::uint64_t>() > 0);
   CHECK(j["k_max"].get<std::uint64_t>() > 0);  // from the map's start (map_start.json)
   CHECK(j["tick_ms"]["count"].get<std::uint64_t>() + 1 == j["ticks"].get<std::uint64_t>());
+  // The trajectory metrics over the poses it produced (estimate.tum is streamed).
+  CHECK(j["ate_rmse_m"].is_number());
+  CHECK(j["associated_poses"].get<std::uint64_t>() == j["ticks"].get<std::uint64_t>());
   const nlohmann::json on_disk = ReadJson(r.out_dir + "/summary.json");
   CHECK(on_disk["map"]["outcome"] == "killed");
   MESSAGE("map killed after " << j["ticks"] << " ticks; OOM kills " << j["device"]["oom_kills"]);
