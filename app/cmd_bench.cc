@@ -430,14 +430,23 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                          std::to_string(r["loop_closures"].get<std::uint64_t>()),
                          Fmt(Num(r, "ate_rmse_m"), 4)});
     }
-    t5.Write(o->out + "/latency", "Tick latency (steady state; start-up apart)");
-    const std::string stated = " (device scale " + Fmt(o->device_scale, 3) + ", time compression " +
+    // Every table states the device (and "simulated" for the ledger), its scale and the clock.
+    std::string device_used = "cgroup";
+    for (const auto& r : all) {
+      const nlohmann::json d = r.value("device", nlohmann::json::object());
+      if (!d.value("simulated", false)) continue;
+      const std::string why = d.value("fallback_reason", std::string());
+      device_used = "ledger, SIMULATED" + (why.empty() ? std::string() : ": " + why);
+    }
+    const std::string stated = " (device " + device_used + ", device scale " +
+                               Fmt(o->device_scale, 3) + ", time compression " +
                                Fmt(o->time_compression, 2) + ")";
     t1.Write(o->out + "/table1", "Table I analogue: SLAM with and without the co-tenant" + stated);
     t6.Write(o->out + "/device", "The device: memory, OOM kills, outcomes" + stated);
+    t5.Write(o->out + "/latency", "Tick latency (steady state; start-up apart)" + stated);
     t2.Write(o->out + "/table2", "Table II analogue: the co-tenant beside SLAM (stand-in for VLM decoding)" + stated);
-    t3.Write(o->out + "/memory", "Memory and churn");
-    t4.Write(o->out + "/ratios", "Ratios measured side by side in this run");
+    t3.Write(o->out + "/memory", "Memory and churn" + stated);
+    t4.Write(o->out + "/ratios", "Ratios measured side by side in this run" + stated);
     {
       nlohmann::json tables = {{"results", all}};
       std::ofstream(o->out + "/tables.json") << tables.dump(2) << '\n';

@@ -143,6 +143,7 @@ bool ReadAll(int fd, void* p, std::size_t n) {
         }
       }
     }
+    if (request.map_tick_hook) request.map_tick_hook(l);
     const DeviceSample d = device.Sample();
     const ProcessSample me = self.Sample();
     const RusageSample ru = SampleRusage();

@@ -64,6 +64,8 @@ struct DeviceRunRequest {
   // Runs in the map process, inside the device, before its loop is built (tests: make it
   // allocate until the kernel kills it). Empty: none.
   std::function<void()> map_child_hook;
+  // Runs in the map process after each tick (tests: a deliberately slow tick). Empty: none.
+  std::function<void(const TickLoop&)> map_tick_hook;
   // Called once the device is open, before anything runs in it (tests: another ledger tenant).
   std::function<void(DeviceModel&)> on_device;
 };

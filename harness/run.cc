@@ -116,8 +116,8 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     const std::string_view extra = request.on_tick ? request.on_tick(*loop, clock) : std::string_view();
     telemetry.Write(rec, extra);
     if ((rec.tick + 1) % flush == 0) {
+      estimate_out.Flush();  // first: a tick on disk always has its pose on disk
       telemetry.Flush();
-      estimate_out.Flush();
     }
     // The idle part of the tick (time-sliced loads): until the next frame arrives (real-time
     // frames; it also stops as soon as one is waiting), else one frame period after this tick

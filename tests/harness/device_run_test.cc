@@ -25,6 +25,19 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Everything the cases write under the temporary directory, removed when the process exits.
+struct TempPaths {
+  std::vector<std::string> paths;
+  ~TempPaths() {
+    std::error_code ec;
+    for (const std::string& p : paths) fs::remove_all(p, ec);
+  }
+};
+TempPaths& Temps() {
+  static TempPaths t;
+  return t;
+}
+
 // One small scenario for every case (generated once per test process): a 300 m2 floor, two
 // patrol tasks, keyframes of ~100-200 KB resident, frames at 1 Hz.
 const std::string& Scenario() {
@@ -32,6 +45,7 @@ const std::string& Scenario() {
     const fs::path p = fs::temp_directory_path() /
                        ("zm_device_run_scenario_" + std::to_string(static_cast<long>(getpid())));
     fs::remove_all(p);
+    Temps().paths.push_back(p.string());
     sim::HospitalOptions h;
     h.seed = 11;
     h.area_m2 = 300.0;
@@ -62,6 +76,7 @@ std::string RunDir(const std::string& name) {
   const fs::path p = fs::temp_directory_path() /
                      ("zm_device_run_" + name + "_" + std::to_string(static_cast<long>(getpid())));
   fs::remove_all(p);
+  Temps().paths.push_back(p.string());
   return p.string();
 }
 
@@ -120,8 +135,12 @@ TEST_CASE("device run (ledger): simulated in the summary, frames dropped on an o
   DeviceRunRequest r = Request("ledger_overrun", "semantic", 1.0 / 64);
   r.device = DeviceKind::kLedger;
   r.device_explicit = true;
-  // 200x: a frame every 5 ms of wall time; ticks (ASan, localization) overrun it.
-  r.time_compression = 200.0;
+  // 20x: a frame every 50 ms of wall time; every fourth tick is made 130 ms slow, so at least
+  // two frames arrive while it runs and at least one of them is dropped.
+  r.time_compression = 20.0;
+  r.map_tick_hook = [](const TickLoop& l) {
+    if (l.last_record().tick % 4 == 1) std::this_thread::sleep_for(std::chrono::milliseconds(130));
+  };
   auto s = RunOnDevice(r);
   REQUIRE_MESSAGE(s.ok(), s.status().ToString());
   const nlohmann::json& j = *s;
@@ -129,10 +148,12 @@ TEST_CASE("device run (ledger): simulated in the summary, frames dropped on an o
   CHECK(j["device"]["simulated"] == true);
   CHECK(j["device"]["description"].get<std::string>().find("simulated") != std::string::npos);
   CHECK(j["map"]["outcome"] == "completed");
-  CHECK(j["time_compression"] == 200.0);
+  CHECK(j["time_compression"] == 20.0);
   const auto ticks = j["ticks"].get<std::uint64_t>();
   const auto dropped = j["frames_dropped"].get<std::uint64_t>();
   CHECK(ticks > 2);
+  // At least one per slow tick (ticks 1, 5, 9, ...) that another tick followed.
+  CHECK(dropped + 1 >= (ticks + 2) / 4);
   CHECK(dropped > 0);
   CHECK(j["frames_arrived"].get<std::uint64_t>() == ticks + dropped);
   CHECK(j["update_rate_hz"].get<double>() < 1.0);  // the frames' clock ran faster than the loop
@@ -143,7 +164,7 @@ TEST_CASE("device run (ledger): simulated in the summary, frames dropped on an o
   for (std::size_t i = 1; i < t.size(); ++i) CHECK(t[i]["wall_s"] >= t[i - 1]["wall_s"]);
   CHECK(fs::exists(r.out_dir + "/estimate.tum"));
   CHECK(ReadJson(r.out_dir + "/summary.json")["device"]["kind"] == "ledger");
-  MESSAGE(ticks << " ticks, " << dropped << " frames dropped at 200x");
+  MESSAGE(ticks << " ticks, " << dropped << " frames dropped at 20x, " << (ticks + 2) / 4 << " slow ticks");
 }
 
 TEST_CASE("device run (ledger): a refused map grant means those keyframes are not loaded") {
@@ -268,6 +289,11 @@ TEST_CASE("device run (cgroup): the map process OOM-killed by the kernel, the ru
   CHECK(j["ticks"].get<std::uint64_t>() > 0);
   CHECK(j["k_max"].get<std::uint64_t>() > 0);  // from the map's start (map_start.json)
   CHECK(j["tick_ms"]["count"].get<std::uint64_t>() + 1 == j["ticks"].get<std::uint64_t>());
+  // The trajectory metrics over the poses it produced (estimate.tum is streamed).
+  CHECK(j["ate_rmse_m"].is_number());
+  // (a pose reaches the disk before its tick: the kill may leave one pose more than ticks)
+  CHECK(j["associated_poses"].get<std::uint64_t>() >= j["ticks"].get<std::uint64_t>());
+  CHECK(j["associated_poses"].get<std::uint64_t>() <= j["ticks"].get<std::uint64_t>() + 1);
   const nlohmann::json on_disk = ReadJson(r.out_dir + "/summary.json");
   CHECK(on_disk["map"]["outcome"] == "killed");
   MESSAGE("map killed after " << j["ticks"] << " ticks; OOM kills " << j["device"]["oom_kills"]);
