@@ -1,6 +1,6 @@
 # Thin wrapper over the CMake presets. The two commands of the README:
-#   make demo   builds the programs (not the tests) and runs the main job (the simulated
-#               hospital comparison)
+#   make demo   builds only the programs it runs (not the tests) and runs the main job: the
+#               paper's experiment in a device-sized memory cgroup
 #   make test   installs what is missing, then runs every test: host (ASan + UBSan) and
 #               aarch64 (cross-built, under qemu-aarch64)
 JOBS ?= $(shell nproc)
@@ -41,14 +41,19 @@ release: deps-host
 	cmake --preset host-release
 	cmake --build --preset host-release -j $(JOBS)
 
-# The demo builds only what it runs: the three programs, not the test suites and benchmarks
-# (the README states how long a fresh machine takes).
+# The demo builds only what it runs: the programs, not the test suites and benchmarks (the
+# README states how long a fresh machine takes). ZM_DEMO_* knobs in scripts/demo.sh.
 APPS = zonemap zonemap-cotenant zonemapd
 
 demo: deps-host
 	cmake --preset host-release
 	cmake --build --preset host-release -j $(JOBS) --target $(APPS)
 	bash scripts/demo.sh
+
+sweep: deps-host  # where Basic breaks (issue 17 §7): a few minutes at 1/8, not part of `make test`
+	cmake --preset host-release
+	cmake --build --preset host-release -j $(JOBS) --target zonemap zonemap-cotenant
+	/usr/bin/python3 scripts/sweep.py measure
 
 bench: release
 	bash scripts/bench.sh

@@ -159,9 +159,11 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     std::string out, profile = "orin-nano-8gb";
     std::string scenarios, policies, models, budgets;
     std::string floorplans = ZM_DEFAULT_FLOORPLANS_DIR;
-    double cotenant_scale = 1.0;
+    std::string device = "cgroup";
+    double device_scale = 1.0;
+    double time_compression = 1.0;
+    std::uint32_t cotenant_requests = 30;
     int repeat = 1;
-    double pace = 15.0;
     std::uint32_t prompt_tokens = 0, answer_tokens = 0;
     bool quick = false, no_plots = false;
   };
@@ -175,14 +177,24 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--models", o->models, "comma list of co-tenant models ('none' = without)");
   cmd->add_option("--budgets", o->budgets, "comma list of MemoryThr as fractions of the map (e.g. 1,0.5,0.25), 'two-zones' or a count 'Nkf'");
   cmd->add_option("--floorplans", o->floorplans, "folder with <name>_map.png and <name>_gt.png");
-  cmd->add_option("--cotenant-scale", o->cotenant_scale, "scale the stand-in's weights");
+  auto* device_opt = cmd->add_option("--device", o->device,
+                  "cgroup (default; the ledger, labelled simulated, where none can be made) or ledger");
+  cmd->add_option("--device-scale", o->device_scale,
+                  "0 < S <= 1: device memory, OS reserve, weights, KV cache and keyframe bytes x S");
+  cmd->add_option("--time-compression", o->time_compression,
+                  "every run's frames arrive at the profile's rate, X times faster than real time "
+                  "(1 = real time; 0 = every frame as fast as possible, no drops)");
+  cmd->add_option("--cotenant-requests", o->cotenant_requests,
+                  "co-tenant requests per run, spread over the patrol (default 30)");
   cmd->add_option("--repeat", o->repeat, "runs per cell; timings are medians over them");
   cmd->add_option("--prompt-tokens", o->prompt_tokens, "co-tenant prompt length (default: profile; --quick: 128)");
   cmd->add_option("--answer-tokens", o->answer_tokens, "co-tenant answer length (default: profile; --quick: 32)");
-  cmd->add_option("--pace", o->pace, "runs with a co-tenant are paced at this multiple of the frames' clock (0 = as fast as possible)");
+  cmd->add_option("--pace", o->time_compression, "old name of --time-compression");
   cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
-  cmd->callback([o, &ctx] {
+  cmd->callback([o, &ctx, device_opt] {
     InstallStopSignals();
+    auto device_kind = ParseDeviceKind(o->device);
+    if (!device_kind.ok()) return ctx.Fail("bench", device_kind.status());
     const bool q = o->quick;
     const auto scenarios = Split(!o->scenarios.empty() ? o->scenarios
                                  : q ? "hospital"
@@ -259,11 +271,12 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               req.out_dir = o->out + "/runs/" + name + "/" + run_name;
               req.profile = profile.value();
               req.with_cotenant = model != "none";
-              req.cotenant_scale = o->cotenant_scale;
-              // With a co-tenant the loop runs on (a multiple of) the frames' clock, as on the
-              // robot, so the co-tenant serves requests beside it for the whole patrol instead
-              // of the few seconds an unpaced replay lasts. Tick times are unaffected.
-              if (req.with_cotenant) req.pace_speedup = o->pace;
+              req.device = *device_kind;
+              req.device_explicit = device_opt->count() > 0;
+              req.device_scale = o->device_scale;
+              // Every run, alone and with the co-tenant, on the same frames' clock (issue 17 §4).
+              req.time_compression = o->time_compression;
+              req.cotenant_requests = o->cotenant_requests;
               std::fprintf(stderr, "bench: %s %s (%d/%d)\n", name.c_str(), run_name.c_str(), rep + 1,
                            std::max(1, o->repeat));
               auto r = RunOnDevice(req, StopFlag());
@@ -286,9 +299,14 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     std::ofstream(o->out + "/results.json") << all.dump(2) << '\n';
 
     // Table I analogue, Table II analogue, memory and churn.
-    Table t1{{"scenario", "K_max", "policy", "co-tenant", "update rate (Hz)", "loop closures",
-              "avg tick (ms)", "p99 tick (ms)", "ATE RMSE (m)", "RPE trans RMSE (m)", "RPE rot RMSE (deg)"}, {}};
-    Table t2{{"scenario", "K_max", "model (stand-in)", "policy", "outcome", "TPS", "latency (ms)"}, {}};
+    Table t1{{"scenario", "K_max", "policy", "co-tenant", "map process", "update rate (Hz)",
+              "frames dropped / arrived", "loop closures", "avg tick (ms)", "p99 tick (ms)",
+              "ATE RMSE (m)", "RPE trans RMSE (m)", "RPE rot RMSE (deg)"}, {}};
+    Table t2{{"scenario", "K_max", "model (stand-in)", "policy", "outcome", "requests", "restarts",
+              "TPS", "latency p50 (ms)"}, {}};
+    Table t6{{"scenario", "K_max", "policy", "co-tenant", "device", "limit (MiB)", "peak (MiB)",
+              "OOM kills", "map peak RSS (MiB)", "co-tenant peak RSS (MiB)", "map process",
+              "co-tenant"}, {}};
     Table t3{{"scenario", "K_max", "policy", "co-tenant", "peak resident kf", "peak resident MB",
               "over-budget ticks", "max excess kf", "OOM events", "kf loaded", "kf unloaded",
               "DB statements start-up / steady", "DB transactions start-up / steady",
@@ -307,18 +325,37 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                std::to_string(r["steady_state"].value(key, std::uint64_t{0}));
       };
       const std::string k = std::to_string(r["k_max"].get<int>());
-      t1.rows.push_back({sc, k, pol, model, Fmt(Num(r, "update_rate_hz"), 2),
+      const nlohmann::json dev = r.value("device", nlohmann::json::object());
+      const nlohmann::json mp = r.value("map", nlohmann::json::object());
+      const std::string map_outcome = mp.value("outcome", std::string("?"));
+      t1.rows.push_back({sc, k, pol, model, map_outcome, Fmt(Num(r, "update_rate_hz"), 2),
+                         std::to_string(r.value("frames_dropped", std::uint64_t{0})) + " / " +
+                             std::to_string(r.value("frames_arrived", std::uint64_t{0})),
                          std::to_string(r["loop_closures"].get<std::uint64_t>()),
                          Fmt(r["tick_ms_mean_median_of_repeats"].get<double>(), 2),
                          Fmt(r["tick_ms"]["p99"].get<double>(), 2), Fmt(Num(r, "ate_rmse_m"), 3),
                          Fmt(Num(r, "rpe_trans_rmse_m"), 3), Fmt(Num(r, "rpe_rot_rmse_deg"), 2)});
       if (r.contains("cotenant")) {
         const auto& c = r["cotenant"];
+        const double tps = c.contains("tokens_per_s") && c["tokens_per_s"].is_number()
+                               ? c["tokens_per_s"].get<double>() : std::nan("");
+        const double lat = c.contains("latency_ms") && c["latency_ms"].is_object()
+                               ? Num(c["latency_ms"], "p50") : std::nan("");
         t2.rows.push_back({sc, k, c.value("model", model), pol,
                            c.value("symbol", std::string("?")) + " " + c.value("outcome", std::string()),
-                           Fmt(c.value("tokens_per_s", std::nan("")), 2),
-                           Fmt(c.value("latency_ms", std::nan("")), 0)});
+                           std::to_string(c.value("requests_completed", 0U)) + " / " +
+                               std::to_string(c.value("requests_planned", 0U)),
+                           std::to_string(c.value("restarts", 0U)), Fmt(tps, 2), Fmt(lat, 0)});
       }
+      const auto mib = [&dev](const char* key) { return Fmt(Num(dev, key) / 1048576.0, 1); };
+      t6.rows.push_back({sc, k, pol, model,
+                         dev.value("kind", std::string("?")) +
+                             (dev.value("simulated", false) ? " (simulated)" : ""),
+                         mib("limit_bytes"), mib("peak_bytes"),
+                         std::to_string(dev.value("oom_kills", std::uint64_t{0})),
+                         mib("map_peak_rss_bytes"), mib("cotenant_peak_rss_bytes"), map_outcome,
+                         r.contains("cotenant") ? r["cotenant"].value("outcome", std::string("?"))
+                                                : std::string("–")});
       const auto ok = oracle_loads.find(sc + "/" + k);
       const double zl = r["zone_loads"].get<double>();
       t3.rows.push_back({sc, k, pol, model,
@@ -393,16 +430,28 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                          std::to_string(r["loop_closures"].get<std::uint64_t>()),
                          Fmt(Num(r, "ate_rmse_m"), 4)});
     }
-    t5.Write(o->out + "/latency", "Tick latency (steady state; start-up apart)");
-    t1.Write(o->out + "/table1", "Table I analogue: SLAM with and without the co-tenant");
-    t2.Write(o->out + "/table2", "Table II analogue: the co-tenant beside SLAM (stand-in for VLM decoding)");
-    t3.Write(o->out + "/memory", "Memory and churn");
-    t4.Write(o->out + "/ratios", "Ratios measured side by side in this run");
+    // Every table states the device (and "simulated" for the ledger), its scale and the clock.
+    std::string device_used = "cgroup";
+    for (const auto& r : all) {
+      const nlohmann::json d = r.value("device", nlohmann::json::object());
+      if (!d.value("simulated", false)) continue;
+      const std::string why = d.value("fallback_reason", std::string());
+      device_used = "ledger, SIMULATED" + (why.empty() ? std::string() : ": " + why);
+    }
+    const std::string stated = " (device " + device_used + ", device scale " +
+                               Fmt(o->device_scale, 3) + ", time compression " +
+                               Fmt(o->time_compression, 2) + ")";
+    t1.Write(o->out + "/table1", "Table I analogue: SLAM with and without the co-tenant" + stated);
+    t6.Write(o->out + "/device", "The device: memory, OOM kills, outcomes" + stated);
+    t5.Write(o->out + "/latency", "Tick latency (steady state; start-up apart)" + stated);
+    t2.Write(o->out + "/table2", "Table II analogue: the co-tenant beside SLAM (stand-in for VLM decoding)" + stated);
+    t3.Write(o->out + "/memory", "Memory and churn" + stated);
+    t4.Write(o->out + "/ratios", "Ratios measured side by side in this run" + stated);
     {
       nlohmann::json tables = {{"results", all}};
       std::ofstream(o->out + "/tables.json") << tables.dump(2) << '\n';
     }
-    for (const char* f : {"table1", "table2", "memory", "ratios", "latency"}) {
+    for (const char* f : {"table1", "table2", "device", "memory", "ratios", "latency"}) {
       std::ifstream in(o->out + "/" + f + ".md");
       std::ostringstream text;
       text << in.rdbuf();
@@ -416,7 +465,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       const std::string c = py + " " + Quote(plots) + " " + Quote(o->out);
       if (std::system(c.c_str()) != 0) std::fprintf(stderr, "bench: figures failed (%s)\n", c.c_str());
     }
-    std::printf("bench: wrote %s/{table1,table2,memory,ratios,latency}.{md,csv}, results.json, figures/\n",
+    std::printf("bench: wrote %s/{table1,table2,device,memory,ratios,latency}.{md,csv}, results.json, figures/\n",
                 o->out.c_str());
   });
 }

@@ -1,19 +1,37 @@
-// A replay on a simulated device: the profile's memory split, a device ledger shared with the
-// co-tenant stand-in, and the map process's own charge updated every tick. What `zonemap run`
-// and `zonemap bench` call; summary.json gains `cotenant` and `device` sections.
+// The experiment's run (issue 17 §1, §4): a replay on a device, beside the co-tenant.
 //
-// Ledger tenants: "os" (the profile's OS/JetPack reserve), "map" (arena reservation for the
-// bounded policies, whose budget is reserved up front; resident slots for basic/unbounded, whose
-// memory grows like RTAB-Map's heap; plus the process overhead) and the co-tenant. A map update
-// the device cannot hold is refused and counted as an out-of-memory event.
+//   runner (this process, outside the device: samples, supervises, writes summary.json)
+//     ├─ map process: a forked child inside the device, running the tick loop over the
+//     │  scenario's frames (real-time frames with --time-compression); writes ticks.jsonl
+//     │  (with the device readings of each tick) and estimate.tum, streamed
+//     └─ co-tenant: zonemap-cotenant under CotenantSupervisor, entered into the device between
+//        fork and exec, restarted after a kill; its event lines go to cotenant.jsonl
+//
+// Device: a memory cgroup limited to the profile's device memory less its OS reserve (scaled by
+// --device-scale), where out of memory is the kernel's (OOM kills, SIGKILL); or, where no cgroup
+// can be made (or --device ledger), the device ledger, whose refusals stand in for out of memory
+// and whose every report says "simulated". In the ledger a refused map grant means the keyframes
+// it would have held are not loaded; a refused co-tenant grant fails that request.
+//
+// Order: the map process builds its loop first (the bounded policies' arena reserved and
+// pre-faulted: their budget is resident before the co-tenant starts), then the co-tenant starts,
+// and the first frame arrives at the co-tenant supervisor's origin: the one clock (CLOCK_MONOTONIC
+// seconds since it) of ticks.jsonl's wall_s and the co-tenant's per-request times.
+//
+// Whichever process inside is killed, the runner writes summary.json: map.outcome says whether
+// the map process completed or was killed, with the metrics over the ticks it managed.
 #pragma once
 
 #include <atomic>
+#include <cstdint>
+#include <functional>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "common/status.h"
+#include "harness/cgroup.h"
+#include "harness/device_model.h"
 #include "harness/experiment_profile.h"
 #include "harness/run.h"
 
@@ -22,14 +40,44 @@ namespace zm {
 struct DeviceRunRequest {
   std::string scenario_dir;
   std::string out_dir;
-  ExperimentProfile profile;
+  ExperimentProfile profile;  // at full size: the run applies device_scale
+  // --device: cgroup (falls back to the ledger unless device_explicit) or ledger.
+  DeviceKind device = DeviceKind::kCgroup;
+  bool device_explicit = false;
+  double device_scale = 1.0;  // --device-scale S, 0 < S <= 1
   bool with_cotenant = false;
-  double cotenant_scale = 1.0;    // weights multiplier (tests, CI); the report states it
+  // --time-compression X (> 0: real-time frames at the profile's rate, X frames-clock seconds
+  // per wall second; 0: every frame as fast as the loop goes). The same for every compared run.
+  double time_compression = 0.0;
+  // Co-tenant requests, paced identically for every policy: `cotenant_requests` of them spread
+  // over the patrol (one every duration / N of the frames' clock, i.e. duration / (N X) wall s);
+  // cotenant_period_s > 0 sets the wall period instead (unpaced replays: 1 s by default).
+  std::uint32_t cotenant_requests = 30;
+  double cotenant_period_s = 0.0;
+  // After the map process ends, how long (wall s) requests still in flight may finish.
+  double cotenant_drain_s = 30.0;
   bool verify_checksums = false;
-  double pace_speedup = 0.0;  // see RunRequest
+  // Tests and tools: where the device is made.
+  CgroupOptions cgroup;         // prefix, parent (limit_bytes is set from the profile)
+  std::string ledger_path;      // "" = RUNDIR/.ledger-<pid>
+  std::string cotenant_executable;  // "" = FindCotenantExecutable()
+  // Runs in the map process, inside the device, before its loop is built (tests: make it
+  // allocate until the kernel kills it). Empty: none.
+  std::function<void()> map_child_hook;
+  // Runs in the map process after each tick (tests: a deliberately slow tick). Empty: none.
+  std::function<void(const TickLoop&)> map_tick_hook;
+  // Called once the device is open, before anything runs in it (tests: another ledger tenant).
+  std::function<void(DeviceModel&)> on_device;
 };
 
 [[nodiscard]] Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request,
                                                  const std::atomic<bool>* stop = nullptr);
+
+// The summary of a map process that did not finish (killed): the metrics over the ticks it
+// managed, from RUNDIR/ticks.jsonl, RUNDIR/estimate.tum and RUNDIR/map_start.json, with every key
+// a complete run's summary has (0 where nothing was measured). Exposed for tests.
+[[nodiscard]] Result<nlohmann::json> SummarizePartialRun(const std::string& scenario_dir,
+                                                         const std::string& out_dir,
+                                                         double time_compression);
 
 }  // namespace zm

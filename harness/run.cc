@@ -4,13 +4,15 @@
 
 #include <algorithm>
 #include <chrono>
-#include <thread>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <numeric>
 
 #include "geometry/metrics.h"
+#include "harness/cotenant.h"
+#include "harness/realtime_frames.h"
+#include "runtime/estimate_writer.h"
 #include "geometry/trajectory.h"
 #include "sim/scenario.h"
 
@@ -60,61 +62,102 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   }
 
   LoopConfig config = request.loop;
-  config.loop.rate_hz = scenario.rate_hz;  // the recorded frames' own rate
+  const bool realtime = request.time_compression > 0.0;
+  // Real-time frames come at the profile's rate (RTAB-Map's detection rate); an unpaced replay
+  // takes every recorded frame, at the recording's own rate.
+  if (!realtime) config.loop.rate_hz = scenario.rate_hz;
+  std::unique_ptr<RealtimeFrameSource> rt;
+  FrameSource* source = frames.get();
+  if (realtime) {
+    ZM_ASSIGN_OR_RETURN(rt, RealtimeFrameSource::Create(
+                                *frames, {.rate_hz = config.loop.rate_hz,
+                                          .time_compression = request.time_compression}));
+    source = rt.get();
+  }
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<TickLoop> loop,
-                      TickLoop::Create(config, *db, *frames,
+                      TickLoop::Create(config, *db, *source,
                                        {.route = std::move(route), .oracle_future = std::move(future)}));
+  EstimateWriter estimate_out;
+  ZM_RETURN_IF_ERROR(estimate_out.Open(request.out_dir + "/estimate.tum"));
   // The estimate: one pose per processed frame (a replay is finite: reserved for all of them).
   Trajectory estimate;
   estimate.stamps_s.reserve(scenario.frames);
   estimate.poses.reserve(scenario.frames);
   bool interrupted = false;
-  const auto wall0 = std::chrono::steady_clock::now();
-  double stamp0 = -1.0;
+  double origin = MonotonicSeconds();
+  if (request.on_ready) {
+    ZM_ASSIGN_OR_RETURN(origin, request.on_ready(*loop));
+  }
+  if (rt) rt->set_origin_mono_s(origin);
+  const std::uint32_t flush = std::max<std::uint32_t>(1, request.telemetry.flush_ticks);
   for (;;) {
     if (stop != nullptr && stop->load()) {
       interrupted = true;
       break;
+    }
+    if (rt) {
+      // Wait for the next frame outside the tick: a robot's loop sleeps there too.
+      ZM_RETURN_IF_ERROR(rt->WaitForFrame());
+      if (!rt->FrameWaiting()) {
+        ZM_ASSIGN_OR_RETURN(double at, rt->NextArrival());
+        if (std::isfinite(at)) continue;  // woken early (a signal): check the stop flag again
+      }
     }
     ZM_ASSIGN_OR_RETURN(bool more, loop->Tick());
     if (!more) break;
     const TickRecord& rec = loop->last_record();
     estimate.stamps_s.push_back(rec.stamp_s);
     estimate.poses.push_back(rec.pose);
-    const std::string_view extra = request.on_tick ? request.on_tick(*loop) : std::string_view();
+    (void)estimate_out.Write(rec.stamp_s, rec.pose);
+    TickClock clock;
+    clock.wall_s = MonotonicSeconds() - origin;
+    clock.frames_arrived = rt ? rt->frames_arrived() : rec.tick + 1;
+    clock.frames_dropped = rt ? rt->frames_dropped() : 0;
+    const std::string_view extra = request.on_tick ? request.on_tick(*loop, clock) : std::string_view();
     telemetry.Write(rec, extra);
-    if (request.telemetry.flush_ticks != 0 && (rec.tick + 1) % request.telemetry.flush_ticks == 0) {
+    if ((rec.tick + 1) % flush == 0) {
+      estimate_out.Flush();  // first: a tick on disk always has its pose on disk
       telemetry.Flush();
     }
-    // The idle part of the tick (time-sliced loads): until the next frame is due on the
-    // frames' clock (the frame period after this tick started), or on the paced clock.
-    if (request.pace_speedup > 0) {
-      const double stamp = loop->last_record().stamp_s;
-      if (stamp0 < 0) stamp0 = stamp;
-      const auto at = [&](double s) {
-        return wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                           std::chrono::duration<double>((s - stamp0) / request.pace_speedup));
-      };
-      // This pacing starts the next tick at the paced time of this frame's stamp (one frame
-      // period after this tick was due): that is when the next frame is due.
-      (void)loop->Idle(at(stamp));
-      std::this_thread::sleep_until(at(stamp));
+    // The idle part of the tick (time-sliced loads): until the next frame arrives (real-time
+    // frames; it also stops as soon as one is waiting), else one frame period after this tick
+    // started.
+    if (rt) {
+      ZM_ASSIGN_OR_RETURN(double at, rt->NextArrival());
+      if (std::isfinite(at)) {
+        (void)loop->Idle(std::chrono::steady_clock::time_point(
+            std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                std::chrono::duration<double>(at))));
+      }
     } else {
       (void)loop->Idle();
     }
   }
+  const double wall_s = MonotonicSeconds() - origin;
   telemetry.Flush();
   telemetry.Close();
+  estimate_out.Close();
 
   // Trajectory metrics: the estimate lives in the map frame, so ATE unaligned, and SE(3)-aligned
   // beside it (docs/evaluation.md).
   const LoopTotals& t = loop->totals();
-  ZM_RETURN_IF_ERROR(WriteTrajectory(request.out_dir + "/estimate.tum", estimate,
-                                     TrajectoryFormat::kTum));
   nlohmann::json s = LoopSummary(*loop, interrupted);
   s["profile"] = request.profile_name;
   s["scenario"] = scenario.dir;
-  s["pace_speedup"] = request.pace_speedup;
+  // Frames: real time or not, stated in every summary (issue 17 §4).
+  s["time_compression"] = request.time_compression;
+  s["realtime_frames"] = realtime;
+  s["frames_arrived"] = rt ? rt->frames_arrived() : t.ticks;
+  s["frames_dropped"] = rt ? rt->frames_dropped() : 0;
+  s["frames_not_taken"] = rt ? rt->frames_not_taken() : 0;
+  s["wall_s"] = wall_s;
+  s["wall_origin_mono_s"] = origin;
+  if (realtime) {
+    // What the robot got: frames processed per second of the frames' clock.
+    s["update_rate_model_hz"] = s["update_rate_hz"];
+    const double frames_clock_s = wall_s * request.time_compression;
+    s["update_rate_hz"] = frames_clock_s > 0 ? static_cast<double>(t.ticks) / frames_clock_s : 0.0;
+  }
   s["ate_rmse_m"] = nullptr;
   s["ate_se3_rmse_m"] = nullptr;
   s["rpe_trans_rmse_m"] = nullptr;

@@ -1,22 +1,31 @@
 #!/usr/bin/env python3
-"""Figures of a `zonemap bench` output directory (matplotlib, PNG).
+"""Figures of a `zonemap bench` output directory (matplotlib, PNG): the paper's four figures
+from the runs themselves (issue 17 §6), plus the zone map and the tick latency.
 
-Reads OUT/runs/<scenario>/<run>/{summary.json,ticks.jsonl,estimate.tum,cotenant.json} and
-OUT/scenarios/<scenario>/{zones.geojson,localization_gt.tum} and writes OUT/figures/:
+Reads OUT/runs/<scenario>/<run>/{summary.json,ticks.jsonl,estimate.tum,cotenant.jsonl,
+cotenant.json} and OUT/scenarios/<scenario>/{zones.geojson,localization_gt.tum}; writes
+OUT/figures/:
 
-  memory_<scenario>.png        resident keyframes over time per policy, with and without the
-                               co-tenant (the paper's memory-usage figure), MemoryThr marked
-  trajectories_<scenario>.png  ground truth against each policy's estimate, loop closures marked
+  memory_<scenario>.png        (a) memory over time in BYTES, Basic + VLM and Semantic + VLM side
+                               by side (same axes): the map process's RSS, the co-tenant's RSS,
+                               the device's usage (the cgroup's charge, or the ledger's sum), the
+                               device limit, the map's MemoryThr in bytes; OOM kills and
+                               co-tenant deaths marked
+  trajectories_<scenario>.png  (b) ground truth, Basic only, Basic + VLM and Semantic + VLM in one
+                               plot, Basic + VLM's last accepted loop closure marked
+  cotenant_<scenario>.png      (c) the co-tenant's tokens/s and latency per request as PDF and CDF,
+                               one curve per policy (stand-in co-tenant)
+  cotenant_path_<scenario>.png (d) tokens/s and latency along the robot's path, one panel per
+                               policy (each request placed where the robot was when it ended)
   zones_<scenario>.png         the zone map with the route, coloured by the active zone
-  cotenant_<scenario>.png      co-tenant tokens/s and latency per policy (distributions), and
-                               tokens/s along the robot's path (stand-in co-tenant)
-  latency_<scenario>.png       tick time per policy after start-up: its CDF (log time axis,
-                               p99 marked) and its tail (the share of ticks slower than t, log-log:
-                               the slow ticks a load inside a tick makes) (issue 14)
+  latency_<scenario>.png       tick time per policy after start-up: CDF and tail (issue 14)
+  trajectories_all_<scenario>.png  every policy's estimate apart (only when more policies ran
+                               than the paper's two)
 
-Usage: scripts/plots.py OUT
+Every figure states the device (cgroup or simulated ledger), its scale and the time compression.
+
+Usage: scripts/plots.py OUT      (OUT may also be one run directory)
 """
-import json
 import math
 import os
 import sys
@@ -26,6 +35,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runs as R  # noqa: E402
+
 POLICY_COLOURS = {
     "unbounded": "#7f7f7f",
     "basic": "#d62728",
@@ -34,116 +46,370 @@ POLICY_COLOURS = {
     "predictive": "#2ca02c",
     "oracle": "#9467bd",
 }
-
-
-def read_jsonl(path):
-    rows = []
-    with open(path) as f:
-        for line in f:
-            line = line.strip()
-            if line:
-                rows.append(json.loads(line))
-    return rows
-
-
-def read_tum(path):
-    pts = []
-    if not os.path.exists(path):
-        return pts
-    with open(path) as f:
-        for line in f:
-            if not line.strip() or line.startswith("#"):
-                continue
-            v = line.split()
-            pts.append((float(v[0]), float(v[1]), float(v[2])))
-    return pts
-
-
-def runs_of(out, scenario):
-    base = os.path.join(out, "runs", scenario)
-    runs = []
-    if not os.path.isdir(base):
-        return runs
-    for name in sorted(os.listdir(base)):
-        d = os.path.join(base, name)
-        s = os.path.join(d, "summary.json")
-        if os.path.exists(s):
-            with open(s) as f:
-                runs.append((name, d, json.load(f)))
-    return runs
+# The four configurations of the paper: colour by policy, line style by co-tenant.
+CONFIG_STYLE = {
+    ("basic", False): dict(color="#ff9896", ls="-"),
+    ("basic", True): dict(color="#d62728", ls="-"),
+    ("semantic", False): dict(color="#aec7e8", ls="-"),
+    ("semantic", True): dict(color="#1f77b4", ls="-"),
+}
+GB = 1e9
 
 
 def colour(policy):
     return POLICY_COLOURS.get(policy, "#17becf")
 
 
-def plot_memory(out, scenario, runs, fig_dir):
-    with_ct = [r for r in runs if r[2].get("cotenant")]
-    without = [r for r in runs if not r[2].get("cotenant")]
-    panels = [("without co-tenant", without), ("with co-tenant (stand-in)", with_ct)]
-    panels = [p for p in panels if p[1]]
-    if not panels:
-        return
-    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.6 * len(panels)), squeeze=False)
-    for ax, (title, group) in zip(axes[:, 0], panels):
-        thr = None
-        for name, d, s in group:
-            ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
-            if not ticks:
-                continue
-            xs = [t["tick"] for t in ticks]
-            ys = [t["resident_keyframes"] for t in ticks]
-            label = f'{run_label(s)} (peak {s.get("peak_resident_keyframes", max(ys))})'
-            ax.plot(xs, ys, color=colour(s["policy"]), lw=1.2, label=label)
-            if s["policy"] not in ("unbounded",):
-                thr = s.get("k_max", thr)
-        if thr:
-            ax.axhline(thr, color="k", ls="--", lw=0.8, label=f"MemoryThr = {thr}")
-        ax.set_title(f"{scenario}: resident keyframes, {title}")
-        ax.set_xlabel("tick")
-        ax.set_ylabel("resident keyframes")
-        ax.legend(fontsize=8, loc="upper right")
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(fig_dir, f"memory_{scenario}.png"), dpi=110)
+def style(run):
+    return CONFIG_STYLE.get((run.policy, run.with_vlm), dict(color=colour(run.policy), ls="--"))
+
+
+def savefig(fig, fig_dir, name):
+    fig.savefig(os.path.join(fig_dir, name), dpi=110)
     plt.close(fig)
 
 
-def plot_trajectories(out, scenario, runs, fig_dir):
-    gt = read_tum(os.path.join(out, "scenarios", scenario, "localization_gt.tum"))
-    group = [r for r in runs if not r[2].get("cotenant")] or runs
+def footnote(fig, run):
+    fig.text(0.005, 0.005, R.device_text(run) + "; co-tenant: a stand-in for VLM decoding",
+             fontsize=7, color="#555555", ha="left", va="bottom")
+
+
+def vlm_runs(runs):
+    """The co-tenant runs to set side by side: Basic + VLM and Semantic + VLM first, then any
+    other policy's (the bench matrix), one model: the profile's (the first co-tenant run's)."""
+    with_ct = [r for r in runs if r.with_vlm and "unsliced" not in r.label]
+    if not with_ct:
+        return []
+    model = (R.pick(runs, "basic", True) or R.pick(runs, "semantic", True) or with_ct[0]).model
+    chosen = [R.pick(runs, p, True, model) for p in ("basic", "semantic")]
+    chosen = [r for r in chosen if r is not None]
+    for r in with_ct:
+        if r.model == model and r.policy not in ("basic", "semantic") and r not in chosen:
+            chosen.append(r)
+    return chosen
+
+
+# (a) memory over time, in bytes ----------------------------------------------------------------
+
+def plot_memory(scenario, runs, fig_dir):
+    group = vlm_runs(runs)
+    if not group:  # no co-tenant ran: each policy's own memory, still in bytes
+        group = [r for r in (R.pick(runs, "basic", False), R.pick(runs, "semantic", False)) if r]
+        group = group or runs[:2]
     if not group:
         return
+    fig, axes = plt.subplots(1, len(group), figsize=(6.5 * len(group), 4.6), squeeze=False,
+                             sharey=True)
+    for ax, run in zip(axes[0], group):
+        ticks = run.ticks()
+        if not ticks:
+            ax.set_title(f"{run.label}: no ticks")
+            continue
+        xs, xlabel = run.tick_times()
+        d = run.s.get("device") or {}
+        have_device = any("device_usage_bytes" in t for t in ticks)
+
+        def series(key):
+            return [t.get(key, math.nan) / GB if t.get(key) is not None else math.nan for t in ticks]
+
+        if any("map_rss_bytes" in t for t in ticks):
+            ax.plot(xs, series("map_rss_bytes"), color=style(run)["color"], lw=1.4,
+                    label="map process (RSS)")
+        else:  # before issue 17: the keyframes the map held
+            ax.plot(xs, series("resident_bytes"), color=style(run)["color"], lw=1.4,
+                    label="map: resident keyframe bytes (no RSS recorded)")
+        if any("cotenant_rss_bytes" in t for t in ticks):
+            ax.plot(xs, series("cotenant_rss_bytes"), color="#2ca02c", lw=1.2,
+                    label="co-tenant (RSS, stand-in)")
+        if have_device:
+            ax.plot(xs, series("device_usage_bytes"), color="k", lw=1.0, alpha=0.8,
+                    label=f'device usage ({d.get("kind", "?")})')
+        limit = d.get("limit_bytes")
+        if not limit and d.get("memory_bytes"):
+            limit = d["memory_bytes"] - d.get("os_reserve_bytes", 0)
+        if limit:
+            ax.axhline(limit / GB, color="k", ls="--", lw=1.0,
+                       label=f"device limit {limit / GB:.2f} GB")
+        if run.k_max and run.s.get("slot_bytes"):
+            thr = run.k_max * run.s["slot_bytes"]
+            ax.axhline(thr / GB, color=style(run)["color"], ls=":", lw=1.0,
+                       label=f"MemoryThr {run.k_max} kf = {thr / GB:.2f} GB")
+        # OOM kills: where the device's counter steps up.
+        prev, kills = 0, []
+        for x, t in zip(xs, ticks):
+            k = t.get("oom_kills", t.get("oom_events", 0)) or 0
+            if k > prev:
+                kills.append((x, k - prev))
+            prev = max(prev, k)
+        for i, (x, n) in enumerate(kills):
+            ax.axvline(x, color="#9467bd", lw=1.2, ls="-.",
+                       label=f"OOM kill ({sum(k for _, k in kills)} in all)" if i == 0 else None)
+            ax.annotate(f"OOM x{n}" if n > 1 else "OOM", (x, 0.0),
+                        xycoords=("data", "axes fraction"), xytext=(2, 4),
+                        textcoords="offset points", fontsize=7, color="#9467bd")
+        for i, x in enumerate(run.cotenant_deaths()):
+            ax.plot([x], [0.97], marker="v", color="#2ca02c", ms=9, transform=ax.get_xaxis_transform(),
+                    ls="none", label="co-tenant killed (restarted)" if i == 0 else None)
+        if xlabel == "wall clock (s)" and ticks[0].get("startup") and xs[0] > 0:
+            # The start-up tick loads the map's last working memory before any frame is
+            # processed: its wall time, and the frames that arrived meanwhile, are dropped frames.
+            ax.axvspan(0, xs[0], color="#dddddd", alpha=0.6, zorder=0,
+                       label=f"start-up load ({xs[0]:.0f} s, {ticks[0].get('tick_ms', 0) / 1e3:.0f} s"
+                             " tick; frames dropped)")
+            ax.set_xlim(left=0)
+        outcome = (run.s.get("map") or {}).get("outcome")
+        ct = run.s.get("cotenant") or {}
+        title = run.label + (f" ({run.model})" if run.with_vlm else "")
+        sub = []
+        if outcome:
+            sub.append(f"map {outcome}")
+        if ct.get("outcome"):
+            sub.append(f'co-tenant {ct.get("symbol", "")} {ct["outcome"]}'.replace("  ", " "))
+        if d.get("peak_bytes"):
+            sub.append(f'peak {d["peak_bytes"] / GB:.2f} GB')
+        ax.set_title(title + ("\n" + ", ".join(sub) if sub else ""), fontsize=10)
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+        ax.set_ylim(bottom=0)
+    axes[0][0].set_ylabel("memory (GB)")
+    fig.suptitle(f"{scenario}: memory over time", fontsize=11)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    footnote(fig, group[0])
+    savefig(fig, fig_dir, f"memory_{scenario}.png")
+
+
+# (b) trajectories ------------------------------------------------------------------------------
+
+def last_closure(run):
+    """(x, y, time, tick) of the last tick with an accepted loop closure, or None."""
+    ticks = run.ticks()
+    xs, _ = run.tick_times()
+    for x_t, t in zip(reversed(xs), reversed(ticks)):
+        if t.get("loop_closure"):
+            return t.get("x"), t.get("y"), x_t, t.get("tick")
+    return None
+
+
+def plot_trajectories(out, scenario, runs, fig_dir):
+    gt = R.read_tum(os.path.join(out, "scenarios", scenario, "localization_gt.tum"))
+    chosen = [(R.pick(runs, p, v), p, v) for p, v in R.CONFIGS]
+    chosen = [(r, p, v) for r, p, v in chosen if r is not None]
+    if not chosen and not gt:
+        return
+    fig, ax = plt.subplots(figsize=(10, 8))
+    if gt:
+        ax.plot([p[1] for p in gt], [p[2] for p in gt], color="k", lw=1.6, zorder=2,
+                label="ground truth")
+    for run, p, v in chosen:
+        est = R.read_tum(os.path.join(run.path, "estimate.tum"))
+        if not est:
+            continue
+        ate = run.s.get("ate_rmse_m")
+        st = style(run)
+        ax.plot([q[1] for q in est], [q[2] for q in est], color=st["color"], lw=1.0, zorder=3,
+                ls="--" if not v else "-",
+                label=f'{R.config_name(p, v)} (ATE {ate:.2f} m, {run.s.get("loop_closures", "?")} '
+                      f'loop closures)' if ate is not None else R.config_name(p, v))
+    b = R.pick(runs, "basic", True)
+    if b is not None:
+        lc = last_closure(b)
+        if lc and lc[0] is not None:
+            ax.scatter([lc[0]], [lc[1]], marker="*", s=260, color="#d62728", edgecolor="k",
+                       zorder=5, label=f"Basic + VLM: last accepted loop closure (tick {lc[3]})")
+        est = R.read_tum(os.path.join(b.path, "estimate.tum"))
+        if est and (b.s.get("map") or {}).get("outcome") == "killed":
+            ax.scatter([est[-1][1]], [est[-1][2]], marker="X", s=120, color="#9467bd", zorder=5,
+                       label="Basic + VLM: map process killed here")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{scenario}: trajectories (estimate in the map frame, unaligned)")
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(alpha=0.2)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    if chosen:
+        footnote(fig, chosen[0][0])
+    savefig(fig, fig_dir, f"trajectories_{scenario}.png")
+
+
+def plot_trajectories_all(out, scenario, runs, fig_dir):
+    """Every policy's estimate in a panel of its own: the bench matrix beyond the paper's two."""
+    group = [r for r in runs if not r.with_vlm]
+    if len({r.policy for r in group}) <= 2:
+        return
+    gt = R.read_tum(os.path.join(out, "scenarios", scenario, "localization_gt.tum"))
     n = len(group)
     cols = min(3, n)
     rows = math.ceil(n / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(5 * cols, 4.5 * rows), squeeze=False)
-    for i, (name, d, s) in enumerate(group):
+    for i, run in enumerate(group):
         ax = axes[i // cols][i % cols]
         if gt:
-            ax.plot([p[1] for p in gt], [p[2] for p in gt], color="k", lw=0.8, zorder=2,
-                    label="ground truth")
-        est = read_tum(os.path.join(d, "estimate.tum"))
+            ax.plot([p[1] for p in gt], [p[2] for p in gt], color="k", lw=0.8, label="ground truth")
+        est = R.read_tum(os.path.join(run.path, "estimate.tum"))
         if est:
-            ax.plot([p[1] for p in est], [p[2] for p in est], color=colour(s["policy"]), lw=0.8, zorder=3,
-                    label=f'{run_label(s)} (ATE {s.get("ate_rmse_m", float("nan")):.2f} m)')
-        ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
-        lc = [(t["x"], t["y"]) for t in ticks if t.get("loop_closure")]
-        if lc:
-            shown = lc[:: max(1, len(lc) // 150)]  # a mark per stretch, not per tick
-            ax.scatter([p[0] for p in shown], [p[1] for p in shown], s=3, alpha=0.5,
-                       color="#bcbd22", zorder=1, label=f"loop closures ({len(lc)}, subsampled)")
+            ax.plot([p[1] for p in est], [p[2] for p in est], color=colour(run.policy), lw=0.8,
+                    label=f'{run.label} (ATE {run.s.get("ate_rmse_m", float("nan")):.2f} m)')
         ax.set_aspect("equal")
-        ax.set_title(name, fontsize=9)
+        ax.set_title(run.name, fontsize=9)
         ax.legend(fontsize=7)
     for j in range(n, rows * cols):
         axes[j // cols][j % cols].axis("off")
     fig.tight_layout()
-    fig.savefig(os.path.join(fig_dir, f"trajectories_{scenario}.png"), dpi=110)
-    plt.close(fig)
+    savefig(fig, fig_dir, f"trajectories_all_{scenario}.png")
 
+
+# (c) co-tenant tokens/s and latency: PDF and CDF -----------------------------------------------
+
+def pdf_step(ax, values, span, **kw):
+    """A density histogram drawn as a step curve, on bins shared by every run of the panel (with
+    ~30 requests per run a histogram is honest; no smoothing is invented)."""
+    import numpy as np
+    v = np.asarray(values, dtype=float)
+    if v.size == 0:
+        return
+    bins = max(5, min(30, int(math.sqrt(v.size)) * 2))
+    lo, hi = span
+    if hi <= lo:
+        hi = lo + max(1e-9, abs(lo) * 0.01)
+    h, edges = np.histogram(v, bins=bins, range=(lo, hi), density=True)
+    ax.stairs(h, edges, **kw)
+
+
+def cdf_step(ax, values, **kw):
+    v = sorted(values)
+    n = len(v)
+    if n:
+        ax.step(v, [(i + 1) / n for i in range(n)], where="post", **kw)
+
+
+def plot_cotenant(scenario, runs, fig_dir):
+    group = [r for r in vlm_runs(runs) if r.requests()]
+    if not group:
+        return
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8))
+    all_tps = [q["tokens_per_s"] for r in group for q in r.requests()]
+    all_lat = [q["latency_ms"] / 1000.0 for r in group for q in r.requests()]
+    tps_span, lat_span = (min(all_tps), max(all_tps)), (min(all_lat), max(all_lat))
+    for run in group:
+        req = run.requests()
+        tps = [q["tokens_per_s"] for q in req]
+        lat = [q["latency_ms"] / 1000.0 for q in req]
+        ct = run.s.get("cotenant") or {}
+        lab = f'{run.label}: {len(req)} requests, {ct.get("symbol", "")} {ct.get("outcome", "")}'.strip()
+        st = style(run)
+        pdf_step(axes[0][0], tps, tps_span, color=st["color"], lw=1.5, label=lab)
+        cdf_step(axes[0][1], tps, color=st["color"], lw=1.5, label=lab)
+        pdf_step(axes[1][0], lat, lat_span, color=st["color"], lw=1.5, label=lab)
+        cdf_step(axes[1][1], lat, color=st["color"], lw=1.5, label=lab)
+    axes[0][0].set_xlabel("decode tokens/s per request")
+    axes[0][1].set_xlabel("decode tokens/s per request")
+    axes[1][0].set_xlabel("request latency (s)")
+    axes[1][1].set_xlabel("request latency (s)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("probability density")
+    for ax in axes[:, 1]:
+        ax.set_ylabel("fraction of requests")
+        ax.set_ylim(0, 1.02)
+    for ax in axes.flat:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0][0].set_title("tokens/s: PDF")
+    axes[0][1].set_title("tokens/s: CDF")
+    axes[1][0].set_title("latency: PDF")
+    axes[1][1].set_title("latency: CDF")
+    fig.suptitle(f"{scenario}: the co-tenant beside the map ({group[0].model}, stand-in)",
+                 fontsize=11)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    footnote(fig, group[0])
+    savefig(fig, fig_dir, f"cotenant_{scenario}.png")
+
+
+# (d) tokens/s and latency along the robot's path -----------------------------------------------
+
+def position_at(run, wall_s):
+    """Where the robot was (the tick's x, y) at a wall-clock time: the last tick at or before it."""
+    ticks = run.ticks()
+    xs, _ = run.tick_times()
+    if not ticks:
+        return None
+    import bisect
+    i = bisect.bisect_right(xs, wall_s) - 1
+    i = min(max(i, 0), len(ticks) - 1)
+    t = ticks[i]
+    if "x" not in t:
+        return None
+    when = "after" if wall_s > xs[-1] + 1.0 else "startup" if wall_s < xs[0] else "during"
+    return t["x"], t["y"], when  # after the last tick the map had stopped; before the first it loaded
+
+
+def plot_cotenant_path(out, scenario, runs, fig_dir):
+    group = [r for r in vlm_runs(runs) if r.requests()]
+    if not group:
+        return
+    gt = R.read_tum(os.path.join(out, "scenarios", scenario, "localization_gt.tum"))
+    cols = len(group)
+    fig, axes = plt.subplots(2, cols, figsize=(6 * cols, 9.5), squeeze=False)
+    placed = {}
+    for run in group:
+        pts = []
+        for q in run.requests():
+            p = position_at(run, q["wall_s"])
+            if p is not None:
+                pts.append((p[0], p[1], q["tokens_per_s"], q["latency_ms"] / 1000.0, p[2]))
+        placed[run.name] = pts
+    all_pts = [p for v in placed.values() for p in v]
+    if not all_pts:
+        plt.close(fig)
+        return
+    ranges = [(min(p[2] for p in all_pts), max(p[2] for p in all_pts)),
+              (min(p[3] for p in all_pts), max(p[3] for p in all_pts))]
+    for c, run in enumerate(group):
+        pts = placed[run.name]
+        for row, (key, cmap, lab) in enumerate([(2, "viridis", "tokens/s"),
+                                                (3, "magma_r", "latency (s)")]):
+            ax = axes[row][c]
+            if gt:
+                ax.plot([p[1] for p in gt], [p[2] for p in gt], color="#bbbbbb", lw=0.8, zorder=1)
+            ticks = run.ticks()
+            if ticks and "x" in ticks[0]:
+                ax.plot([t["x"] for t in ticks], [t["y"] for t in ticks], color="#666666",
+                        lw=0.6, zorder=2)
+            during = [p for p in pts if p[4] == "during"]
+            after = [p for p in pts if p[4] == "after"]
+            startup = [p for p in pts if p[4] == "startup"]
+            sc = None
+            for sub, marker, note in ((during, "o", None),
+                                      (startup, "s", "ended during the map's start-up load "
+                                                     "(placed at the start pose)"),
+                                      (after, "X", "ended after the map stopped (placed at its "
+                                                   "last pose)")):
+                if sub:
+                    sc = ax.scatter([p[0] for p in sub], [p[1] for p in sub],
+                                    c=[p[key] for p in sub], cmap=cmap, vmin=ranges[row][0],
+                                    vmax=ranges[row][1], s=36 if marker == "o" else 60,
+                                    marker=marker, edgecolor="k", linewidth=0.3, zorder=3,
+                                    label=f"{len(sub)} {note}" if note else None)
+            if sc is not None:
+                fig.colorbar(sc, ax=ax, label=lab, shrink=0.8)
+            if after or startup:
+                ax.legend(fontsize=7, loc="lower right")
+            ax.set_aspect("equal")
+            ax.set_title(f"{run.label}: {lab} ({len(pts)} requests)", fontsize=10)
+            ax.set_xlabel("x (m)")
+            ax.set_ylabel("y (m)")
+    fig.suptitle(f"{scenario}: the co-tenant along the robot's path (each request where the "
+                 f"robot was when it ended)", fontsize=11)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    footnote(fig, group[0])
+    savefig(fig, fig_dir, f"cotenant_path_{scenario}.png")
+
+
+# The zone map and the tick latency (kept from before issue 17) --------------------------------
 
 def plot_zones(out, scenario, runs, fig_dir):
+    import json
     path = os.path.join(out, "scenarios", scenario, "zones.geojson")
     if not os.path.exists(path):
         return
@@ -153,93 +419,30 @@ def plot_zones(out, scenario, runs, fig_dir):
     cmap = plt.get_cmap("tab20")
     for i, feat in enumerate(gj.get("features", [])):
         ring = feat["geometry"]["coordinates"][0]
-        xs = [p[0] for p in ring]
-        ys = [p[1] for p in ring]
         kind = feat.get("properties", {}).get("kind", "")
-        ax.fill(xs, ys, color=cmap(i % 20), alpha=0.25 if kind != "corridor" else 0.12)
-        ax.plot(xs, ys, color="k", lw=0.3)
-    semantic = [r for r in runs if r[2]["policy"] == "semantic" and not r[2].get("cotenant")]
-    if semantic:
-        ticks = read_jsonl(os.path.join(semantic[0][1], "ticks.jsonl"))
-        xs = [t["x"] for t in ticks]
-        ys = [t["y"] for t in ticks]
-        zs = [t["zone"] for t in ticks]
-        sc = ax.scatter(xs, ys, c=zs, cmap="tab20", s=2)
+        ax.fill([p[0] for p in ring], [p[1] for p in ring], color=cmap(i % 20),
+                alpha=0.25 if kind != "corridor" else 0.12)
+        ax.plot([p[0] for p in ring], [p[1] for p in ring], color="k", lw=0.3)
+    sem = R.pick(runs, "semantic", False) or R.pick(runs, "semantic", True)
+    if sem is not None and sem.ticks() and "zone" in sem.ticks()[0]:
+        t = sem.ticks()
+        sc = ax.scatter([q["x"] for q in t], [q["y"] for q in t], c=[q["zone"] for q in t],
+                        cmap="tab20", s=2)
         fig.colorbar(sc, ax=ax, label="active zone id along the route (semantic)")
     ax.set_aspect("equal")
     ax.set_title(f"{scenario}: zones and the patrol route")
     fig.tight_layout()
-    fig.savefig(os.path.join(fig_dir, f"zones_{scenario}.png"), dpi=110)
-    plt.close(fig)
+    savefig(fig, fig_dir, f"zones_{scenario}.png")
 
 
-def plot_cotenant(out, scenario, runs, fig_dir):
-    group = [r for r in runs if r[2].get("cotenant")]
-    if not group:
-        return
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
-    labels, tps, lat = [], [], []
-    for name, d, s in group:
-        ct = s["cotenant"]
-        labels.append(f'{s["policy"]}\n{ct.get("model", "")}')
-        path = os.path.join(d, "cotenant.json")
-        detail = {}
-        if os.path.exists(path):
-            with open(path) as f:
-                detail = json.load(f)
-        per = detail.get("per_request") or []
-        tps.append([p[1] for p in per] or [ct.get("tokens_per_s") or 0.0])
-        lat.append([p[2] for p in per] or [ct.get("latency_ms") or 0.0])
-    axes[0].boxplot(tps, labels=labels)
-    axes[0].set_title("co-tenant tokens/s per request (stand-in)")
-    axes[1].boxplot(lat, labels=labels)
-    axes[1].set_title("co-tenant latency per request, ms (stand-in)")
-    for name, d, s in group:
-        path = os.path.join(d, "cotenant.json")
-        if not os.path.exists(path):
-            continue
-        with open(path) as f:
-            detail = json.load(f)
-        per = detail.get("per_request") or []
-        ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
-        pace = s.get("pace_speedup") or 0.0
-        if not per or not ticks or pace <= 0:
-            continue
-        # Request end (wall seconds) -> frame stamp on the paced clock -> robot position.
-        t0 = ticks[0]["stamp"]
-        xs, ys, cs = [], [], []
-        for end_s, rate, _ in per:
-            stamp = t0 + end_s * pace
-            tick = min(ticks, key=lambda t: abs(t["stamp"] - stamp))
-            xs.append(tick["x"]); ys.append(tick["y"]); cs.append(rate)
-        sc = axes[2].scatter(xs, ys, c=cs, cmap="viridis", s=18, marker="o",
-                             label=s["policy"])
-    axes[2].set_title("tokens/s where each request ended (stand-in)")
-    axes[2].set_xlabel("x (m)")
-    axes[2].set_ylabel("y (m)")
-    axes[2].set_aspect("equal")
-    axes[2].legend(fontsize=8)
-    for ax in axes[:2]:
-        ax.tick_params(axis="x", labelsize=7)
-    fig.tight_layout()
-    fig.savefig(os.path.join(fig_dir, f"cotenant_{scenario}.png"), dpi=110)
-    plt.close(fig)
-
-
-def run_label(summary):
-    """A run's name in the figures: the policy, marked when its loads were not time-sliced."""
-    loads = summary.get("loads") or {}
-    return summary["policy"] + ("" if loads.get("sliced", True) else " (unsliced)")
-
-
-def plot_latency(out, scenario, runs, fig_dir):
-    group = [r for r in runs if not r[2].get("cotenant")] or runs
+def plot_latency(scenario, runs, fig_dir):
+    group = [r for r in runs if not r.with_vlm] or runs
     series = []
-    for name, d, s in group:
-        ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
-        ms = [t["tick_ms"] for t in ticks if not t.get("startup")]
+    for run in group:
+        ms = [t["tick_ms"] for t in run.ticks() if not t.get("startup") and "tick_ms" in t]
         if ms:
-            series.append((run_label(s), s["policy"], ms, (s.get("startup") or {}).get("tick_ms")))
+            series.append((run.s.get("policy_label") or run.policy, run.policy, ms,
+                           (run.s.get("startup") or {}).get("tick_ms")))
     if not series:
         return
     fig, axes = plt.subplots(1, 2, figsize=(15, 5))
@@ -247,12 +450,12 @@ def plot_latency(out, scenario, runs, fig_dir):
         v = sorted(ms)
         n = len(v)
         p99 = v[max(0, math.ceil(0.99 * n) - 1)]  # nearest rank, as StreamingStats
-        ls = "--" if lab.endswith("(unsliced)") else "-"
+        ls = "--" if lab.endswith("unsliced") else "-"
         axes[0].step(v, [(i + 1) / n for i in range(n)], where="post", color=colour(pol), ls=ls,
                      lw=1.3, label=f"{lab}: p99 {p99:.1f} ms, max {v[-1]:.0f} ms")
         axes[0].plot([p99], [0.99], "o", color=colour(pol), ms=4)
-        axes[1].step(v, [(n - i - 1) / n if i < n - 1 else 0.5 / n for i in range(n)], where="post",
-                     color=colour(pol), ls=ls, lw=1.3,
+        axes[1].step(v, [(n - i - 1) / n if i < n - 1 else 0.5 / n for i in range(n)],
+                     where="post", color=colour(pol), ls=ls, lw=1.3,
                      label=lab + (f" (start-up tick {startup:.0f} ms, apart)" if startup else ""))
     axes[0].set_xscale("log")
     axes[0].set_xlabel("tick time after start-up (ms, log scale)")
@@ -270,8 +473,7 @@ def plot_latency(out, scenario, runs, fig_dir):
     axes[1].legend(fontsize=7, loc="lower left")
     axes[1].grid(alpha=0.3, which="both")
     fig.tight_layout()
-    fig.savefig(os.path.join(fig_dir, f"latency_{scenario}.png"), dpi=110)
-    plt.close(fig)
+    savefig(fig, fig_dir, f"latency_{scenario}.png")
 
 
 def main():
@@ -279,19 +481,23 @@ def main():
         print(__doc__, file=sys.stderr)
         sys.exit(2)
     out = sys.argv[1]
+    found = R.find_runs(out)
+    if not found:
+        print(f"plots.py: no runs under {out} (expected {out}/runs/<scenario>/<run>/summary.json; "
+              "run `zonemap bench` first)", file=sys.stderr)
+        sys.exit(1)
+    single = os.path.exists(os.path.join(out, "summary.json"))
     fig_dir = os.path.join(out, "figures")
     os.makedirs(fig_dir, exist_ok=True)
-    runs_dir = os.path.join(out, "runs")
-    if not os.path.isdir(runs_dir):
-        print(f"plots.py: {runs_dir} does not exist (run `zonemap bench` first)", file=sys.stderr)
-        sys.exit(1)
-    for scenario in sorted(os.listdir(runs_dir)):
-        runs = runs_of(out, scenario)
-        plot_memory(out, scenario, runs, fig_dir)
+    for scenario, runs in found.items():
+        plot_memory(scenario, runs, fig_dir)
         plot_trajectories(out, scenario, runs, fig_dir)
-        plot_zones(out, scenario, runs, fig_dir)
-        plot_cotenant(out, scenario, runs, fig_dir)
-        plot_latency(out, scenario, runs, fig_dir)
+        plot_trajectories_all(out, scenario, runs, fig_dir)
+        plot_cotenant(scenario, runs, fig_dir)
+        plot_cotenant_path(out, scenario, runs, fig_dir)
+        if not single:
+            plot_zones(out, scenario, runs, fig_dir)
+        plot_latency(scenario, runs, fig_dir)
     print(f"plots.py: figures in {fig_dir}")
 
 
