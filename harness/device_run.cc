@@ -7,11 +7,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <array>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -114,22 +114,21 @@ bool ReadAll(int fd, void* p, std::size_t n) {
     const char byte = 1;
     if (!WriteAll(ready_fd, &byte, 1)) return IoError("map process: the runner is gone");
     double origin = 0.0;
-    if (!ReadAll(go_fd, &origin, sizeof origin)) return IoError("map process: no start from the runner");
+    if (!ReadAll(go_fd, &origin, sizeof origin))
+      return IoError("map process: no start from the runner");
     close(ready_fd);
     close(go_fd);
     return origin;
   };
   // The ledger's grant of the map process, and what a refusal does: the free slots are held back
   // so no keyframe loads until a later grant succeeds (reserved here: no allocation in a tick).
-  run.on_tick = [&, extra = std::array<char, 512>{}](const TickLoop& l,
-                                                     const TickClock& clock) mutable
-      -> std::string_view {
+  run.on_tick = [&, extra = std::array<char, 512>{}](
+                    const TickLoop& l, const TickClock& clock) mutable -> std::string_view {
     if (tenant) {
       // The arena is the loop's; between ticks nothing else touches it (one thread).
       Arena& arena = const_cast<Arena&>(l.arena());
       if (withheld.capacity() < arena.capacity()) withheld.reserve(arena.capacity());
-      const std::uint64_t slots = l.bounded() ? arena.capacity()
-                                              : arena.in_use() - withheld.size();
+      const std::uint64_t slots = l.bounded() ? arena.capacity() : arena.in_use() - withheld.size();
       const std::uint64_t want = l.config().map.overhead_bytes + slots * l.slot_bytes();
       if (want == tenant->bytes() || tenant->TryUpdate(want)) {
         for (SlotIndex s : withheld) arena.Release(s);
@@ -179,12 +178,27 @@ void FillMissing(nlohmann::json& s) {
   const auto zero = [&s](const char* k) {
     if (!s.contains(k)) s[k] = 0;
   };
-  for (const char* k : {"k_max", "slot_bytes", "arena_slots", "ticks", "loop_closures",
-                        "closures_rejected", "peak_resident_keyframes", "peak_resident_bytes",
-                        "over_budget_ticks", "max_over_budget_keyframes", "keyframes_loaded",
-                        "keyframes_unloaded", "zone_loads", "db_transactions", "db_queries",
-                        "db_blob_reads", "db_bytes_read", "frames_dropped", "frames_arrived",
-                        "alloc_failures", "stalled_ticks"}) {
+  for (const char* k : {"k_max",
+                        "slot_bytes",
+                        "arena_slots",
+                        "ticks",
+                        "loop_closures",
+                        "closures_rejected",
+                        "peak_resident_keyframes",
+                        "peak_resident_bytes",
+                        "over_budget_ticks",
+                        "max_over_budget_keyframes",
+                        "keyframes_loaded",
+                        "keyframes_unloaded",
+                        "zone_loads",
+                        "db_transactions",
+                        "db_queries",
+                        "db_blob_reads",
+                        "db_bytes_read",
+                        "frames_dropped",
+                        "frames_arrived",
+                        "alloc_failures",
+                        "stalled_ticks"}) {
     zero(k);
   }
   if (!s.contains("tick_ms")) {
@@ -194,8 +208,8 @@ void FillMissing(nlohmann::json& s) {
   if (!s.contains("steady_state")) s["steady_state"] = nlohmann::json::object();
   if (!s.contains("loads")) s["loads"] = nlohmann::json::object();
   if (!s.contains("interrupted")) s["interrupted"] = false;
-  for (const char* k : {"update_rate_hz", "ate_rmse_m", "ate_se3_rmse_m", "rpe_trans_rmse_m",
-                        "rpe_rot_rmse_deg"}) {
+  for (const char* k :
+       {"update_rate_hz", "ate_rmse_m", "ate_se3_rmse_m", "rpe_trans_rmse_m", "rpe_rot_rmse_deg"}) {
     if (!s.contains(k)) s[k] = nullptr;
   }
 }
@@ -319,9 +333,8 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<DeviceModel> device, OpenDeviceModel(dopt));
   if (request.on_device) request.on_device(*device);
 
-  auto* shared = static_cast<SharedReadings*>(mmap(nullptr, sizeof(SharedReadings),
-                                                   PROT_READ | PROT_WRITE,
-                                                   MAP_SHARED | MAP_ANONYMOUS, -1, 0));
+  auto* shared = static_cast<SharedReadings*>(mmap(
+      nullptr, sizeof(SharedReadings), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
   if (shared == MAP_FAILED) return IoError(std::string("mmap: ") + std::strerror(errno));
   new (shared) SharedReadings();
   struct Unmap {
@@ -369,7 +382,8 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   close(ready[0]);
 
   // The co-tenant, inside the device, on the request schedule every policy gets.
-  const double duration_s = scenario.rate_hz > 0 ? static_cast<double>(scenario.frames) / scenario.rate_hz : 0.0;
+  const double duration_s =
+      scenario.rate_hz > 0 ? static_cast<double>(scenario.frames) / scenario.rate_hz : 0.0;
   double period_s = request.cotenant_period_s;
   if (period_s <= 0) {
     period_s = request.time_compression > 0 && request.cotenant_requests > 0
@@ -463,12 +477,13 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
       cotenant = {{"outcome", "failed_to_start"}, {"reason", r.status().message()}};
     }
   } else if (request.with_cotenant) {
-    cotenant = {{"outcome", "failed_to_start"},
-                {"requests_completed", 0},
-                {"restarts", 0},
-                {"reason", !cotenant_error.ok() ? cotenant_error.message()
-                                                : std::string("the map process never became ready")},
-                {"note", std::string(kCotenantNote)}};
+    cotenant = {
+        {"outcome", "failed_to_start"},
+        {"requests_completed", 0},
+        {"restarts", 0},
+        {"reason", !cotenant_error.ok() ? cotenant_error.message()
+                                        : std::string("the map process never became ready")},
+        {"note", std::string(kCotenantNote)}};
   }
   if (!cotenant.is_null()) {
     cotenant["events_file"] = "cotenant.jsonl";
@@ -491,11 +506,11 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
     map_outcome = s.value("interrupted", false) ? "interrupted" : "completed";
   }
   if (s.is_discarded() || s.is_null()) {
-    ZM_ASSIGN_OR_RETURN(s, SummarizePartialRun(request.scenario_dir, request.out_dir,
-                                               request.time_compression));
+    ZM_ASSIGN_OR_RETURN(
+        s, SummarizePartialRun(request.scenario_dir, request.out_dir, request.time_compression));
     map_outcome = exit.signaled && exit.signal == SIGKILL ? "killed"
-                  : exit.signaled                          ? "crashed"
-                                                           : "failed";
+                  : exit.signaled                         ? "crashed"
+                                                          : "failed";
   }
   FillMissing(s);
   s["map"] = {{"outcome", map_outcome},

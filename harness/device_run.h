@@ -25,9 +25,8 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "common/status.h"
 #include "harness/cgroup.h"
@@ -58,8 +57,8 @@ struct DeviceRunRequest {
   double cotenant_drain_s = 30.0;
   bool verify_checksums = false;
   // Tests and tools: where the device is made.
-  CgroupOptions cgroup;         // prefix, parent (limit_bytes is set from the profile)
-  std::string ledger_path;      // "" = RUNDIR/.ledger-<pid>
+  CgroupOptions cgroup;             // prefix, parent (limit_bytes is set from the profile)
+  std::string ledger_path;          // "" = RUNDIR/.ledger-<pid>
   std::string cotenant_executable;  // "" = FindCotenantExecutable()
   // Runs in the map process, inside the device, before its loop is built (tests: make it
   // allocate until the kernel kills it). Empty: none.

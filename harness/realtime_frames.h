@@ -27,9 +27,9 @@
 namespace zm {
 
 struct RealtimeFrameOptions {
-  double rate_hz = 1.0;           // frames taken per second of the recording's clock; > 0
-  double time_compression = 1.0;  // > 0: frames-clock seconds per wall second (1 = real time)
-  double origin_mono_s = 0.0;     // CLOCK_MONOTONIC at which the first frame arrives
+  double rate_hz = 1.0;              // frames taken per second of the recording's clock; > 0
+  double time_compression = 1.0;     // > 0: frames-clock seconds per wall second (1 = real time)
+  double origin_mono_s = 0.0;        // CLOCK_MONOTONIC at which the first frame arrives
   double (*now_mono_s)() = nullptr;  // the clock (tests inject one); null = MonotonicSeconds
 };
 

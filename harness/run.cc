@@ -1,7 +1,5 @@
 #include "harness/run.h"
 
-#include "runtime/summary.h"
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -10,10 +8,11 @@
 #include <numeric>
 
 #include "geometry/metrics.h"
+#include "geometry/trajectory.h"
 #include "harness/cotenant.h"
 #include "harness/realtime_frames.h"
 #include "runtime/estimate_writer.h"
-#include "geometry/trajectory.h"
+#include "runtime/summary.h"
 #include "sim/scenario.h"
 
 namespace zm {
@@ -57,7 +56,8 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
       const ZoneId id = FindZone(zone_set, v.zone);
       if (id == kNoZone) continue;
       if (route.empty() || route.back() != id) route.push_back(id);
-      for (std::uint64_t f = v.first_frame; f <= v.last_frame && f < future.size(); ++f) future[f] = id;
+      for (std::uint64_t f = v.first_frame; f <= v.last_frame && f < future.size(); ++f)
+        future[f] = id;
     }
   }
 
@@ -69,14 +69,15 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   std::unique_ptr<RealtimeFrameSource> rt;
   FrameSource* source = frames.get();
   if (realtime) {
-    ZM_ASSIGN_OR_RETURN(rt, RealtimeFrameSource::Create(
-                                *frames, {.rate_hz = config.loop.rate_hz,
-                                          .time_compression = request.time_compression}));
+    ZM_ASSIGN_OR_RETURN(
+        rt, RealtimeFrameSource::Create(*frames, {.rate_hz = config.loop.rate_hz,
+                                                  .time_compression = request.time_compression}));
     source = rt.get();
   }
-  ZM_ASSIGN_OR_RETURN(std::unique_ptr<TickLoop> loop,
-                      TickLoop::Create(config, *db, *source,
-                                       {.route = std::move(route), .oracle_future = std::move(future)}));
+  ZM_ASSIGN_OR_RETURN(
+      std::unique_ptr<TickLoop> loop,
+      TickLoop::Create(config, *db, *source,
+                       {.route = std::move(route), .oracle_future = std::move(future)}));
   EstimateWriter estimate_out;
   ZM_RETURN_IF_ERROR(estimate_out.Open(request.out_dir + "/estimate.tum"));
   // The estimate: one pose per processed frame (a replay is finite: reserved for all of them).
@@ -113,7 +114,8 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     clock.wall_s = MonotonicSeconds() - origin;
     clock.frames_arrived = rt ? rt->frames_arrived() : rec.tick + 1;
     clock.frames_dropped = rt ? rt->frames_dropped() : 0;
-    const std::string_view extra = request.on_tick ? request.on_tick(*loop, clock) : std::string_view();
+    const std::string_view extra =
+        request.on_tick ? request.on_tick(*loop, clock) : std::string_view();
     telemetry.Write(rec, extra);
     if ((rec.tick + 1) % flush == 0) {
       estimate_out.Flush();  // first: a tick on disk always has its pose on disk
@@ -163,7 +165,8 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   s["rpe_trans_rmse_m"] = nullptr;
   s["rpe_rot_rmse_deg"] = nullptr;
   if (!scenario.localization_gt.empty() && t.ticks > 2) {
-    ZM_ASSIGN_OR_RETURN(Trajectory gt, ReadTrajectory(scenario.localization_gt, TrajectoryFormat::kTum));
+    ZM_ASSIGN_OR_RETURN(Trajectory gt,
+                        ReadTrajectory(scenario.localization_gt, TrajectoryFormat::kTum));
     auto none = Evaluate(gt, estimate, {.align = AlignMode::kNone});
     auto se3 = Evaluate(gt, estimate, {.align = AlignMode::kSe3});
     if (none.ok()) {

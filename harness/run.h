@@ -7,10 +7,9 @@
 
 #include <atomic>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <string_view>
-
-#include <nlohmann/json.hpp>
 
 #include "common/status.h"
 #include "runtime/telemetry.h"
@@ -30,7 +29,7 @@ struct RunRequest {
   std::string out_dir;
   LoopConfig loop;
   TelemetryOptions telemetry;
-  std::string profile_name;  // for the summary only
+  std::string profile_name;       // for the summary only
   bool verify_checksums = false;  // CRC-check payloads as they land (MapDbOptions)
   // Real-time frames (harness/realtime_frames.h): > 0 = frames arrive on the clock at the
   // profile's rate ([loop] rate_hz), this many frames-clock seconds per wall second (1 = real
@@ -50,8 +49,9 @@ struct RunRequest {
 // Runs the replay. estimate.tum is streamed (flushed with the telemetry), so a process killed
 // mid-run leaves the poses it produced. summary.json gains `time_compression`,
 // `frames_arrived`, `frames_dropped`, `frames_not_taken`, `wall_s`, `wall_origin_mono_s`; with
-// real-time frames `update_rate_hz` is frames processed per second of the frames' clock. `stop` (may be null) ends it early at a tick boundary (SIGINT/SIGTERM); the
-// telemetry is flushed and the summary written for the ticks done.
+// real-time frames `update_rate_hz` is frames processed per second of the frames' clock. `stop`
+// (may be null) ends it early at a tick boundary (SIGINT/SIGTERM); the telemetry is flushed and the
+// summary written for the ticks done.
 [[nodiscard]] Result<nlohmann::json> RunScenario(const RunRequest& request,
                                                  const std::atomic<bool>* stop = nullptr);
 

@@ -126,11 +126,12 @@ bool CgroupOrSkip() {
   return true;
 }
 
-const std::vector<std::string> kTickKeys = {"wall_s",      "device_usage_bytes", "map_rss_bytes",
-                                            "cotenant_rss_bytes", "map_majflt", "map_minflt",
-                                            "oom_kills",   "frames_dropped",     "frames_arrived"};
+const std::vector<std::string> kTickKeys = {
+    "wall_s",     "device_usage_bytes", "map_rss_bytes",  "cotenant_rss_bytes", "map_majflt",
+    "map_minflt", "oom_kills",          "frames_dropped", "frames_arrived"};
 
-TEST_CASE("device run (ledger): simulated in the summary, frames dropped on an overrun, every key") {
+TEST_CASE(
+    "device run (ledger): simulated in the summary, frames dropped on an overrun, every key") {
   test::EmulatorLauncher launcher;
   DeviceRunRequest r = Request("ledger_overrun", "semantic", 1.0 / 64);
   r.device = DeviceKind::kLedger;
@@ -164,7 +165,8 @@ TEST_CASE("device run (ledger): simulated in the summary, frames dropped on an o
   for (std::size_t i = 1; i < t.size(); ++i) CHECK(t[i]["wall_s"] >= t[i - 1]["wall_s"]);
   CHECK(fs::exists(r.out_dir + "/estimate.tum"));
   CHECK(ReadJson(r.out_dir + "/summary.json")["device"]["kind"] == "ledger");
-  MESSAGE(ticks << " ticks, " << dropped << " frames dropped at 20x, " << (ticks + 2) / 4 << " slow ticks");
+  MESSAGE(ticks << " ticks, " << dropped << " frames dropped at 20x, " << (ticks + 2) / 4
+                << " slow ticks");
 }
 
 TEST_CASE("device run (ledger): a refused map grant means those keyframes are not loaded") {
@@ -216,14 +218,16 @@ TEST_CASE("device run (cgroup): the map's residency is visible in the cgroup") {
     const auto t = Ticks(r.out_dir);
     REQUIRE(t.size() > 3);
     std::uint64_t max_usage = 0;
-    for (const auto& x : t) max_usage = std::max(max_usage, x["device_usage_bytes"].get<std::uint64_t>());
+    for (const auto& x : t)
+      max_usage = std::max(max_usage, x["device_usage_bytes"].get<std::uint64_t>());
     const std::uint64_t first = t.front()["device_usage_bytes"];
     const std::uint64_t last_usage = t.back()["device_usage_bytes"];
     const std::uint64_t slot = j["slot_bytes"];
-    MESSAGE(policy << ": slot " << slot << " B, K_max " << j["k_max"] << ", cgroup usage first tick "
-                   << first << " B, max " << max_usage << " B, last " << last_usage
-                   << " B; resident first " << t.front()["resident_bytes"] << " B, last "
-                   << t.back()["resident_bytes"] << " B; peak " << j["device"]["peak_bytes"]);
+    MESSAGE(policy << ": slot " << slot << " B, K_max " << j["k_max"]
+                   << ", cgroup usage first tick " << first << " B, max " << max_usage
+                   << " B, last " << last_usage << " B; resident first "
+                   << t.front()["resident_bytes"] << " B, last " << t.back()["resident_bytes"]
+                   << " B; peak " << j["device"]["peak_bytes"]);
     CHECK(j["device"]["peak_bytes"].get<std::uint64_t>() >= max_usage);
     if (policy == "semantic") {
       // The arena (K_max slots) is resident from the first tick on and the usage never grows by
@@ -244,7 +248,9 @@ TEST_CASE("device run (cgroup): the map's residency is visible in the cgroup") {
         if (t[i]["resident_bytes"] > t[hi]["resident_bytes"]) hi = i;
       }
       const auto res = [&t](std::size_t i) { return t[i]["resident_bytes"].get<std::int64_t>(); };
-      const auto use = [&t](std::size_t i) { return t[i]["device_usage_bytes"].get<std::int64_t>(); };
+      const auto use = [&t](std::size_t i) {
+        return t[i]["device_usage_bytes"].get<std::int64_t>();
+      };
       MESSAGE("basic: resident " << res(0) << " -> " << res(lo) << " (tick " << lo << ") -> "
                                  << res(hi) << " (tick " << hi << "); cgroup " << use(0) << " -> "
                                  << use(lo) << " -> " << use(hi));
@@ -273,7 +279,8 @@ TEST_CASE("device run (cgroup): the map process OOM-killed by the kernel, the ru
     std::thread([] {
       std::this_thread::sleep_for(std::chrono::milliseconds(1500));
       for (;;) {
-        void* p = mmap(nullptr, 4 << 20, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        void* p =
+            mmap(nullptr, 4 << 20, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
         if (p == MAP_FAILED) continue;
         std::fill_n(static_cast<volatile char*>(p), 4 << 20, 1);
       }
@@ -335,10 +342,11 @@ TEST_CASE("device run (cgroup): the co-tenant OOM-killed and restarted inside th
   CHECK(fs::exists(r.out_dir + "/cotenant.jsonl"));
   // The co-tenant's resident memory reached the ticks.
   std::uint64_t co_rss = 0;
-  for (const auto& x : Ticks(r.out_dir)) co_rss = std::max(co_rss, x["cotenant_rss_bytes"].get<std::uint64_t>());
+  for (const auto& x : Ticks(r.out_dir))
+    co_rss = std::max(co_rss, x["cotenant_rss_bytes"].get<std::uint64_t>());
   CHECK(co_rss > 0);
-  MESSAGE("co-tenant: " << ct["kills"] << " kills, " << ct["restarts"] << " restarts; device OOM kills "
-                        << j["device"]["oom_kills"]);
+  MESSAGE("co-tenant: " << ct["kills"] << " kills, " << ct["restarts"]
+                        << " restarts; device OOM kills " << j["device"]["oom_kills"]);
 }
 
 }  // namespace

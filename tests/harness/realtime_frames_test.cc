@@ -32,11 +32,13 @@ class FakeSource final : public FrameSource {
 double g_now = 0.0;
 double FakeNow() { return g_now; }
 
-TEST_CASE("real-time frames: the profile's rate, overruns drop what arrived, the latest is processed") {
+TEST_CASE(
+    "real-time frames: the profile's rate, overruns drop what arrived, the latest is processed") {
   FakeSource inner(20);  // 10 s of a 2 Hz recording
   g_now = 100.0;
   auto rt = RealtimeFrameSource::Create(
-      inner, {.rate_hz = 1.0, .time_compression = 1.0, .origin_mono_s = 100.0, .now_mono_s = &FakeNow});
+      inner,
+      {.rate_hz = 1.0, .time_compression = 1.0, .origin_mono_s = 100.0, .now_mono_s = &FakeNow});
   REQUIRE(rt.ok());
   RealtimeFrameSource& s = **rt;
   Frame f;
@@ -81,7 +83,8 @@ TEST_CASE("real-time frames: time compression shrinks the clock; bad options are
   FakeSource inner(20);
   g_now = 0.0;
   auto rt = RealtimeFrameSource::Create(
-      inner, {.rate_hz = 1.0, .time_compression = 4.0, .origin_mono_s = 0.0, .now_mono_s = &FakeNow});
+      inner,
+      {.rate_hz = 1.0, .time_compression = 4.0, .origin_mono_s = 0.0, .now_mono_s = &FakeNow});
   REQUIRE(rt.ok());
   Frame f;
   f.Reserve(4);
