@@ -23,7 +23,7 @@ else()
 endif()
 
 set(ZM_DEB_CROSS_DEPENDS
-  "libc6 (>= 2.34), libgcc-s1 (>= 3.0), libopencv-core406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libsqlite3-0 (>= 3.35.0), libstdc++6 (>= 12), zlib1g (>= 1:1.2.0)"
+  "libc6 (>= 2.35), libgcc-s1 (>= 3.4), libopencv-core406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libsqlite3-0 (>= 3.30.1+fossil191229), libstdc++6 (>= 11), libtomlplusplus3 (>= 3.2.0), zlib1g (>= 1:1.2.0)"
   CACHE STRING "Depends of the zonemap package on a cross build (see cmake/ZmPackaging.cmake)")
 
 set(CPACK_GENERATOR DEB)
@@ -31,8 +31,8 @@ set(CPACK_PACKAGE_NAME zonemap)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
 set(CPACK_PACKAGE_VENDOR "zonemap")
 set(CPACK_PACKAGE_CONTACT "zonemap dev <dev@zonemap.invalid>")
-set(CPACK_PACKAGE_DESCRIPTION_SUMMARY
-    "keyframe map management within a hard memory budget, by semantic zones")
+# No CPACK_PACKAGE_DESCRIPTION_SUMMARY: CPackDeb would prepend it to each component's own
+# description, whose first line is that package's synopsis.
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
 set(CPACK_STRIP_FILES ON)  # executables only: CMake never strips a static archive's symbols
 set(CPACK_PACKAGE_DIRECTORY ${PROJECT_BINARY_DIR}/packages)
@@ -47,11 +47,11 @@ set(CPACK_DEBIAN_RUNTIME_PACKAGE_NAME zonemap)
 set(CPACK_DEBIAN_RUNTIME_PACKAGE_SECTION science)
 set(CPACK_COMPONENT_RUNTIME_DESCRIPTION
   "zone-managed keyframe map localization for memory-bounded robots
- zonemapd keeps a robot's keyframe map within a hard memory budget next to a
- large AI model by loading and unloading whole semantic zones from an SQLite
- map database. Includes the zonemap command line (simulator, import, zones,
- evaluation), the co-tenant stand-in, the device profiles and a systemd unit
- (zonemapd@<profile>) with the profile's memory limits.")
+zonemapd keeps a robot's keyframe map within a hard memory budget next to a
+large AI model by loading and unloading whole semantic zones from an SQLite
+map database. Includes the zonemap command line (simulator, import, zones,
+evaluation), the co-tenant stand-in, the device profiles and a systemd unit
+(zonemapd@<profile>) with the profile's memory limits.")
 if(CMAKE_CROSSCOMPILING)
   set(CPACK_DEBIAN_RUNTIME_PACKAGE_DEPENDS "${ZM_DEB_CROSS_DEPENDS}")
 else()
@@ -61,11 +61,11 @@ endif()
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME libzonemap-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
 set(CPACK_COMPONENT_DEV_DESCRIPTION
-  "zonemap library: the zone memory manager embedded in a SLAM system
- The public C++20 API (zonemap/zonemap.h): drive zonemap's policies with the
- host's own keyframe store (ZoneManager), or run zonemap's complete map
- database and localization loop (MapLoop). Static library, CMake package
- (find_package(zonemap)) and pkg-config file.")
+  "zone memory manager library for SLAM systems (development files)
+The public C++20 API (zonemap/zonemap.h): drive zonemap's policies with the
+host's own keyframe store (ZoneManager), or run zonemap's complete map
+database and localization loop (MapLoop). Static library, CMake package
+(find_package(zonemap)) and pkg-config file.")
 # find_dependency(OpenCV/SQLite3/ZLIB/tomlplusplus) and `pkg-config --static` need their -dev packages.
 set(ZM_DEB_DEV_DEPENDS "libopencv-dev, libsqlite3-dev, zlib1g-dev, libtomlplusplus-dev")
 if(ZM_BUILD_SHARED)
