@@ -118,7 +118,20 @@ done
 for p in $(dpkg-deb -f "$rtarm" Depends | tr ',' '\n' | sed 's/(.*)//; s/ //g'); do
   [ -d "$sysroot/usr/share/doc/$p" ] || fail "arm64 Depends names $p, absent from the arm64 archive closure"
 done
-echo "  $(wc -w <<<"$narm") shared libraries, the same on both architectures"
+# The version floors (libc6 >= 2.35, libstdc++6 >= 11, ...) were computed from the amd64
+# programs' symbol versions; the arm64 programs must not need newer ones.
+maxver() {  # deb prefix -> the highest symbol version of that prefix its programs need
+  local d; d=$(mktemp -d -p "$work")
+  dpkg-deb -x "$1" "$d"
+  for b in "$d"/usr/bin/*; do readelf -V "$b"; done | grep -o "Name: $2[0-9.]*" | sed "s/Name: $2//" |
+    sort -V | tail -1
+}
+for v in GLIBC_ GLIBCXX_ CXXABI_ GCC_; do
+  a=$(maxver "$rt64" $v); b=$(maxver "$rtarm" $v)
+  [ "$(printf '%s\n%s\n' "$b" "$a" | sort -V | tail -1)" = "$a" ] ||
+    fail "arm64 programs need $v$b, newer than amd64's $v$a on which the Depends floors rest"
+done
+echo "  $(wc -w <<<"$narm") shared libraries, the same on both architectures; no newer symbol versions on arm64"
 
 # ---- 4. Install into scratch roots ----------------------------------------------------------
 install_root() {  # root debs...
@@ -141,11 +154,14 @@ grep -qx "LimitMEMLOCK=4274015488" "$dropin" || fail "$dropin: LimitMEMLOCK is n
 cmp -s "$dropin" "$rootarm/usr/lib/systemd/system/zonemapd@orin-nano-8gb.service.d/50-budget.conf" ||
   fail "the arm64 drop-in (computed under qemu) differs from the amd64 one"
 if command -v systemd-analyze >/dev/null && systemd-analyze --help | grep -q -- '--root'; then
+  # The scratch root has no systemd of its own, so the default dependencies' targets are
+  # missing; anything else it says (an unknown key, a bad value, a missing program) fails.
   out=$(systemd-analyze verify --root="$root64" zonemapd@orin-nano-8gb.service 2>&1) || true
-  if grep -qiE "unknown|invalid|failed to parse|bad" <<<"$out"; then fail "systemd-analyze verify: $out"; fi
-  echo "  systemd-analyze verify: ${out:-no complaints}"
+  bad=$(grep -v -e "Unit sysinit.target not found" -e '^$' <<<"$out" || true)
+  [ -z "$bad" ] || fail "systemd-analyze verify zonemapd@orin-nano-8gb.service: $bad"
+  echo "  systemd-analyze verify zonemapd@orin-nano-8gb.service: no complaints about the unit"
 else
-  echo "  systemd-analyze with --root not available here: the unit's syntax is not verified (SKIPPED)"
+  echo "  systemd-analyze (with --root) is not installed: the unit's syntax is not verified (SKIPPED)"
 fi
 
 # ---- 5. Run the installed programs ----------------------------------------------------------
@@ -155,10 +171,10 @@ step "amd64: installed zonemap --help, sim, zonemapd replay"
 "$root64/usr/bin/zonemap" sim hospital --seed 3 --area 400 --tasks 3 --quiet --out "$work/scenario" >/dev/null
 check_run() {  # summary.json root
   python3 - "$1" "$2" <<'PY'
-import json, sys
+import json, os, sys
 s = json.load(open(sys.argv[1]))
-prof = s["profile"]
-assert prof.startswith(sys.argv[2] + "/usr/bin/../share/zonemap/profiles/"), f"profile read from {prof}, not the installed one"
+prof = os.path.normpath(s["profile"])
+assert prof.startswith(sys.argv[2] + "/usr/share/zonemap/profiles/"), f"profile read from {prof}, not the installed one"
 assert s["ticks"] == 60, s["ticks"]
 assert s["peak_resident_keyframes"] <= s["k_max"], (s["peak_resident_keyframes"], s["k_max"])
 assert s["over_budget_ticks"] == 0 and s["zone_loads"] >= 1
