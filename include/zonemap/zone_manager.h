@@ -165,11 +165,12 @@ class ZoneManager {
   // Builds the index over the host's map (zones annotated from zone_file if given), derives
   // K_max (DeriveBudget, the one derivation zonemapd uses too) and makes the policy.
   // Cost: O(N log N) in keyframes plus the zone annotation (a grid lookup per keyframe);
-  // allocates everything the manager will ever need (about 60 bytes per keyframe plus the
-  // policy's own arrays, all sized from N and the zone count). Errors name the offending id,
-  // file, key or limit: duplicate or zero keyframe ids, a membership naming an unknown
-  // keyframe or zone, no zones at all, a bad zone file, a bad profile, an unknown policy, a byte
-  // budget without keyframe sizes.
+  // allocates everything the manager will ever need: about 100 bytes per keyframe (the index,
+  // reference counts and answer buffers, counted from their array sizes), 8 per membership and
+  // 16 per link, plus the policy's own arrays, all sized from N and the zone count. Errors name
+  // the offending id, file, key or limit: duplicate or zero keyframe ids, a membership naming an
+  // unknown keyframe or zone, no zones at all, a bad zone file, a bad profile, an unknown
+  // policy, a byte budget without keyframe sizes.
   [[nodiscard]] static Result<std::unique_ptr<ZoneManager>> Create(const HostMap& map,
                                                                    const ManagerOptions& options);
   ~ZoneManager();
