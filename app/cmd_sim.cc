@@ -16,8 +16,8 @@ namespace {
 struct SimOpts {
   sim::ScenarioOptions scenario;
   std::string out;
-  std::string keyframe_bytes;  // MIN:MAX
-  std::string dense = "320x240";
+  std::string dense = "640x480";
+  std::string depth_noise;  // A,B,C
   std::string image = "640x480";
   double hfov_deg = 90.0;
   bool quiet = false;
@@ -46,9 +46,14 @@ void AddScenarioOptions(CLI::App* cmd, SimOpts* o) {
   auto& s = o->scenario;
   cmd->add_option("--seed", s.seed, "random seed (everything is deterministic from it)")->capture_default_str();
   cmd->add_option("--out", o->out, "output folder")->required();
-  cmd->add_option("--keyframe-bytes", o->keyframe_bytes,
-                  "MIN:MAX payload bytes per keyframe; the dense resolution is scaled per keyframe to fit");
-  cmd->add_option("--dense", o->dense, "dense depth resolution WxH")->capture_default_str();
+  cmd->add_option("--dense", o->dense, "dense RGB-D resolution WxH at footprint scale 1")->capture_default_str();
+  cmd->add_option("--footprint-scale", s.dense.footprint_scale,
+                  "(0, 1]: scale each keyframe's resident footprint by this (the dense resolution by ~its root)")
+      ->capture_default_str();
+  cmd->add_option("--cloud-step", s.dense.cloud_step, "decimation of the resident point cloud (0 = none)")
+      ->capture_default_str();
+  cmd->add_option("--jpeg-quality", s.dense.jpeg_quality, "JPEG quality of the colour images")->capture_default_str();
+  cmd->add_option("--depth-noise", o->depth_noise, "depth sigma A,B,C in metres: A + B z + C z^2");
   cmd->add_option("--image", o->image, "camera resolution WxH (keypoints)")->capture_default_str();
   cmd->add_option("--hfov", o->hfov_deg, "camera horizontal field of view, degrees")->capture_default_str();
   cmd->add_option("--range", s.camera.range_m, "landmark observation range, metres")->capture_default_str();
@@ -84,16 +89,19 @@ std::string Finalize(SimOpts* o, const std::string& source) {
   if (!ParsePair(o->dense, 'x', &w, &h) || w < 8 || h < 8 || w > 4096 || h > 4096) {
     return "--dense " + o->dense + " is not WxH within [8, 4096]";
   }
-  s.depth.width = static_cast<std::uint32_t>(w);
-  s.depth.height = static_cast<std::uint32_t>(h);
-  if (!o->keyframe_bytes.empty()) {
-    std::uint64_t lo = 0, hi = 0;
-    if (!ParsePair(o->keyframe_bytes, ':', &lo, &hi) || lo >= hi || hi > (1ull << 30)) {
-      return "--keyframe-bytes " + o->keyframe_bytes + " is not MIN:MAX with MIN < MAX <= 1 GiB";
+  s.dense.width = static_cast<std::uint32_t>(w);
+  s.dense.height = static_cast<std::uint32_t>(h);
+  if (!o->depth_noise.empty()) {
+    double a = 0, b = 0, c = 0;
+    char tail = 0;
+    if (std::sscanf(o->depth_noise.c_str(), "%lf,%lf,%lf%c", &a, &b, &c, &tail) != 3) {
+      return "--depth-noise " + o->depth_noise + " is not A,B,C (metres: sigma = A + B z + C z^2)";
     }
-    s.keyframe_bytes_min = static_cast<std::uint32_t>(lo);
-    s.keyframe_bytes_max = static_cast<std::uint32_t>(hi);
+    s.dense.depth_sigma_m = a;
+    s.dense.depth_sigma_per_m = b;
+    s.dense.depth_sigma_per_m2 = c;
   }
+  if (Status st = sim::ValidateDenseOptions(s.dense); !st.ok()) return st.message();
   if (!(s.camera.range_m > 0.5 && s.camera.range_m <= 50.0)) return "--range must be in (0.5, 50] metres";
   if (!(s.motion.speed_mps > 0.05 && s.motion.speed_mps <= 5.0)) return "--speed must be in (0.05, 5] m/s";
   if (!(s.keyframe_distance_m > 0.01) || !(s.keyframe_angle_deg > 0.1)) {
@@ -122,14 +130,19 @@ void Run(const sim::Building& building, SimOpts* o, const char* name, CommandCon
   std::printf("  mapping    %llu keyframes over %.0f m, %llu features/keyframe on average\n",
               static_cast<unsigned long long>(r.keyframes), r.mapping_length_m,
               static_cast<unsigned long long>(r.mean_features_per_keyframe));
-  std::printf("  keyframe   bytes min %u median %u max %u (mean %.0f)\n", r.keyframe_bytes_min,
+  std::printf("  dense      %ux%u RGB-D (JPEG q%d + RVL), cloud step %u, footprint scale %g\n",
+              r.dense_width, r.dense_height, o->scenario.dense.jpeg_quality, o->scenario.dense.cloud_step,
+              o->scenario.dense.footprint_scale);
+  std::printf("  keyframe   on disk min %u median %u max %u (mean %.0f) bytes\n", r.keyframe_bytes_min,
               r.keyframe_bytes_median, r.keyframe_bytes_max, r.keyframe_bytes_mean);
+  std::printf("  keyframe   resident min %u median %u max %u (mean %.0f) bytes\n", r.resident_bytes_min,
+              r.resident_bytes_median, r.resident_bytes_max, r.resident_bytes_mean);
   std::printf("  patrol     %llu tasks, %llu frames over %.0f m / %.0f s, %llu features/frame\n",
               static_cast<unsigned long long>(r.tasks), static_cast<unsigned long long>(r.frames),
               r.localization_length_m, r.localization_duration_s,
               static_cast<unsigned long long>(r.mean_features_per_frame));
-  std::printf("  time       %.2f s building + %.2f s scenario (%d threads)\n", build_s, s,
-              o->scenario.threads);
+  std::printf("  time       %.2f s building + %.2f s scenario, of which %.2f s keyframes (%d threads)\n",
+              build_s, s, r.keyframes_s, o->scenario.threads);
 }
 
 }  // namespace

@@ -49,6 +49,31 @@ std::uint64_t MachineLimitBytes(std::string* what) {
   return limit;
 }
 
+std::uint64_t PageBytes() {
+  const long page = sysconf(_SC_PAGE_SIZE);
+  return page > 0 ? static_cast<std::uint64_t>(page) : 4096;
+}
+
+// Writes one byte in every page of [p, p + bytes) that mincore() does not report resident, so
+// the range is resident on return. MAP_POPULATE populates silently and only as far as it can
+// (and qemu-user ignores it), so the arena checks instead of trusting it. Writing (not reading)
+// matters: a read maps the shared zero page, which nobody is charged for. `vec` is a stack
+// buffer: nothing is allocated.
+void FaultInMissingPages(std::byte* p, std::uint64_t bytes, std::uint64_t page) {
+  constexpr std::uint64_t kChunkPages = 1024;
+  unsigned char vec[kChunkPages];
+  for (std::uint64_t off = 0; off < bytes; off += kChunkPages * page) {
+    const std::uint64_t len = std::min(bytes - off, kChunkPages * page);
+    const std::uint64_t pages = (len + page - 1) / page;
+    const bool known = mincore(p + off, static_cast<std::size_t>(len), vec) == 0;
+    for (std::uint64_t i = 0; i < pages; ++i) {
+      if (known && (vec[i] & 1U) != 0) continue;
+      volatile std::byte* b = p + off + i * page;
+      *b = *b;  // the page's own value: zero in a fresh page, unchanged otherwise
+    }
+  }
+}
+
 bool PoisonByDefault() {
 #if defined(ZM_ARENA_POISON)
   return ZM_ARENA_POISON != 0;
@@ -70,7 +95,12 @@ std::variant<ArenaPlan, ArenaError> PlanArena(const ArenaConfig& config) {
     return ArenaError{ArenaErrorCode::kNoBudget,
                       "arena: no budget: give MemoryThr as a keyframe count, as bytes, or both"};
   }
-  const std::uint64_t slot = AlignUp(config.slot_bytes, Arena::kSlotAlignment);
+  // A slot given back to the kernel must own whole pages, or releasing it would drop (or keep)
+  // a neighbour's bytes.
+  const std::uint64_t alignment =
+      config.release_to_os ? std::max<std::uint64_t>(Arena::kSlotAlignment, PageBytes())
+                           : Arena::kSlotAlignment;
+  const std::uint64_t slot = AlignUp(config.slot_bytes, alignment);
   if (config.budget_bytes != 0 && slot > config.budget_bytes) {
     return ArenaError{ArenaErrorCode::kSlotLargerThanBudget,
                       "arena: one slot (" + std::to_string(slot) +
@@ -95,6 +125,12 @@ std::variant<ArenaPlan, ArenaError> PlanArena(const ArenaConfig& config) {
 }
 
 std::variant<Arena, ArenaError> Arena::Create(const ArenaConfig& config) {
+  if (config.lock && config.release_to_os) {
+    return ArenaError{ArenaErrorCode::kConflictingOptions,
+                      "arena: lock and release_to_os conflict: locked pages cannot be given back "
+                      "to the kernel (map.lock_arena with a policy whose arena holds the whole "
+                      "map)"};
+  }
   auto planned = PlanArena(config);
   if (auto* err = std::get_if<ArenaError>(&planned)) return std::move(*err);
   const ArenaPlan plan = std::get<ArenaPlan>(planned);
@@ -112,8 +148,11 @@ std::variant<Arena, ArenaError> Arena::Create(const ArenaConfig& config) {
                           limit_name + " (" + Mib(machine) + ")"};
   }
 
+  // With release_to_os the reservation starts empty: a slot's memory is taken when it is
+  // acquired (prefault) or written, not at start-up.
+  const bool populate = config.prefault && !config.release_to_os;
   int flags = MAP_PRIVATE | MAP_ANONYMOUS;
-  if (config.prefault) flags |= MAP_POPULATE;
+  if (populate) flags |= MAP_POPULATE;
   void* mem = mmap(nullptr, static_cast<std::size_t>(total), PROT_READ | PROT_WRITE, flags, -1, 0);
   if (mem == MAP_FAILED) {
     return ArenaError{ArenaErrorCode::kReserveFailed,
@@ -128,6 +167,10 @@ std::variant<Arena, ArenaError> Arena::Create(const ArenaConfig& config) {
   arena.capacity_ = plan.slots;
   arena.slot_bytes_ = plan.slot_bytes;
   arena.poison_ = PoisonByDefault();
+  arena.release_to_os_ = config.release_to_os;
+  arena.prefault_slots_ = config.prefault && config.release_to_os;
+  arena.page_bytes_ = static_cast<std::uint32_t>(PageBytes());
+  if (populate) FaultInMissingPages(arena.base_, plan.bytes, arena.page_bytes_);
   // Lowest index on top, so a fresh arena hands out slots 0, 1, 2, ... (predictable in tests
   // and touches memory front to back).
   for (std::uint32_t i = 0; i < plan.slots; ++i) arena.free_stack_[i] = plan.slots - 1 - i;
@@ -166,8 +209,13 @@ Arena& Arena::operator=(Arena&& other) noexcept {
     slot_bytes_ = std::exchange(other.slot_bytes_, 0);
     refused_ = std::exchange(other.refused_, 0);
     bad_releases_ = std::exchange(other.bad_releases_, 0);
+    released_to_os_ = std::exchange(other.released_to_os_, 0);
+    release_failures_ = std::exchange(other.release_failures_, 0);
     locked_ = std::exchange(other.locked_, false);
     poison_ = std::exchange(other.poison_, false);
+    release_to_os_ = std::exchange(other.release_to_os_, false);
+    prefault_slots_ = std::exchange(other.prefault_slots_, false);
+    page_bytes_ = other.page_bytes_;
   }
   return *this;
 }
@@ -190,8 +238,16 @@ std::optional<SlotIndex> Arena::TryAcquire() noexcept {
   in_use_flags_[idx] = 1;
   ++in_use_;
   if (in_use_ > high_water_) high_water_ = in_use_;
-  if (poison_) std::memset(base_ + std::uint64_t{idx} * slot_bytes_, std::to_integer<int>(kAcquiredPattern),
-                slot_bytes_);
+  std::byte* p = base_ + std::uint64_t{idx} * slot_bytes_;
+  if (poison_) {
+    std::memset(p, std::to_integer<int>(kAcquiredPattern), slot_bytes_);
+  } else if (prefault_slots_) {
+    // One write per page: the slot's memory is taken now, not in the middle of its load.
+    for (std::uint64_t off = 0; off < slot_bytes_; off += page_bytes_) {
+      volatile std::byte* b = p + off;
+      *b = std::byte{0};
+    }
+  }
   return SlotIndex{idx};
 }
 
@@ -205,8 +261,18 @@ void Arena::Release(SlotIndex slot) noexcept {
   in_use_flags_[idx] = 0;
   --in_use_;
   free_stack_[free_top_++] = idx;
-  if (poison_) std::memset(base_ + std::uint64_t{idx} * slot_bytes_, std::to_integer<int>(kReleasedPattern),
-                slot_bytes_);
+  std::byte* p = base_ + std::uint64_t{idx} * slot_bytes_;
+  if (release_to_os_) {
+    // The pages go back to the kernel at once (and uncharge the memory cgroup); the next touch
+    // faults in zeroed pages. Not poisoned: that would fault them straight back in.
+    if (madvise(p, static_cast<std::size_t>(slot_bytes_), MADV_DONTNEED) == 0) {
+      ++released_to_os_;
+    } else {
+      ++release_failures_;
+    }
+  } else if (poison_) {
+    std::memset(p, std::to_integer<int>(kReleasedPattern), slot_bytes_);
+  }
 }
 
 std::span<std::byte> Arena::Slot(SlotIndex slot) noexcept {
@@ -233,6 +299,9 @@ ArenaStats Arena::stats() const noexcept {
   s.bad_releases = bad_releases_;
   s.slot_bytes = slot_bytes_;
   s.bytes_reserved = mapping_bytes_;
+  s.released_to_os = released_to_os_;
+  s.release_failures = release_failures_;
+  s.release_to_os = release_to_os_;
   return s;
 }
 

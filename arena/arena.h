@@ -13,6 +13,15 @@
 //   - Release() of a slot that is not in use is a programmer error (asserted; ignored and
 //     counted in release builds, so a bug cannot corrupt the free stack).
 //
+// Memory the kernel sees. By default the whole reservation is one private anonymous mapping
+// whose pages become resident as they are first written (or all at Create() with `prefault`:
+// the bounded policies' guarantee that their budget is resident before anything else starts).
+// With `release_to_os` (basic and unbounded, whose arena spans the whole map like RTAB-Map's
+// heap), slots are page-aligned and Release() hands the slot's pages back to the kernel with
+// madvise(MADV_DONTNEED), so the process's resident memory, and the memory cgroup it is charged
+// to, rise when a keyframe lands in a slot and fall when it leaves. MADV_FREE would not do:
+// lazily freed pages stay charged to the cgroup until reclaim (measured: docs/harness.md).
+//
 // This target depends on nothing else of zonemap's (docs/style.md §1).
 #pragma once
 
@@ -38,7 +47,12 @@ struct ArenaConfig {
   std::uint64_t budget_bytes = 0;          // map share in bytes; 0 = no byte limit
   std::uint64_t slot_bytes = 0;            // largest keyframe payload; rounded up to 64
   bool lock = false;                       // mlock the reservation (no swap, no page faults)
-  bool prefault = false;                   // MAP_POPULATE: touch every page up front
+  bool prefault = false;                   // MAP_POPULATE: touch every page up front; with
+                                           // release_to_os, every page of a slot on acquire
+  // Give a released slot's pages back to the kernel (MADV_DONTNEED): resident memory follows
+  // the slots in use. Slots are then page-aligned; incompatible with `lock`. A released slot
+  // reads as zeros (poisoning it would fault its pages back in).
+  bool release_to_os = false;
 };
 
 struct ArenaStats {
@@ -50,6 +64,9 @@ struct ArenaStats {
   std::uint64_t bad_releases = 0;     // Release() of a slot not in use (programmer error)
   std::uint64_t slot_bytes = 0;       // bytes per slot (64-aligned)
   std::uint64_t bytes_reserved = 0;   // capacity * slot_bytes (+ bookkeeping)
+  std::uint64_t released_to_os = 0;   // Release() calls that gave the slot's pages back
+  std::uint64_t release_failures = 0;  // madvise refusals (the pages stayed resident)
+  bool release_to_os = false;         // the arena's configuration, for reports
 };
 
 enum class ArenaErrorCode {
@@ -61,6 +78,7 @@ enum class ArenaErrorCode {
   kExceedsMachine,    // reservation larger than physical memory or RLIMIT_AS
   kReserveFailed,     // mmap refused
   kLockFailed,        // mlock refused (RLIMIT_MEMLOCK)
+  kConflictingOptions,  // lock with release_to_os: locked pages cannot be given back
 };
 
 struct ArenaError {
@@ -72,7 +90,7 @@ struct ArenaError {
 // by callers (reports, profiles) that need the arithmetic alone.
 struct ArenaPlan {
   std::uint32_t slots = 0;
-  std::uint64_t slot_bytes = 0;  // aligned
+  std::uint64_t slot_bytes = 0;  // aligned (to a page with release_to_os)
   std::uint64_t bytes = 0;       // slots * slot_bytes
 };
 [[nodiscard]] std::variant<ArenaPlan, ArenaError> PlanArena(const ArenaConfig& config);
@@ -92,9 +110,10 @@ class Arena {
   Arena& operator=(const Arena&) = delete;
   ~Arena();
 
-  // O(1). nullopt when full: the caller must free a slot first. Never allocates.
+  // O(1). nullopt when full: the caller must free a slot first. Never allocates. With
+  // release_to_os and prefault, writes one byte per page so the slot is resident on return.
   [[nodiscard]] std::optional<SlotIndex> TryAcquire() noexcept;
-  // O(1). The slot's bytes must not be used afterwards.
+  // O(1). The slot's bytes must not be used afterwards. With release_to_os, one madvise call.
   void Release(SlotIndex slot) noexcept;
 
   // The slot's memory: exactly slot_bytes(), 64-byte aligned. slot must be < capacity().
@@ -107,6 +126,7 @@ class Arena {
   [[nodiscard]] std::uint32_t available() const noexcept { return capacity_ - in_use_; }
   [[nodiscard]] std::uint64_t slot_bytes() const noexcept { return slot_bytes_; }
   [[nodiscard]] bool poisoning() const noexcept { return poison_; }
+  [[nodiscard]] bool releases_to_os() const noexcept { return release_to_os_; }
   [[nodiscard]] ArenaStats stats() const noexcept;
   // Forgets the high-water mark and refusal count (e.g. after warm-up); occupancy is kept.
   void ResetCounters() noexcept;
@@ -126,8 +146,13 @@ class Arena {
   std::uint64_t slot_bytes_ = 0;
   std::uint64_t refused_ = 0;
   std::uint64_t bad_releases_ = 0;
+  std::uint64_t released_to_os_ = 0;
+  std::uint64_t release_failures_ = 0;
   bool locked_ = false;
   bool poison_ = false;
+  bool release_to_os_ = false;
+  bool prefault_slots_ = false;  // release_to_os + prefault: fault each slot in on acquire
+  std::uint32_t page_bytes_ = 4096;  // the kernel's page size (release_to_os granularity)
 };
 
 }  // namespace zm

@@ -4,6 +4,8 @@ find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs calib3d features2d)
 find_package(SQLite3 REQUIRED)
 find_package(ZLIB REQUIRED)
+# Dense keyframes: JPEG colour through libjpeg-turbo with our own memory manager (dense_codec.cc).
+find_package(JPEG REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
 find_package(tomlplusplus REQUIRED)
 find_package(CLI11 REQUIRED)

@@ -66,8 +66,9 @@ The public C++20 API (zonemap/zonemap.h): drive zonemap's policies with the
 host's own keyframe store (ZoneManager), or run zonemap's complete map
 database and localization loop (MapLoop). Static library, CMake package
 (find_package(zonemap)) and pkg-config file.")
-# find_dependency(OpenCV/SQLite3/ZLIB/tomlplusplus) and `pkg-config --static` need their -dev packages.
-set(ZM_DEB_DEV_DEPENDS "libopencv-dev, libsqlite3-dev, zlib1g-dev, libtomlplusplus-dev")
+# find_dependency(OpenCV/SQLite3/ZLIB/JPEG/tomlplusplus) and `pkg-config --static` need their -dev
+# packages.
+set(ZM_DEB_DEV_DEPENDS "libopencv-dev, libsqlite3-dev, zlib1g-dev, libjpeg-dev, libtomlplusplus-dev")
 if(ZM_BUILD_SHARED)
   string(APPEND ZM_DEB_DEV_DEPENDS ", zonemap (= ${PROJECT_VERSION}-1)")
 endif()

@@ -8,7 +8,7 @@ chose the defaults. The last rows show the pick over all maps (what the code's d
 equal) and the published numbers. Optionally a second directory of held-out maps is scored with
 the all-maps pick only (never used to choose anything).
 
-Usage: scripts/loo_segmentation.py ZONEMAP FLOORPLAN_DIR [HELDOUT_DIR ...]
+Usage: scripts/loo_segmentation.py [--wide] ZONEMAP FLOORPLAN_DIR [HELDOUT_DIR ...]
 Standard library only; each run is `zonemap zones segment MAP --score GT --param K=V ... --json`.
 """
 import itertools
@@ -19,19 +19,37 @@ import sys
 import tempfile
 
 # Each choice is a physical quantity with a plausible range, not a per-map fit:
-#   wall_min_length_m: shortest straight run that counts as a wall when decluttering (0 = off);
-#   door_max_width_m: widest gap between collinear walls taken as a door (0 = off); at most
-#   1.2 m, the narrowest corridor building codes allow, so that two room walls aligned across a
-#   corridor never close it (wider doors are left to the clearance hierarchy);
+#   opening_merge_ratio: two segments split only by an opening (the layout step, issue 16
+#   second part) merge again when its clearance is at least this fraction of the larger one's
+#   peak clearance (no constriction);
 #   merge_min_opening_m: narrowest opening that joins two segments into one room;
-#   merge_no_constriction_ratio: a border this wide relative to the narrower segment is no
-#   constriction at all (0 = off).
+#   min_room_area_m2: smaller segments merge into a neighbour or are dropped (1 m2: a WC;
+#   2 m2: the issue-10 choice).
+# Fixed on physical grounds, not chosen here: opening_max_width_m 3.0 (a sliding partition or an
+# open-plan opening between two rooms is up to 3 m wide); with --wide it is chosen too, from
+# {0 (off), 2, 3} (docs/segmentation.md reports both). Fixed at the first leave-one-out's pick,
+# which won in every fold there: wall_min_length_m 1.0, door_max_width_m 1.2 (the narrowest
+# corridor), no-constriction merge off.
 CANDIDATES = {
-    "wall_min_length_m": [0.0, 1.0, 1.5],
-    "door_max_width_m": [0.0, 0.9, 1.2],
+    "opening_max_width_m": [3.0],
+    "opening_merge_ratio": [0.6, 0.75, 0.9],
     "merge_min_opening_m": [1.8, 2.4],
-    "merge_no_constriction_ratio": [0.0, 0.8],
+    "min_room_area_m2": [1.0, 2.0],
 }
+WIDE_OPENINGS = [0.0, 2.0, 3.0]
+
+
+def distinct(grid):
+    """Drops combinations that differ only in a ratio of a step that is off."""
+    out = []
+    for c in grid:
+        d = dict(c)
+        if d["opening_max_width_m"] == 0.0 and d["opening_merge_ratio"] != 0.6:
+            continue
+        out.append(c)
+    return out
+
+
 PUBLISHED = [("ROSE² (published, 11 maps)", 89.0, 93.9, 73.3),
              ("ipa morphological (published)", 85.0, 82.3, 51.2),
              ("ipa distance transform (published)", 88.3, 79.8, 54.7),
@@ -65,9 +83,14 @@ def mean(rows, key):
 def main():
     if len(sys.argv) < 3:
         sys.exit(__doc__)
-    zonemap, plans, heldout = sys.argv[1], sys.argv[2], sys.argv[3:]
+    args = sys.argv[1:]
+    if "--wide" in args:
+        args.remove("--wide")
+        CANDIDATES["opening_max_width_m"] = WIDE_OPENINGS
+    zonemap, plans, heldout = args[0], args[1], args[2:]
     names = maps_in(plans)
-    grid = [tuple(zip(CANDIDATES, values)) for values in itertools.product(*CANDIDATES.values())]
+    grid = distinct([tuple(zip(CANDIDATES, values))
+                     for values in itertools.product(*CANDIDATES.values())])
     out = tempfile.mkdtemp(prefix="zm_loo_")
     results = {(c, n): run(zonemap, plans, n, c, out) for c in grid for n in names}
 

@@ -150,6 +150,10 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
     const ResidentKeyframe& kf = resident[list[c].index];
     const KeyframeView& v = kf.view;
     ++r.candidates_examined;
+    if (v.points == nullptr) {  // a dense keyframe whose depth was not decoded: no 3-D points
+      ++r.closures_rejected;
+      continue;
+    }
     const std::size_t m =
         simd::MatchRatioTest(frame_desc, n, v.descriptors, v.feature_count, ratio, matches_.data());
     r.matches = static_cast<std::uint32_t>(m);
@@ -159,11 +163,26 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
     }
     object_points_.clear();
     image_points_.clear();
+    // Points decoded from depth are in the keyframe's camera frame (RTAB-Map keeps words3 in the
+    // node's frame too): the keyframe's pose puts them in the map. No depth there: no point.
+    const bool in_camera = v.points_frame == PointFrame::kCamera;
+    const Pose3 t_map_kf_cam = in_camera ? CameraPoseInMap(kf.pose) : Pose3::Identity();
     for (std::size_t k = 0; k < m; ++k) {
       const float* p = v.points + std::size_t{matches_[k].train} * 3;
+      if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
       const float* uv = frame.keypoints.data() + std::size_t{matches_[k].query} * 2;
-      object_points_.emplace_back(p[0], p[1], p[2]);
+      if (in_camera) {
+        const Eigen::Vector3d q = t_map_kf_cam * Eigen::Vector3d(p[0], p[1], p[2]);
+        object_points_.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()),
+                                    static_cast<float>(q.z()));
+      } else {
+        object_points_.emplace_back(p[0], p[1], p[2]);
+      }
       image_points_.emplace_back(uv[0], uv[1]);
+    }
+    if (object_points_.size() < config_.min_inliers) {
+      ++r.closures_rejected;
+      continue;
     }
     const PnpSolution solved = pnp_.Solve(object_points_, image_points_);
     if (solved.outcome != PnpOutcome::kOk && solved.outcome != PnpOutcome::kNoConsensus) {

@@ -10,7 +10,9 @@
 //      best appearance first (nearest first when appearance is off);
 //   3. for each candidate, in order, until one is accepted: matches the frame's descriptors to
 //      the keyframe's (zm::simd kernels, Lowe ratio + absolute Hamming gate), pairs the frame
-//      keypoints (2-D) with the keyframe's map points (3-D), runs PnP-RANSAC (pnp.h) and
+//      keypoints (2-D) with the keyframe's 3-D points (map frame, or camera frame for points
+//      decoded from depth, put in the map with the keyframe's pose; points without depth are
+//      skipped, a keyframe without decoded points is rejected), runs PnP-RANSAC (pnp.h) and
 //      accepts when inliers >= min_inliers (and, if set, the correction is <= max_correction_m).
 //
 // Invariant 4 (docs/design.md): the localizer sees ONLY the keyframes it is handed, and the

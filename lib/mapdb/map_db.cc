@@ -24,6 +24,8 @@
 //     payload fails validation is released before the error is returned, so nothing is written
 //     outside a slot and nothing half-valid is reported as loaded;
 //   - every error of a zone load ends it (statement reset, blob closed, transaction rolled back);
+//   - a validated dense payload is decoded in its slot right away (Impl::Land, dense_codec.h),
+//     and the sink is told the keyframe's resident bytes (what the slot then holds);
 //   - once warm, the load paths make no allocation through operator new (errors aside).
 #include "mapdb/map_db.h"
 
@@ -37,6 +39,7 @@
 #include <optional>
 #include <string_view>
 
+#include "mapdb/dense_codec.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/sqlite_util.h"
 
@@ -271,6 +274,7 @@ struct MapDb::Impl {
   sqlite::Stmt calibration;    // the camera rows of meta (RTAB-Map's Data.calibration)
   sqlite::Stmt keyframes, links, zones, all_members, zone_sizes;
   MapMetadata meta;
+  std::unique_ptr<DenseDecoder> dense;  // decodes dense payloads into their slots
   std::uint64_t total_queries = 0;
   std::uint64_t total_blob_reads = 0;
   std::uint64_t total_transactions = 0;
@@ -299,6 +303,16 @@ struct MapDb::Impl {
                      std::to_string(view->id.value));
     }
     return Status::Ok();
+  }
+
+  // Validates the payload that now sits at the start of `slot` (`bytes` long) and decodes its
+  // dense part into the slot; returns the keyframe's resident bytes.
+  Result<std::uint32_t> Land(KeyframeId id, std::span<std::byte> slot, std::size_t bytes,
+                             const StreamedChecksum& checksum) const {
+    ZM_RETURN_IF_ERROR(Validate(id, slot.first(bytes), checksum));
+    auto resident = dense->DecodeInSlot(slot, bytes);
+    if (!resident.ok()) return resident.status().Annotate(Kf(id) + " in " + path);
+    return resident;
   }
 
   void Count(LoadStats& st, std::uint32_t queries, std::uint32_t blob_reads,
@@ -431,13 +445,14 @@ struct MapDb::Impl {
         checksum.Feed(dst.first(done + n), done);
         done += n;
       }
-      Status valid = rrc == SQLITE_OK ? Validate(id, dst, checksum)
-                                      : FromSqlite(rrc, db.get(), "reading the payload of " + Kf(id));
-      if (!valid.ok()) {
+      auto landed = rrc == SQLITE_OK
+                        ? Land(id, arena.Slot(*slot), static_cast<std::size_t>(bytes), checksum)
+                        : Result<std::uint32_t>(FromSqlite(rrc, db.get(), "reading the payload of " + Kf(id)));
+      if (!landed.ok()) {
         arena.Release(*slot);
-        return valid;
+        return landed.status();
       }
-      sink.Loaded(id, *slot, static_cast<std::uint32_t>(bytes));
+      sink.Loaded(id, *slot, *landed);
       CountBytes(st, static_cast<std::uint32_t>(bytes));
       ++loaded;
       ++cursor.delivered;
@@ -631,6 +646,7 @@ Result<std::unique_ptr<MapDb>> MapDb::Open(const std::string& path, MapDbOptions
                    std::to_string(kf_count) + ", " + std::to_string(zone_count) + " and " +
                    std::to_string(largest) + " bytes");
   }
+  ZM_ASSIGN_OR_RETURN(impl->dense, DenseDecoder::Create(m.camera));
   return std::unique_ptr<MapDb>(new MapDb(std::move(impl)));
 }
 
@@ -832,7 +848,8 @@ Result<LoadStats> MapDb::LoadKeyframes(std::span<const KeyframeId> ids, Arena& a
         done += n;
       }
     }
-    Status valid = im.Validate(id, arena.Slot(*slot).first(static_cast<std::size_t>(bytes)), checksum);
+    auto landed = im.Land(id, arena.Slot(*slot), static_cast<std::size_t>(bytes), checksum);
+    Status valid = landed.ok() ? Status::Ok() : landed.status();
     if (valid.ok()) {
       im.Count(st, 1, 0, 1);
       valid = im.ReadLinksOf(id, nullptr);
@@ -845,7 +862,7 @@ Result<LoadStats> MapDb::LoadKeyframes(std::span<const KeyframeId> ids, Arena& a
       arena.Release(*slot);
       return valid;
     }
-    sink.Loaded(id, *slot, static_cast<std::uint32_t>(bytes));
+    sink.Loaded(id, *slot, *landed);
     im.CountBytes(st, static_cast<std::uint32_t>(bytes));
   }
   st.ms = Ms(t0);
@@ -1102,7 +1119,9 @@ Status MapDbWriter::InsertKeyframes(std::span<const KeyframeRecord> keyframes) {
       sqlite3_bind_double(s, 2, k.meta.stamp_s);
       sqlite3_bind_blob(s, 3, pose, sizeof pose, SQLITE_TRANSIENT);
       sqlite3_bind_int(s, 4, k.meta.weight);
-      sqlite3_bind_int64(s, 5, static_cast<sqlite3_int64>(k.payload.size()));
+      // payload_bytes is what the keyframe occupies in a slot once loaded (its blob, plus what
+      // decoding adds for dense payloads): the largest one sizes the arena's slots.
+      sqlite3_bind_int64(s, 5, static_cast<sqlite3_int64>(view->resident_bytes));
       Status st = sqlite::StepDone(db, s, "inserting " + Kf(id) + " into table keyframe");
       if (!st.ok()) {
         if (st.code() == StatusCode::kInvalidArgument) {

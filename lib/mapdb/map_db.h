@@ -63,7 +63,7 @@ struct KeyframeMeta {
   double stamp_s = 0.0;
   Pose3 pose = Pose3::Identity();  // map frame
   std::int32_t weight = 0;         // RTAB-Map weight (basic's transfer order); -1 intermediate
-  std::uint32_t payload_bytes = 0;
+  std::uint32_t payload_bytes = 0;  // resident in a slot: the blob + what decoding adds
 };
 
 struct LinkRecord {
@@ -98,7 +98,7 @@ struct MapMetadata {
   std::uint64_t keyframe_count = 0;
   std::uint64_t link_count = 0;
   std::uint64_t zone_count = 0;
-  std::uint32_t largest_payload_bytes = 0;  // slot_bytes must be at least this
+  std::uint32_t largest_payload_bytes = 0;  // largest resident keyframe: slot_bytes >= this
   std::uint64_t total_payload_bytes = 0;
   std::uint32_t page_bytes = 0;  // SQLite page size of the file (PRAGMA page_size)
   CameraIntrinsics camera;

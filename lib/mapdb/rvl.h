@@ -37,4 +37,10 @@ struct DepthImage16 {
 // Decodes an RTAB-Map RVL blob. Errors name the sizes and where the stream went wrong.
 [[nodiscard]] Result<DepthImage16> DecodeRvlDepth(std::span<const std::byte> blob);
 
+// Decodes an RVL blob whose header must say width x height into `out` (exactly width * height
+// pixels, row-major, every pixel written), allocating nothing: the load path's form. On error
+// `out` holds a partial image.
+[[nodiscard]] Status DecodeRvlDepthInto(std::span<const std::byte> blob, std::uint32_t width,
+                                        std::uint32_t height, std::span<std::uint16_t> out);
+
 }  // namespace zm

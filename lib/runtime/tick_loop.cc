@@ -75,7 +75,8 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
                                  .budget_bytes = 0,
                                  .slot_bytes = budget.slot_bytes,
                                  .lock = config.map.lock_arena,
-                                 .prefault = config.map.prefault_arena});
+                                 .prefault = config.map.prefault_arena,
+                                 .release_to_os = !budget.bounded});
   if (auto* err = std::get_if<ArenaError>(&arena_or)) return ResourceExhausted(err->message);
 
   std::unique_ptr<TickLoop> loop(

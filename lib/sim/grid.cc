@@ -1,6 +1,7 @@
 // Occupancy grid, ray casting (Amanatides-Woo traversal) and ROS map export; see grid.h.
 #include "sim/grid.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -74,6 +75,28 @@ double CastRay(const SimGrid& grid, const Eigen::Vector2d& from, const Eigen::Ve
   Traverse(a, dir, t_end, [&](int c, int r, double t) {
     if (grid.Free(c, r)) return true;
     hit = std::min(max_range_m, t * grid.resolution_m);
+    return false;
+  });
+  return hit;
+}
+
+RayHit CastRayHit(const SimGrid& grid, const Eigen::Vector2d& from, const Eigen::Vector2d& dir,
+                  double max_range_m) {
+  const Eigen::Vector2d a = grid.ToCell(from);
+  const double t_end = max_range_m / grid.resolution_m;
+  RayHit hit;
+  hit.distance_m = max_range_m;
+  int last_col = static_cast<int>(std::floor(a.x()));
+  Traverse(a, dir, t_end, [&](int c, int r, double t) {
+    if (grid.Free(c, r)) {
+      last_col = c;
+      return true;
+    }
+    hit.distance_m = std::min(max_range_m, t * grid.resolution_m);
+    hit.col = c;
+    hit.row = r;
+    hit.x_face = c != last_col;
+    hit.hit = true;
     return false;
   });
   return hit;

@@ -60,6 +60,19 @@ struct SimGrid {
 [[nodiscard]] double CastRay(const SimGrid& grid, const Eigen::Vector2d& from,
                              const Eigen::Vector2d& dir, double max_range_m);
 
+// CastRay with where it stopped: the first non-free cell and whether the ray entered it through
+// a face of constant x (else constant y). hit is false (and the cell meaningless) when nothing was
+// met within max_range_m.
+struct RayHit {
+  double distance_m = 0.0;
+  int col = 0;
+  int row = 0;
+  bool x_face = false;
+  bool hit = false;
+};
+[[nodiscard]] RayHit CastRayHit(const SimGrid& grid, const Eigen::Vector2d& from,
+                                const Eigen::Vector2d& dir, double max_range_m);
+
 // True when every cell the segment a-b passes through is free (both end cells included). Where
 // the segment passes exactly through a cell corner both side cells must be free, so the test is
 // conservative: it never reports a line of sight that grazes an occupied cell.

@@ -22,6 +22,10 @@ CameraIntrinsics MakeIntrinsics(std::uint32_t width, std::uint32_t height, doubl
 
 namespace {
 
+// How far inside its free cell a landmark sits from the face it decorates, in cells (0.02 cell is
+// 1 mm at 0.05 m cells: a point from the depth image lands on it).
+constexpr double kFaceInset = 0.02;
+
 void RandomDescriptor(Rng& rng, Descriptor256* d) {
   for (std::size_t i = 0; i < kDescriptorBytes; i += 8) {
     const std::uint64_t v = rng.Next();
@@ -70,12 +74,14 @@ LandmarkMap LandmarkMap::Generate(const Building& building, const LandmarkOption
           if (rng.Bernoulli(lambda - n)) ++n;
           for (int i = 0; i < n; ++i) {
             const double t = rng.Uniform();
-            // Cell-unit position inside the free cell, 0.25 cell from the shared face.
+            // Cell-unit position inside the free cell, kFaceInset cell from the shared face: on
+            // the wall's surface for the depth camera (which sees the face), yet strictly inside
+            // the free cell so the line-of-sight test is well defined.
             double u = c + t, v = r + t;
-            if (kDc[k] == 1) u = c + 0.75;
-            if (kDc[k] == -1) u = c + 0.25;
-            if (kDr[k] == 1) v = r + 0.75;
-            if (kDr[k] == -1) v = r + 0.25;
+            if (kDc[k] == 1) u = c + 1.0 - kFaceInset;
+            if (kDc[k] == -1) u = c + kFaceInset;
+            if (kDr[k] == 1) v = r + 1.0 - kFaceInset;
+            if (kDr[k] == -1) v = r + kFaceInset;
             Landmark lm;
             const Eigen::Vector2d xy = g.origin_m + res * Eigen::Vector2d(u, v);
             lm.p = Eigen::Vector3d(xy.x(), xy.y(), floor.z_m + rng.Uniform(0.05, span - 0.05));

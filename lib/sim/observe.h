@@ -5,7 +5,7 @@
 // limit, and the straight segment from the camera to it crosses only free cells (LineOfSight on
 // the floor's grid: walls and furniture occlude at every height, a 2-D simplification).
 //
-// Invariants: every landmark lies inside a free cell (0.25 cell from the face it decorates), so
+// Invariants: every landmark lies inside a free cell (0.02 cell from the face it decorates), so
 // the line-of-sight test is well defined; Visible() never returns a landmark whose segment
 // touches a non-free cell; MakeFeatures() is a pure function of its inputs and the Rng state.
 #pragma once

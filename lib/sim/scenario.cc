@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -146,8 +147,60 @@ Result<ZoneSet> ToZoneSet(const Building& b) {
 struct KeyframeOut {
   std::vector<std::byte> payload;
   std::uint32_t features = 0;
+  std::uint32_t resident_bytes = 0;
   Status status;
 };
+
+constexpr std::uint64_t kStreamProbe = 90'000'000;
+
+// The dense resolution whose resident footprint is footprint_scale x the full one. The resident
+// bytes of a keyframe are a per-feature part (descriptors, keypoints, decoded points: fixed by the
+// features) plus a per-pixel part (colour, depth, cloud, and the compressed images); probing up
+// to 8 keyframes spread over the run at full resolution measures both, and the pixel count is
+// solved for  F + P * per_pixel = scale * (F + P_full * per_pixel).  Width is a multiple of 8
+// (JPEG blocks), height keeps the aspect.
+Status ChooseDenseResolution(const Building& b, const LandmarkMap& landmarks,
+                             const std::vector<PoseSample>& kf, const ScenarioOptions& o,
+                             std::uint32_t* width, std::uint32_t* height) {
+  const std::size_t probes = std::min<std::size_t>(8, kf.size());
+  std::vector<double> resident(probes, 0.0), fixed(probes, 0.0);
+  std::vector<Status> status(probes);
+  ParallelFor(probes, o.threads, [&](std::size_t p) {
+    const std::size_t i = p * kf.size() / probes;
+    Rng rng(o.seed, kStreamProbe + p);
+    RenderedKeyframe r;
+    status[p] = RenderKeyframe(b, landmarks, kf[i].floor, kf[i].pose(), o.camera, o.noise, o.dense,
+                               o.dense.width, o.dense.height, KeyframeId(1), rng, &r);
+    const auto n = static_cast<std::uint32_t>(r.features.descriptors.size());
+    resident[p] = r.resident_bytes;
+    fixed[p] = static_cast<double>(PayloadSize(n, 0, /*points_on_disk=*/false)) + 12.0 * n;
+  });
+  for (const Status& s : status) ZM_RETURN_IF_ERROR(s);
+  double r1 = 0.0, f = 0.0;
+  for (std::size_t p = 0; p < probes; ++p) {
+    r1 += resident[p] / static_cast<double>(probes);
+    f += fixed[p] / static_cast<double>(probes);
+  }
+  const double full_px = static_cast<double>(o.dense.width) * o.dense.height;
+  const double per_px = (r1 - f) / full_px;
+  const double px = (o.dense.footprint_scale * r1 - f) / per_px;
+  if (!(px >= 64.0 * 48.0)) {
+    return InvalidArgument("--footprint-scale " + std::to_string(o.dense.footprint_scale) +
+                           " leaves " + std::to_string(static_cast<long long>(px)) +
+                           " pixels per keyframe (features alone are " + std::to_string(std::lround(f)) +
+                           " of " + std::to_string(std::lround(r1)) + " resident bytes); the minimum is 64x48");
+  }
+  const double k = std::sqrt(px / full_px);
+  const double aspect = static_cast<double>(o.dense.height) / o.dense.width;
+  *width = std::min(o.dense.width, static_cast<std::uint32_t>(std::max(1L, std::lround(o.dense.width * k / 8.0))) * 8);
+  *height = std::min(o.dense.height, static_cast<std::uint32_t>(std::lround(*width * aspect)));
+  if (*width < 8 || *height < 8) {
+    return InvalidArgument("--footprint-scale " + std::to_string(o.dense.footprint_scale) +
+                           " gives a dense image of " + std::to_string(*width) + "x" +
+                           std::to_string(*height) + ", below 8x8");
+  }
+  return Status::Ok();
+}
 
 }  // namespace
 
@@ -157,10 +210,7 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     return InvalidArgument("frame rate " + std::to_string(o.rate_hz) + " Hz is outside (0, 100]");
   }
   if (o.tasks < 1 || o.tasks > 100000) return InvalidArgument("tasks must be in [1, 100000]");
-  if (o.keyframe_bytes_max != 0 && o.keyframe_bytes_min >= o.keyframe_bytes_max) {
-    return InvalidArgument("keyframe byte range " + std::to_string(o.keyframe_bytes_min) + ":" +
-                           std::to_string(o.keyframe_bytes_max) + " is empty");
-  }
+  ZM_RETURN_IF_ERROR(ValidateDenseOptions(o.dense));
   if (o.noise.max_features < 1 || o.noise.max_features > kMaxFeaturesPerKeyframe) {
     return InvalidArgument("max features must be in [1, " + std::to_string(kMaxFeaturesPerKeyframe) + "]");
   }
@@ -248,84 +298,43 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
   ZM_RETURN_IF_ERROR(writer->SetCamera(o.camera.intrinsics));
   ZM_RETURN_IF_ERROR(writer->SetSource(o.source.empty() ? "sim " + b.kind + " seed=" + std::to_string(o.seed) : o.source));
 
-  // Dense scale: with a byte range, calibrate on the first keyframe so most land inside at once.
-  const double aspect = static_cast<double>(o.depth.height) / o.depth.width;
-  const auto render = [&](std::size_t i, double scale0, KeyframeOut* out) {
-    const PoseSample& s = kf_samples[i];
-    const Pose3 pose = s.pose();
-    Rng rng(o.seed, kStreamKeyframe + i);
-    std::vector<VisibleLandmark> visible;
-    landmarks.Visible(b, s.floor, pose, o.camera, &visible);
-    FeatureSet fs;
-    MakeFeatures(landmarks, visible, pose, o.camera, o.noise, /*with_points=*/true, rng, &fs);
-    out->features = static_cast<std::uint32_t>(fs.descriptors.size());
-    const std::uint64_t depth_seed = rng.Next();
-    double scale = scale0;
-    std::vector<std::byte> png;
-    for (int attempt = 0; attempt < 8; ++attempt) {
-      DepthOptions d = o.depth;
-      d.width = static_cast<std::uint32_t>(std::clamp(std::lround(o.depth.width * scale), 8L, 4096L));
-      d.height = static_cast<std::uint32_t>(std::clamp(std::lround(d.width * aspect), 8L, 4096L));
-      Rng depth_rng(depth_seed, static_cast<std::uint64_t>(attempt));
-      out->status = RenderDepthPng(b, s.floor, pose, o.camera, d, depth_rng, &png);
-      if (!out->status.ok()) return;
-      const std::size_t total = PayloadSize(out->features, static_cast<std::uint32_t>(png.size()));
-      if (o.keyframe_bytes_max == 0) break;
-      if (total >= o.keyframe_bytes_min && total <= o.keyframe_bytes_max) break;
-      const double fixed = static_cast<double>(total - png.size());
-      const double target = 0.5 * (o.keyframe_bytes_min + o.keyframe_bytes_max) - fixed;
-      if (target <= 64.0) {
-        out->status = OutOfRange("keyframe " + std::to_string(i + 1) + " has " +
-                                 std::to_string(total - png.size()) +
-                                 " bytes of features alone, over the keyframe byte range max " +
-                                 std::to_string(o.keyframe_bytes_max));
-        return;
-      }
-      scale *= std::sqrt(target / std::max<double>(64.0, static_cast<double>(png.size())));
-      if (attempt == 7) {
-        out->status = OutOfRange("keyframe " + std::to_string(i + 1) + " payload of " +
-                                 std::to_string(total) + " bytes could not be brought into the range " +
-                                 std::to_string(o.keyframe_bytes_min) + ":" + std::to_string(o.keyframe_bytes_max));
-        return;
-      }
-    }
-    PayloadParts parts;
-    parts.id = KeyframeId(static_cast<std::int64_t>(i + 1));
-    parts.descriptors = fs.descriptors;
-    parts.points = fs.points;
-    parts.keypoints = fs.keypoints;
-    parts.dense_format = DenseFormat::kPngDepth16;
-    parts.dense = png;
-    auto encoded = EncodePayload(parts);
-    if (!encoded.ok()) {
-      out->status = encoded.status();
-      return;
-    }
-    out->payload = std::move(encoded).value();
-  };
-  double scale0 = 1.0;
-  if (o.keyframe_bytes_max != 0 && !kf_samples.empty()) {
-    KeyframeOut probe;
-    render(0, 1.0, &probe);
-    ZM_RETURN_IF_ERROR(probe.status);
-    const double fixed = static_cast<double>(PayloadSize(probe.features, 0));
-    const double dense = static_cast<double>(probe.payload.size()) - fixed;
-    const double target = 0.5 * (o.keyframe_bytes_min + o.keyframe_bytes_max) - fixed;
-    if (target > 64.0 && dense > 0.0) scale0 = std::sqrt(target / dense);
+  // The dense resolution: the configured one, or the one whose resident footprint is
+  // footprint_scale times it (ChooseDenseResolution).
+  std::uint32_t dense_w = o.dense.width, dense_h = o.dense.height;
+  if (o.dense.footprint_scale < 1.0 && !kf_samples.empty()) {
+    ZM_RETURN_IF_ERROR(ChooseDenseResolution(b, landmarks, kf_samples, o, &dense_w, &dense_h));
   }
-  std::vector<std::uint32_t> sizes;
+  report.dense_width = dense_w;
+  report.dense_height = dense_h;
+  const auto render = [&](std::size_t i, KeyframeOut* out) {
+    const PoseSample& s = kf_samples[i];
+    Rng rng(o.seed, kStreamKeyframe + i);
+    RenderedKeyframe kf;
+    out->status = RenderKeyframe(b, landmarks, s.floor, s.pose(), o.camera, o.noise, o.dense, dense_w,
+                                 dense_h, KeyframeId(static_cast<std::int64_t>(i + 1)), rng, &kf);
+    out->payload = std::move(kf.payload);
+    out->features = static_cast<std::uint32_t>(kf.features.descriptors.size());
+    out->resident_bytes = kf.resident_bytes;
+  };
+  std::vector<std::uint32_t> sizes, resident;
   sizes.reserve(kf_samples.size());
+  resident.reserve(kf_samples.size());
   std::uint64_t feature_sum = 0;
+  const auto t_keyframes = std::chrono::steady_clock::now();
   {
     Progress progress(o.progress, "keyframes", kf_samples.size());
-    constexpr std::size_t kChunk = 128;
-    std::vector<KeyframeOut> chunk;
-    for (std::size_t c0 = 0; c0 < kf_samples.size(); c0 += kChunk) {
+    // Chunks render on the worker threads while the previous chunk is written to SQLite on this
+    // one, so the database writes hide behind the rendering.
+    constexpr std::size_t kChunk = 64;
+    std::vector<KeyframeOut> ready, next;
+    const auto render_chunk = [&](std::size_t c0, std::vector<KeyframeOut>* chunk) {
       const std::size_t n = std::min(kChunk, kf_samples.size() - c0);
-      chunk.assign(n, KeyframeOut{});
-      ParallelFor(n, o.threads, [&](std::size_t k) { render(c0 + k, scale0, &chunk[k]); });
-      std::vector<KeyframeRecord> records(n);
-      for (std::size_t k = 0; k < n; ++k) {
+      chunk->assign(n, KeyframeOut{});
+      ParallelFor(n, o.threads, [&](std::size_t k) { render(c0 + k, &(*chunk)[k]); });
+    };
+    const auto write_chunk = [&](std::size_t c0, std::vector<KeyframeOut>& chunk) -> Status {
+      std::vector<KeyframeRecord> records(chunk.size());
+      for (std::size_t k = 0; k < chunk.size(); ++k) {
         ZM_RETURN_IF_ERROR(chunk[k].status);
         const PoseSample& s = kf_samples[c0 + k];
         records[k].meta.id = KeyframeId(static_cast<std::int64_t>(c0 + k + 1));
@@ -334,10 +343,26 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
         records[k].meta.weight = 0;
         records[k].payload = chunk[k].payload;
         sizes.push_back(static_cast<std::uint32_t>(chunk[k].payload.size()));
+        resident.push_back(chunk[k].resident_bytes);
         feature_sum += chunk[k].features;
       }
       ZM_RETURN_IF_ERROR(writer->InsertKeyframes(records));
-      progress.Update(c0 + n);
+      progress.Update(c0 + chunk.size());
+      return Status::Ok();
+    };
+    if (!kf_samples.empty()) render_chunk(0, &ready);
+    for (std::size_t c0 = 0; c0 < kf_samples.size(); c0 += kChunk) {
+      const std::size_t c1 = c0 + kChunk;
+      Status written;
+      if (c1 < kf_samples.size()) {
+        std::thread writer_thread([&] { written = write_chunk(c0, ready); });
+        render_chunk(c1, &next);
+        writer_thread.join();
+      } else {
+        written = write_chunk(c0, ready);
+      }
+      ZM_RETURN_IF_ERROR(written);
+      std::swap(ready, next);
     }
   }
   {
@@ -357,15 +382,22 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
   }
   ZM_RETURN_IF_ERROR(writer->Finish());
   writer.reset();
+  report.keyframes_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_keyframes).count();
   if (!sizes.empty()) {
-    std::sort(sizes.begin(), sizes.end());
-    const std::size_t n = sizes.size();
-    report.keyframe_bytes_min = sizes[0];
-    report.keyframe_bytes_max = sizes[n - 1];
-    report.keyframe_bytes_median = sizes[n / 2];
-    double sum = 0.0;
-    for (std::size_t i = 0; i < n; ++i) sum += sizes[i];
-    report.keyframe_bytes_mean = sum / static_cast<double>(n);
+    const auto stats = [](std::vector<std::uint32_t> v, std::uint32_t* lo, std::uint32_t* median,
+                          std::uint32_t* hi, double* mean) {
+      std::sort(v.begin(), v.end());
+      *lo = v.front();
+      *hi = v.back();
+      *median = v[v.size() / 2];
+      double sum = 0.0;
+      for (const std::uint32_t x : v) sum += x;
+      *mean = sum / static_cast<double>(v.size());
+    };
+    stats(sizes, &report.keyframe_bytes_min, &report.keyframe_bytes_median, &report.keyframe_bytes_max,
+          &report.keyframe_bytes_mean);
+    stats(resident, &report.resident_bytes_min, &report.resident_bytes_median,
+          &report.resident_bytes_max, &report.resident_bytes_mean);
     report.mean_features_per_keyframe = feature_sum / sizes.size();
   }
 
@@ -527,11 +559,20 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     j["camera"] = {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"width", k.width},
                    {"height", k.height}, {"hfov_deg", o.hfov_deg}, {"range_m", o.camera.range_m},
                    {"height_m", o.camera.height_m}};
-    j["dense"] = {{"format", "png_depth16_mm"}, {"width", o.depth.width}, {"height", o.depth.height},
-                  {"range_m", o.depth.range_m}};
+    j["dense"] = {{"format", "jpeg_rgb+rvl_depth16_mm"},
+                  {"width", report.dense_width},
+                  {"height", report.dense_height},
+                  {"full_width", o.dense.width},
+                  {"full_height", o.dense.height},
+                  {"footprint_scale", o.dense.footprint_scale},
+                  {"range_m", o.dense.range_m},
+                  {"jpeg_quality", o.dense.jpeg_quality},
+                  {"cloud_step", o.dense.cloud_step}};
+    // On disk (the compressed payload) and resident (what a keyframe occupies in its slot).
     j["keyframe_bytes"] = {{"min", report.keyframe_bytes_min}, {"median", report.keyframe_bytes_median},
-                           {"max", report.keyframe_bytes_max}, {"mean", report.keyframe_bytes_mean},
-                           {"range_min", o.keyframe_bytes_min}, {"range_max", o.keyframe_bytes_max}};
+                           {"max", report.keyframe_bytes_max}, {"mean", report.keyframe_bytes_mean}};
+    j["resident_bytes"] = {{"min", report.resident_bytes_min}, {"median", report.resident_bytes_median},
+                           {"max", report.resident_bytes_max}, {"mean", report.resident_bytes_mean}};
     j["features"] = {{"max_per_view", o.noise.max_features},
                      {"mean_per_keyframe", report.mean_features_per_keyframe},
                      {"mean_per_frame", report.mean_features_per_frame},
@@ -607,6 +648,10 @@ Result<ScenarioInfo> LoadScenario(const std::string& dir) {
     s.camera.width = cam.at("width").get<std::uint32_t>();
     s.camera.height = cam.at("height").get<std::uint32_t>();
     s.keyframe_bytes_max = j.at("keyframe_bytes").at("max").get<std::uint32_t>();
+    // Scenarios from before dense keyframes have no resident section: resident = on disk.
+    s.resident_bytes_max = j.contains("resident_bytes")
+                               ? j.at("resident_bytes").at("max").get<std::uint32_t>()
+                               : s.keyframe_bytes_max;
     const auto& f = j.at("files");
     const auto file = [&](const char* key) { return dir + "/" + f.at(key).get<std::string>(); };
     s.map_db = file("map_db");

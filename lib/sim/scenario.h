@@ -1,7 +1,8 @@
 // A scenario: everything one simulated experiment needs, written to one folder from a Building:
 //
 //   map.db               keyframes of the mapping run (ground-truth poses as map poses, features,
-//                        PNG depth payloads), neighbour links, camera, source, zones + members
+//                        dense RGB-D payloads: JPEG colour + RVL depth, decoded into the slot on
+//                        load), neighbour links, camera, source, zones + members
 //   zones.geojson        ground-truth zones (FeatureCollection; name, kind, floor, z_min, z_max)
 //   map.pgm, map.yaml    occupancy grid of floor 0 (ROS map_server); map_f<k>.* for floor k > 0
 //   mapping_gt.tum       ground-truth body poses of the keyframes
@@ -20,8 +21,8 @@
 
 #include "common/status.h"
 #include "sim/building.h"
-#include "sim/depth.h"
 #include "sim/observe.h"
+#include "sim/rgbd.h"
 #include "sim/route.h"
 
 namespace zm::sim {
@@ -47,11 +48,7 @@ struct ScenarioOptions {
   double hfov_deg = 90.0;  // recorded in scenario.json (camera.intrinsics was made from it)
   LandmarkOptions landmarks;
   NoiseOptions noise;
-  DepthOptions depth;
-  // Keyframe payload size range in bytes (0, 0 = none). With a range, each keyframe's dense
-  // resolution is scaled (aspect kept) until its payload falls inside; failing that is an error.
-  std::uint32_t keyframe_bytes_min = 0;
-  std::uint32_t keyframe_bytes_max = 0;
+  DenseOptions dense;
   MotionOptions motion;
   double robot_radius_m = 0.25;
   double keyframe_distance_m = 0.5;
@@ -74,10 +71,18 @@ struct ScenarioReport {
   std::uint64_t zones = 0;
   std::uint64_t unreachable_zones = 0;  // zones the robot cannot reach (no keyframes planned)
   std::uint64_t tasks = 0;
+  // Keyframe payloads on disk (the compressed blob) and resident (the slot once decoded).
   std::uint32_t keyframe_bytes_min = 0;
   std::uint32_t keyframe_bytes_median = 0;
   std::uint32_t keyframe_bytes_max = 0;
   double keyframe_bytes_mean = 0.0;
+  std::uint32_t resident_bytes_min = 0;
+  std::uint32_t resident_bytes_median = 0;
+  std::uint32_t resident_bytes_max = 0;
+  double resident_bytes_mean = 0.0;
+  std::uint32_t dense_width = 0;  // the dense resolution used (after the footprint scale)
+  std::uint32_t dense_height = 0;
+  double keyframes_s = 0.0;  // wall time of rendering + encoding + writing the keyframes
   double mapping_length_m = 0.0;
   double localization_length_m = 0.0;
   double localization_duration_s = 0.0;
@@ -101,7 +106,8 @@ struct ScenarioInfo {
   std::uint64_t keyframes = 0, frames = 0, zones = 0;
   double rate_hz = 0.0;
   CameraIntrinsics camera;
-  std::uint32_t keyframe_bytes_max = 0;
+  std::uint32_t keyframe_bytes_max = 0;   // largest compressed payload on disk
+  std::uint32_t resident_bytes_max = 0;   // largest keyframe once decoded (the slot size)
   std::string map_db, zones_geojson, frames_bin, mapping_gt, localization_gt, route_json, map_yaml;
 };
 [[nodiscard]] Result<ScenarioInfo> LoadScenario(const std::string& dir);

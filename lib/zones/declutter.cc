@@ -15,18 +15,87 @@ namespace {
 
 constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
+// Odd lengths only: OpenCV anchors a kernel at its centre, and an even kernel's closing or
+// opening shifts the result by a cell along it (an opening's wall end must be where the wall
+// ends).
 cv::Mat LineKernel(int length, bool horizontal) {
-  const int n = std::max(1, length);
+  const int n = std::max(1, length) | 1;
   return cv::Mat::ones(horizontal ? 1 : n, horizontal ? n : 1, CV_8U);
 }
 
-// Wall runs and doorways along the image x and y axes (see FindWalls), in `frame`'s geometry.
-WallEvidence AxisWalls(const cv::Mat& occupied, int min_length, int gap, int door) {
+// Continues the runs of `runs` (rows of 255) along the rows: from each free end of a run, across
+// at most `max_len` cells to the first cell of `walls`; the cells crossed are set in `*out`.
+// A free end is the end of a thin wall: in the run's last column, `occupied` spans at most
+// `max_thickness` cells across the run. The end of a run at a corner or a T (the perpendicular
+// wall spans the column) or the face of a thick block (every column of it is a run) is no free
+// end. Cells that are not wall (free, unknown, clutter, a stub shorter than a wall) are crossed:
+// clutter standing in an opening must not leave a hole in it. A free end that meets no wall
+// within `max_len` (an open hall) is not continued.
+void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& walls,
+                           int max_len, int max_thickness, cv::Mat* out) {
+  const int rows = runs.rows, cols = runs.cols;
+  // Across-run extent of occupied cells: the length of each column's vertical occupied run.
+  cv::Mat across = cv::Mat::zeros(runs.size(), CV_32S);
+  for (int c = 0; c < cols; ++c) {
+    for (int r = 0; r < rows;) {
+      if (occupied.at<std::uint8_t>(r, c) == 0) {
+        ++r;
+        continue;
+      }
+      const int a = r;
+      while (r < rows && occupied.at<std::uint8_t>(r, c) != 0) ++r;
+      for (int k = a; k < r; ++k) across.at<int>(k, c) = r - a;
+    }
+  }
+  // `c` is a run's last cell, `inward` the step back into the run; the run's band is a cell
+  // wider than the wall each side, and resampling a rotated grid can move an end by a cell.
+  auto free_end = [&](int r, int c, int inward) {
+    for (int back = 0; back < 3; ++back) {
+      const int cc = c + back * inward;
+      if (cc < 0 || cc >= cols) break;
+      int t = 0;
+      for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr) {
+        t = std::max(t, across.at<int>(rr, cc));
+      }
+      if (t > 0) return t <= max_thickness;
+    }
+    return false;
+  };
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* run = runs.ptr<std::uint8_t>(r);
+    const std::uint8_t* wall = walls.ptr<std::uint8_t>(r);
+    std::uint8_t* o = out->ptr<std::uint8_t>(r);
+    auto walk = [&](int start, int step) {
+      int k = start;
+      int n = 0;
+      while (k >= 0 && k < cols && wall[k] == 0 && n <= max_len) k += step, ++n;
+      if (n == 0 || n > max_len || k < 0 || k >= cols) return;
+      for (int j = start; j != k; j += step) o[j] = 255;
+    };
+    for (int c = 0; c < cols;) {
+      if (run[c] == 0) {
+        ++c;
+        continue;
+      }
+      const int a = c;
+      while (c < cols && run[c] != 0) ++c;
+      if (free_end(r, c - 1, -1)) walk(c, +1);
+      if (free_end(r, a, +1)) walk(a - 1, -1);
+    }
+  }
+}
+
+// Wall runs, doorways and openings along the image x and y axes (see FindWalls), in
+// `occupied`'s geometry.
+WallEvidence AxisWalls(const cv::Mat& occupied, int min_length, int gap, int door, int opening,
+                       int thickness) {
   WallEvidence out;
   out.walls = cv::Mat::zeros(occupied.size(), CV_8U);
   out.doorways = cv::Mat::zeros(occupied.size(), CV_8U);
+  out.openings = cv::Mat::zeros(occupied.size(), CV_8U);
+  cv::Mat runs[2];  // horizontal, vertical
   for (const bool horizontal : {true, false}) {
-    cv::Mat m;
+    cv::Mat& m = runs[horizontal ? 0 : 1];
     // Walls of a laser map are 1-2 cells thick and wander by a cell: thicken across the run
     // direction so that a slightly wavy wall still holds one straight line of cells.
     cv::dilate(occupied, m, LineKernel(3, !horizontal));
@@ -40,6 +109,20 @@ WallEvidence AxisWalls(const cv::Mat& occupied, int min_length, int gap, int doo
       cv::morphologyEx(m, closed, cv::MORPH_CLOSE, LineKernel(door + 1, horizontal));
       out.doorways |= closed & ~m;
     }
+  }
+  if (opening > 0) {
+    // A run may end on a wall of either direction (a partition running into the outer wall),
+    // or in a doorway: a wall that ends beside a door is continued across the door only, never
+    // on through the corridor the door opens onto.
+    const cv::Mat any_wall = (out.walls & occupied) | out.doorways;
+    ContinueRunsAlongRows(runs[0], occupied, any_wall, opening, thickness, &out.openings);
+    cv::Mat t_runs, t_occ, t_wall, t_out;
+    cv::transpose(runs[1], t_runs);
+    cv::transpose(occupied, t_occ);
+    cv::transpose(any_wall, t_wall);
+    t_out = cv::Mat::zeros(t_runs.size(), CV_8U);
+    ContinueRunsAlongRows(t_runs, t_occ, t_wall, opening, thickness, &t_out);
+    out.openings |= t_out.t();
   }
   return out;
 }
@@ -90,12 +173,12 @@ double DominantWallAngle(const cv::Mat& occupied) {
 }
 
 WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length_px,
-                       int gap_px, int door_px) {
+                       int gap_px, int door_px, int opening_px, int thickness_px) {
   const double deg = angle_rad * kDegPerRad;
   WallEvidence out;
   if (std::abs(deg) < 1.0) {
     // Within a degree of the axes a run of 1 m (20 cells) drifts by less than half a cell.
-    out = AxisWalls(occupied, min_length_px, gap_px, door_px);
+    out = AxisWalls(occupied, min_length_px, gap_px, door_px, opening_px, thickness_px);
   } else {
     // Rotate so that walls at `angle_rad` lie along x, on a canvas holding the whole grid.
     const cv::Point2d centre(occupied.cols / 2.0, occupied.rows / 2.0);
@@ -108,9 +191,11 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length
     cv::Mat rotated;
     cv::warpAffine(occupied, rotated, rot, cv::Size(w, h), cv::INTER_NEAREST,
                    cv::BORDER_CONSTANT, cv::Scalar(0));
-    const WallEvidence r = AxisWalls(rotated, min_length_px, gap_px, door_px);
+    const WallEvidence r = AxisWalls(rotated, min_length_px, gap_px, door_px, opening_px,
+                                      thickness_px);
     for (const auto& [from, to] : {std::pair{&r.walls, &out.walls},
-                                   std::pair{&r.doorways, &out.doorways}}) {
+                                   std::pair{&r.doorways, &out.doorways},
+                                   std::pair{&r.openings, &out.openings}}) {
       cv::warpAffine(*from, *to, rot, occupied.size(), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
                      cv::BORDER_CONSTANT, cv::Scalar(0));
       // Nearest-neighbour resampling there and back can shift a cell: widen by one.
@@ -119,6 +204,7 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length
   }
   out.walls &= occupied;
   out.doorways &= ~occupied;
+  out.openings &= ~out.walls;
   out.angle_rad = angle_rad;
   return out;
 }

@@ -10,6 +10,11 @@
 //    (dashed walls: glass, laser dropouts).
 //    Doorways: a gap of at most a door's width between two collinear runs is the wall continued
 //    across a door; room seeds are looked for with doorways closed (segmentation.h).
+//    Openings (the layout step, after ROSE²'s extended wall lines): a thin wall run that ends in
+//    free space is continued along its own direction until it meets another wall run, when that
+//    is at most an opening's width away (sliding partitions, open-plan openings between rooms). An
+//    opening is only a candidate: segmentation.h keeps it as a border between two segments only
+//    when it is narrow for at least one of them (a corridor crossed by an aligned wall is not).
 // 3. Clutter: every island of non-free cells (occupied or unknown, 8-connected, not touching the
 //    grid border, so not the outside of the building) holding no wall evidence is turned into
 //    free space, whatever its size: furniture seen by the laser, the unknown shadow behind it, a
@@ -32,6 +37,8 @@ namespace zm {
 struct WallEvidence {
   cv::Mat walls;     // CV_8UC1, 255 = occupied cell on a straight wall run
   cv::Mat doorways;  // CV_8UC1, 255 = non-occupied cell in a gap between two collinear runs
+  cv::Mat openings;  // CV_8UC1, 255 = non-occupied cell on a wall run continued from its free
+                     // end to the next wall run (candidate border, see declutter.h)
   double angle_rad = 0.0;
 };
 
@@ -39,8 +46,13 @@ struct WallEvidence {
 // at least `min_length_px` (collinear pieces up to `gap_px` apart joined), and the doorways:
 // gaps of at most `door_px` between two collinear runs, i.e. the wall continued across a door
 // (0 = none). Runs are only continued along their own direction, never across a corridor.
+// Openings: each run continued from a free end (where the wall is at most `thickness_px` thick
+// across the run: not a corner, a T or the face of a block) along its own direction across at
+// most `opening_px` cells to the first cell of a wall run of either direction (0 = none; a run
+// that meets no wall within that length is not continued).
 [[nodiscard]] WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad,
-                                     int min_length_px, int gap_px, int door_px);
+                                     int min_length_px, int gap_px, int door_px,
+                                     int opening_px = 0, int thickness_px = 0);
 
 // Free space after decluttering (255 = free): `free` plus every non-free island (8-connected
 // component of ~free not touching the border) that holds no cell of `walls`.

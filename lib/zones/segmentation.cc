@@ -70,12 +70,15 @@ cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res
     *walls = FindWalls(occupied, DominantWallAngle(occupied),
                        CellsFromMetres(o.wall_min_length_m, res),
                        CellsFromMetres(o.wall_line_gap_m, res),
-                       CellsFromMetres(o.door_max_width_m, res));
+                       CellsFromMetres(o.door_max_width_m, res),
+                       CellsFromMetres(o.opening_max_width_m, res),
+                       CellsFromMetres(o.opening_wall_max_thickness_m, res));
     free_mask = FillClutterIslands(free_mask, walls->walls);
     occupied &= ~free_mask;
   } else {
     walls->walls = cv::Mat::zeros(cells.size(), CV_8U);
     walls->doorways = cv::Mat::zeros(cells.size(), CV_8U);
+    walls->openings = cv::Mat::zeros(cells.size(), CV_8U);
   }
   // Close gaps in walls (scan noise) so that rooms do not leak through them.
   const int gap = CellsFromMetres(o.wall_gap_close_m, res);
@@ -369,6 +372,78 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
   }
 }
 
+// Merges neighbours whose shared border runs through an opening (a wall continued across a gap,
+// declutter.h) that constricts neither of them: the border's largest clearance in the free space
+// with openings open (`dt_open`) is at least `ratio` x the larger of the two segments' peak
+// clearance with openings closed (`dt_closed`). A corridor cut where an aligned wall crosses it
+// has a border as wide as the corridor on both sides; a partition between two rooms with wall
+// on at least one side of the opening is narrower than at least one of them. Most open first;
+// a merged segment keeps the larger peak. Labels stay in 1..label_count (some unused).
+void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat& dt_closed,
+                         const cv::Mat& openings, int label_count, double ratio) {
+  if (ratio <= 0.0 || label_count < 2) return;
+  std::vector<float> peak(Idx(label_count) + 1, 0.0f);
+  std::map<std::pair<int, int>, float> saddle;
+  auto note = [&](int a, int b, float d) {
+    if (a > b) std::swap(a, b);
+    float& s = saddle[{a, b}];
+    s = std::max(s, d);
+  };
+  for (int r = 0; r < labels->rows; ++r) {
+    const int* l = labels->ptr<int>(r);
+    const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
+    const float* d = dt_open.ptr<float>(r);
+    const float* dbelow = below != nullptr ? dt_open.ptr<float>(r + 1) : nullptr;
+    const float* dc = dt_closed.ptr<float>(r);
+    const std::uint8_t* op = openings.ptr<std::uint8_t>(r);
+    const std::uint8_t* opbelow = below != nullptr ? openings.ptr<std::uint8_t>(r + 1) : nullptr;
+    for (int c = 0; c < labels->cols; ++c) {
+      if (l[c] == 0) continue;
+      peak[Idx(l[c])] = std::max(peak[Idx(l[c])], dc[c]);
+      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c] &&
+          (op[c] != 0 || op[c + 1] != 0)) {
+        note(l[c], l[c + 1], std::min(d[c], d[c + 1]));
+      }
+      if (below != nullptr && below[c] != 0 && below[c] != l[c] &&
+          (op[c] != 0 || opbelow[c] != 0)) {
+        note(l[c], below[c], std::min(d[c], dbelow[c]));
+      }
+    }
+  }
+  std::vector<int> parent(Idx(label_count) + 1);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) {
+    while (parent[Idx(x)] != x) x = parent[Idx(x)] = parent[Idx(parent[Idx(x)])];
+    return x;
+  };
+  for (;;) {
+    std::map<std::pair<int, int>, float> current;
+    for (const auto& [key, s] : saddle) {
+      int a = find(key.first), b = find(key.second);
+      if (a == b) continue;
+      if (a > b) std::swap(a, b);
+      float& v = current[{a, b}];
+      v = std::max(v, s);
+    }
+    double best = 0.0;
+    std::pair<int, int> best_pair{0, 0};
+    for (const auto& [key, s] : current) {
+      const float hi = std::max(peak[Idx(key.first)], peak[Idx(key.second)]);
+      const double q = hi > 0.0f ? static_cast<double>(s / hi) : 0.0;
+      if (q >= ratio && q > best) best = q, best_pair = key;
+    }
+    if (best_pair.first == 0) break;
+    parent[Idx(best_pair.second)] = best_pair.first;
+    peak[Idx(best_pair.first)] = std::max(peak[Idx(best_pair.first)], peak[Idx(best_pair.second)]);
+  }
+  for (int r = 0; r < labels->rows; ++r) {
+    int* l = labels->ptr<int>(r);
+    for (int c = 0; c < labels->cols; ++c) {
+      if (l[c] != 0) l[c] = find(l[c]);
+    }
+  }
+}
+
 void Describe(const cv::Mat& labels, const cv::Mat& dt, int count, double res,
               const SegmentOptions& o, std::vector<SegmentInfo>* out) {
   out->assign(Idx(count), SegmentInfo{});
@@ -409,8 +484,11 @@ Status CheckOptions(const SegmentOptions& o) {
     return bad("areas must be >= 0");
   }
   if (o.simplify_tolerance_m < 0.0) return bad("simplify_tolerance_m must be >= 0");
-  if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0) {
-    return bad("wall_min_length_m, wall_line_gap_m and door_max_width_m must be >= 0");
+  if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
+      o.opening_max_width_m < 0.0 || o.opening_merge_ratio < 0.0 ||
+      o.opening_wall_max_thickness_m < 0.0) {
+    return bad("wall_min_length_m, wall_line_gap_m, door_max_width_m and the opening_* options "
+               "must be >= 0");
   }
   return Status::Ok();
 }
@@ -439,6 +517,9 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"wall_min_length_m", &SegmentOptions::wall_min_length_m},
       {"wall_line_gap_m", &SegmentOptions::wall_line_gap_m},
       {"door_max_width_m", &SegmentOptions::door_max_width_m},
+      {"opening_max_width_m", &SegmentOptions::opening_max_width_m},
+      {"opening_wall_max_thickness_m", &SegmentOptions::opening_wall_max_thickness_m},
+      {"opening_merge_ratio", &SegmentOptions::opening_merge_ratio},
       {"seed_min_level_m", &SegmentOptions::seed_min_level_m},
       {"seed_level_step_m", &SegmentOptions::seed_level_step_m},
       {"seed_max_level_m", &SegmentOptions::seed_max_level_m},
@@ -518,13 +599,21 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
             cv::Rect(0, 0, grid.cols(), grid.rows());
       cv::Mat free_roi = seg.free_cleaned(box);
       // Clearance with doorways closed: seeds never span a door, floods meet in it (its
-      // clearance is 0) and no merge crosses it.
-      cv::Mat dt;
-      cv::distanceTransform(free_roi & ~walls.doorways(box), dt, cv::DIST_L2, cv::DIST_MASK_5,
-                            CV_32F);
+      // clearance is 0) and no merge crosses it. Openings are closed too for seeds and floods
+      // (`dt_closed`); whether one stays a border is decided below with them open (`dt`).
+      cv::Mat dt, dt_closed;
+      const cv::Mat open_space = free_roi & ~walls.doorways(box);
+      cv::distanceTransform(open_space, dt, cv::DIST_L2, cv::DIST_MASK_5, CV_32F);
+      const cv::Mat openings = walls.openings(box) & open_space;
+      if (cv::countNonZero(openings) > 0) {
+        cv::distanceTransform(open_space & ~openings, dt_closed, cv::DIST_L2, cv::DIST_MASK_5,
+                              CV_32F);
+      } else {
+        dt_closed = dt;
+      }
       int seed_count = 0;
-      cv::Mat labels = FindSeeds(dt, options, res, &seed_count);
-      Flood(free_roi, dt, &labels);
+      cv::Mat labels = FindSeeds(dt_closed, options, res, &seed_count);
+      Flood(free_roi, dt_closed, &labels);
       // Free areas no seed reached (too thin for any level) become segments of their own; the
       // merge below keeps only those big enough.
       cv::Mat unreached = (labels == 0) & free_roi;
@@ -538,7 +627,9 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         }
       }
       const int label_count = seed_count + std::max(0, n_extra - 1);
-      MergeOpenBorders(&labels, dt, label_count, options.merge_open_border_ratio,
+      MergeAcrossOpenings(&labels, dt, dt_closed, openings, label_count,
+                          options.opening_merge_ratio);
+      MergeOpenBorders(&labels, dt_closed, label_count, options.merge_open_border_ratio,
                        static_cast<float>(0.5 * options.merge_min_opening_m / res),
                        options.merge_no_constriction_ratio);
       const int min_area = static_cast<int>(options.min_room_area_m2 / (res * res));

@@ -1,17 +1,22 @@
 // Automatic semantic zones from a 2-D occupancy grid (room segmentation), from the keyframe
 // graph alone, and their scoring against a hand-made ground truth (docs/segmentation.md).
 //
-// Room segmentation, in order: clean the grid (close wall gaps narrower than
-// `wall_gap_close_m`, drop free specks and laser rays thinner than `ray_width_m`, turn small
-// clutter islands inside free space into free space); distance transform of free space; room
-// seeds from a hierarchy of thresholds of that transform: a component at one level is replaced
-// by its children at a higher level only when at least two of them are room-sized (so each
-// doorway is cut at its own level, not at one global threshold); seeds grow back over free
-// space by a priority flood on the distance transform (a watershed, so borders settle on the
-// narrowest place, the door); neighbours whose shared border is an opening wider than any door
-// (`merge_min_opening_m`) and not a constriction relative to them (`merge_open_border_ratio`)
-// merge (one open room cut in two by clutter); segments smaller than `min_room_area_m2` merge into the neighbour
-// sharing the longest border; each segment is labelled corridor when long and narrow, else room.
+// Room segmentation, in order: clean the grid (declutter by wall directions, close wall gaps
+// narrower than `wall_gap_close_m`, drop free specks and laser rays thinner than `ray_width_m`,
+// turn small clutter islands inside free space into free space); the layout: doorways (gaps
+// between collinear walls up to a door's width) and openings (thin walls continued from a free
+// end to the next wall, up to `opening_max_width_m`), declutter.h; distance transform of free
+// space with both closed; room seeds from a hierarchy of thresholds of that transform: a
+// component at one level is replaced by its children at a higher level only when at least two
+// of them are room-sized (so each doorway is cut at its own level, not at one global
+// threshold); seeds grow back over free space by a priority flood on the distance transform (a
+// watershed, so borders settle on the narrowest place: a door, a closed doorway or opening);
+// neighbours split only by an opening that constricts neither (`opening_merge_ratio` of the
+// larger one's peak clearance) merge again (a corridor crossed by an aligned wall); neighbours
+// whose shared border is an opening wider than any door (`merge_min_opening_m`) and not a
+// constriction relative to them (`merge_open_border_ratio`) merge (one open room cut in two by
+// clutter); segments smaller than `min_room_area_m2` merge into the neighbour sharing the
+// longest border; each segment is labelled corridor when long and narrow, else room.
 //
 // Invariants of a Segmentation: labels is CV_32SC1 of the grid's size; 0 = no zone, 1..N =
 // segments[label - 1]; every labelled cell is free in the cleaned grid; each segment is one
@@ -42,7 +47,18 @@ struct SegmentOptions {
                                       // is a door: closed while seeds are found (0 = off). At
                                       // most the narrowest corridor (1.2 m), so room walls
                                       // aligned across a corridor never close it
-
+  double opening_max_width_m = 3.0;   // layout: a thin wall run ending in free space is
+                                      // continued along its direction to the next wall at most
+                                      // this far away (declutter.h); seeds are found with these
+                                      // openings closed (0 = off). Physical: a sliding partition
+                                      // or open-plan opening between two rooms is up to 3 m
+  double opening_wall_max_thickness_m = 0.3;  // ...from the free end of a wall at most this
+                                      // thick (interior partitions are 0.1-0.25 m): the face of
+                                      // a block or a corner is no free end
+  double opening_merge_ratio = 0.6;   // ...and the two segments an opening separates merge
+                                      // again when its clearance is >= this x the LARGER one's
+                                      // peak clearance: it constricts neither (a corridor
+                                      // crossed by an aligned wall). Leave-one-out pick
   double seed_min_level_m = 0.35;     // lowest distance-transform level tried for seeds
   double seed_level_step_m = 0.05;    // step between levels
   double seed_max_level_m = 3.0;      // highest level tried
@@ -56,7 +72,8 @@ struct SegmentOptions {
                                       // border is >= this x the narrower one's peak clearance:
                                       // no constriction, one space (a corridor cut at a side
                                       // opening); 0 = off
-  double min_room_area_m2 = 2.0;      // smaller segments merge into a neighbour
+  double min_room_area_m2 = 1.0;      // smaller segments merge into a neighbour (1 m2: a WC;
+                                      // leave-one-out pick)
   double corridor_elongation = 4.0;   // length / width at or above this = corridor
   double corridor_max_width_m = 3.5;  // corridors are at most this wide
   double simplify_tolerance_m = 0.10;  // approxPolyDP tolerance for polygons

@@ -1,10 +1,16 @@
 // The arena's contract: capacity arithmetic, refusal when full, disjoint slots, reuse,
-// high-water mark, no heap traffic on acquire/release, and clear errors for bad sizes.
+// high-water mark, no heap traffic on acquire/release, clear errors for bad sizes, and memory the
+// kernel sees (pre-faulted reservations; slots given back to the kernel with release_to_os).
 #include "arena/arena.h"
+
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstring>
 #include <set>
 #include <vector>
 
@@ -23,6 +29,32 @@ ArenaError MakeError(ArenaConfig c) {
   auto r = Arena::Create(c);
   REQUIRE(std::holds_alternative<ArenaError>(r));
   return std::get<ArenaError>(r);
+}
+
+std::uint64_t PageBytes() { return static_cast<std::uint64_t>(sysconf(_SC_PAGE_SIZE)); }
+
+// Bytes of `s` the kernel holds resident (mincore), whatever this process's other memory does.
+std::uint64_t ResidentBytes(std::span<const std::byte> s) {
+  const std::uint64_t page = PageBytes();
+  const auto addr = reinterpret_cast<std::uintptr_t>(s.data());
+  const std::uintptr_t first = addr / page * page;
+  const std::uint64_t len = addr + s.size() - first;
+  std::vector<unsigned char> vec((len + page - 1) / page);
+  REQUIRE(mincore(reinterpret_cast<void*>(first), len, vec.data()) == 0);
+  return static_cast<std::uint64_t>(std::count_if(vec.begin(), vec.end(),
+                                                  [](unsigned char v) { return (v & 1U) != 0; })) *
+         page;
+}
+
+// This process's resident set as the kernel counts it (/proc/self/statm, second field).
+std::uint64_t ProcessRssBytes() {
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  REQUIRE(f != nullptr);
+  unsigned long long size = 0, resident = 0;
+  const int n = std::fscanf(f, "%llu %llu", &size, &resident);
+  std::fclose(f);
+  REQUIRE(n == 2);
+  return resident * PageBytes();
 }
 
 TEST_CASE("capacity is min(count, budget / aligned slot)") {
@@ -166,6 +198,108 @@ TEST_CASE("bad sizes give one clear error naming the limit") {
     auto e = MakeError({.memory_thr_keyframes = 1ULL << 40, .budget_bytes = 0, .slot_bytes = 64});
     CHECK(e.code == ArenaErrorCode::kTooManySlots);
   }
+}
+
+TEST_CASE("a pre-faulted arena is resident from Create(), every page") {
+  // MAP_POPULATE is silent when it cannot populate (and qemu-user ignores it): Create() checks.
+  Arena a = MakeArena({.memory_thr_keyframes = 8, .budget_bytes = 0, .slot_bytes = 1 << 20,
+                       .lock = false, .prefault = true});
+  for (std::uint32_t i = 0; i < a.capacity(); ++i) {
+    CHECK(ResidentBytes(a.Slot(SlotIndex{i})) == a.slot_bytes());
+  }
+}
+
+TEST_CASE("release_to_os: a slot's pages are taken on use and given back on release") {
+  constexpr std::uint32_t kSlots = 16;
+  Arena a = MakeArena({.memory_thr_keyframes = kSlots, .budget_bytes = 0,
+                       .slot_bytes = (1 << 20) + 100, .lock = false, .prefault = false,
+                       .release_to_os = true});
+  CHECK(a.releases_to_os());
+  CHECK(a.slot_bytes() % PageBytes() == 0);  // whole pages, so a release cannot hit a neighbour
+  CHECK(a.slot_bytes() >= (1 << 20) + 100);
+  const std::uint64_t total = std::uint64_t{kSlots} * a.slot_bytes();
+
+  std::array<SlotIndex, kSlots> held{};
+  const std::uint64_t rss_empty = ProcessRssBytes();
+  for (auto& h : held) {
+    auto s = a.TryAcquire();
+    REQUIRE(s.has_value());
+    h = *s;
+  }
+  for (SlotIndex h : held) std::memset(a.Slot(h).data(), 0x5A, a.Slot(h).size());  // a load
+  std::uint64_t resident = 0;
+  for (SlotIndex h : held) resident += ResidentBytes(a.Slot(h));
+  CHECK(resident == total);
+  const std::uint64_t rss_full = ProcessRssBytes();
+  MESSAGE("RSS " << rss_empty / 1024 << " KiB -> " << rss_full / 1024 << " KiB after touching "
+                 << total / 1024 << " KiB of slots");
+  // mincore above is exact; the process's RSS also moves with whatever else it does (under
+  // qemu-user, the emulator's own translation buffers), so a quarter of slack.
+  CHECK(rss_full >= rss_empty + total * 3 / 4);
+
+  for (SlotIndex h : held) a.Release(h);
+  resident = 0;
+  for (std::uint32_t i = 0; i < kSlots; ++i) resident += ResidentBytes(a.Slot(SlotIndex{i}));
+  CHECK(resident == 0);
+  const std::uint64_t rss_released = ProcessRssBytes();
+  MESSAGE("RSS after release " << rss_released / 1024 << " KiB");
+  CHECK(rss_released + total * 3 / 4 <= rss_full);
+  CHECK(a.stats().released_to_os == kSlots);
+  CHECK(a.stats().release_failures == 0);
+  // A released slot reads as the kernel's zeroed pages, never as the keyframe it held.
+  const auto bytes = a.Slot(held[0]);
+  CHECK(std::all_of(bytes.begin(), bytes.end(), [](std::byte b) { return b == std::byte{0}; }));
+}
+
+TEST_CASE("release_to_os with prefault: an acquired slot is resident before it is written") {
+  Arena a = MakeArena({.memory_thr_keyframes = 4, .budget_bytes = 0, .slot_bytes = 1 << 20,
+                       .lock = false, .prefault = true, .release_to_os = true});
+  // Nothing is resident at start-up: the whole map's arena is a reservation, not a budget.
+  for (std::uint32_t i = 0; i < a.capacity(); ++i) CHECK(ResidentBytes(a.Slot(SlotIndex{i})) == 0);
+  auto s = a.TryAcquire();
+  REQUIRE(s.has_value());
+  CHECK(ResidentBytes(a.Slot(*s)) == a.slot_bytes());
+  a.Release(*s);
+  CHECK(ResidentBytes(a.Slot(*s)) == 0);
+}
+
+TEST_CASE("release_to_os keeps the acquire poison and allocates nothing") {
+  Arena a = MakeArena({.memory_thr_keyframes = 8, .budget_bytes = 0, .slot_bytes = 8192,
+                       .lock = false, .prefault = true, .release_to_os = true});
+  if (a.poisoning()) {
+    auto s = a.TryAcquire();
+    REQUIRE(s.has_value());
+    auto bytes = a.Slot(*s);
+    CHECK(std::all_of(bytes.begin(), bytes.end(),
+                      [](std::byte b) { return b == Arena::kAcquiredPattern; }));
+    a.Release(*s);
+    auto again = a.TryAcquire();
+    REQUIRE(again.has_value());
+    CHECK(*again == *s);
+    CHECK(std::all_of(bytes.begin(), bytes.end(),
+                      [](std::byte b) { return b == Arena::kAcquiredPattern; }));
+    a.Release(*again);
+  } else {
+    MESSAGE("this build does not poison slots (release build): only allocation is checked");
+  }
+  std::array<SlotIndex, 8> held{};
+  test::AllocationCounter counter;
+  for (int round = 0; round < 20; ++round) {
+    std::size_t n = 0;
+    while (auto s = a.TryAcquire()) held[n++] = *s;
+    CHECK(n == 8);
+    for (std::size_t i = 0; i < n; ++i) a.Release(held[i]);
+  }
+  CHECK(counter.allocations() == 0);
+  CHECK(counter.deallocations() == 0);
+}
+
+TEST_CASE("lock with release_to_os is refused, naming both") {
+  auto e = MakeError({.memory_thr_keyframes = 4, .budget_bytes = 0, .slot_bytes = 4096,
+                      .lock = true, .prefault = false, .release_to_os = true});
+  CHECK(e.code == ArenaErrorCode::kConflictingOptions);
+  CHECK(e.message.find("lock") != std::string::npos);
+  CHECK(e.message.find("release_to_os") != std::string::npos);
 }
 
 TEST_CASE("a moved-from arena owns nothing") {

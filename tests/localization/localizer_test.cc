@@ -260,5 +260,57 @@ TEST_CASE("a warm tick that runs no PnP allocates nothing") {
   CHECK_FALSE(r.accepted);
 }
 
+TEST_CASE("points decoded from depth (camera frame, some without depth) localize like map points") {
+  // Two identical worlds, so both runs see the same keyframes and the same frames.
+  World world_map({}), world_cam({});
+  const KeyframeStore store_map = MakeKeyframes(world_map);
+  const KeyframeStore store_cam = MakeKeyframes(world_cam);
+  // The second store's points moved into each keyframe's camera frame, as DenseDecoder writes
+  // them; every 7th has no depth (NaN), which the localizer must skip.
+  std::vector<ResidentKeyframe> in_camera = store_cam.all();
+  std::vector<std::vector<float>> camera_points(in_camera.size());
+  for (std::size_t k = 0; k < in_camera.size(); ++k) {
+    ResidentKeyframe& kf = in_camera[k];
+    const Pose3 t_cam_map = CameraPoseInMap(kf.pose).inverse();
+    std::vector<float>& pts = camera_points[k];
+    pts.resize(3 * std::size_t{kf.view.feature_count});
+    for (std::uint32_t i = 0; i < kf.view.feature_count; ++i) {
+      const float* p = kf.view.points + 3 * i;
+      const Eigen::Vector3d c = t_cam_map * Eigen::Vector3d(p[0], p[1], p[2]);
+      for (int a = 0; a < 3; ++a) {
+        pts[3 * i + static_cast<std::size_t>(a)] =
+            i % 7 == 0 ? std::nanf("") : static_cast<float>(c(a));
+      }
+    }
+    kf.view.points = pts.data();
+    kf.view.points_frame = PointFrame::kCamera;
+  }
+  const Query q = MakeQuery();
+  const RunOutput by_map = Run(world_map, q, store_map.all());
+  const RunOutput by_cam = Run(world_cam, q, in_camera);
+  const double ate_map = AteRmse(by_map.truth, by_map.estimate);
+  const double ate_cam = AteRmse(by_cam.truth, by_cam.estimate);
+  MESSAGE("ATE map-frame points " << ate_map << " m (" << by_map.accepted << " closures), camera-frame "
+                                  << ate_cam << " m (" << by_cam.accepted << ")");
+  CHECK(ate_cam < 0.15);
+  CHECK(by_cam.accepted + 2 >= by_map.accepted);
+  CHECK(std::abs(ate_cam - ate_map) < 0.05);
+
+  // A dense keyframe whose depth was never decoded has no points: examined, never verified.
+  std::vector<ResidentKeyframe> undecoded = store_cam.all();
+  for (ResidentKeyframe& kf : undecoded) {
+    kf.view.points = nullptr;
+    kf.view.points_frame = PointFrame::kCamera;
+  }
+  World world({});
+  const Pose3 truth = PoseFromXYYaw(10.2, 0.1, 0.02);
+  const Frame frame = test::MakeFrame(0, 0.0, truth, world.Observe(truth));
+  Localizer loc({}, world.camera());
+  const LocalizeResult r = loc.Localize(frame, truth, undecoded);
+  CHECK_FALSE(r.accepted);
+  CHECK(r.candidates_examined > 0);
+  CHECK(r.closures_rejected == r.candidates_examined);
+}
+
 }  // namespace
 }  // namespace zm

@@ -1,7 +1,8 @@
 // The simulator's behaviour: hospital zones partition the building, no landmark is observed
 // through a wall (checked by an independent sampled line of sight), the zones cover every cell the
-// robot reaches, the same seed gives byte-identical scenario files, keyframe payloads respect a
-// configured byte range, and a crop of a real floor plan gives a usable scenario.
+// robot reaches, the same seed gives byte-identical scenario files, --footprint-scale scales the
+// resident footprint of the dense keyframes, and a crop of a real floor plan gives a usable
+// scenario.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -43,8 +44,8 @@ ScenarioOptions SmallScenario(std::uint64_t seed = 7) {
   ScenarioOptions o;
   o.seed = seed;
   o.camera.intrinsics = MakeIntrinsics(320, 240, 90.0);
-  o.depth.width = 64;
-  o.depth.height = 48;
+  o.dense.width = 64;
+  o.dense.height = 48;
   o.noise.max_features = 80;
   o.camera.range_m = 6.0;
   o.tasks = 3;
@@ -209,33 +210,42 @@ TEST_CASE("scenario: same seed gives byte-identical files and zones cover every 
   fs::remove_all(d2);
 }
 
-TEST_CASE("scenario: keyframe payloads fall within the configured byte range") {
+TEST_CASE("scenario: --footprint-scale scales the resident footprint, the metadata sizes slots") {
   auto b = GenerateHospital(SmallHospital(5));
   REQUIRE(b.ok());
-  const std::string dir = TempDir("bytes");
+  const std::string full_dir = TempDir("full"), scaled_dir = TempDir("scaled");
   ScenarioOptions o = SmallScenario(5);
   o.tasks = 1;
-  o.keyframe_bytes_min = 20000;
-  o.keyframe_bytes_max = 26000;
-  auto r = WriteScenario(*b, o, dir);
-  REQUIRE_MESSAGE(r.ok(), r.status().ToString());
-  CHECK(r->keyframe_bytes_min >= 20000);
-  CHECK(r->keyframe_bytes_max <= 26000);
-  auto db = MapDb::Open(dir + "/map.db");
-  REQUIRE(db.ok());
-  auto kfs = (*db)->Keyframes();
-  REQUIRE(kfs.ok());
-  REQUIRE(kfs->size() == r->keyframes);
-  for (const KeyframeMeta& k : *kfs) {
-    CHECK(k.payload_bytes >= 20000);
-    CHECK(k.payload_bytes <= 26000);
+  o.dense = DenseOptions{};  // 640x480, the default footprint
+  auto full = WriteScenario(*b, o, full_dir);
+  REQUIRE_MESSAGE(full.ok(), full.status().ToString());
+  CHECK(full->dense_width == 640);
+  o.dense.footprint_scale = 0.125;  // tests run devices at 1/8
+  auto scaled = WriteScenario(*b, o, scaled_dir);
+  REQUIRE_MESSAGE(scaled.ok(), scaled.status().ToString());
+  CHECK(scaled->dense_width < 640);
+  CHECK(scaled->dense_width % 8 == 0);
+  const double ratio = static_cast<double>(scaled->resident_bytes_median) / full->resident_bytes_median;
+  MESSAGE("resident median ", full->resident_bytes_median, " -> ", scaled->resident_bytes_median, " at ",
+          scaled->dense_width, "x", scaled->dense_height, " (ratio ", ratio, ")");
+  CHECK(ratio == doctest::Approx(0.125).epsilon(0.1));
+  // The map database reports the largest resident keyframe, which sizes the arena's slots.
+  for (const auto& [dir, r] : {std::pair{full_dir, *full}, std::pair{scaled_dir, *scaled}}) {
+    auto db = MapDb::Open(dir + "/map.db");
+    REQUIRE(db.ok());
+    CHECK((*db)->metadata().largest_payload_bytes == r.resident_bytes_max);
+    auto info = LoadScenario(dir);
+    REQUIRE(info.ok());
+    CHECK(info->resident_bytes_max == r.resident_bytes_max);
+    CHECK(info->keyframe_bytes_max == r.keyframe_bytes_max);
+    CHECK(r.keyframe_bytes_max < r.resident_bytes_min);  // compressed on disk
   }
-  o.keyframe_bytes_min = 100;  // features alone exceed this range: a clear error
-  o.keyframe_bytes_max = 200;
-  auto bad = WriteScenario(*b, o, dir);
+  o.dense.footprint_scale = 0.0005;  // fewer pixels than any image: a clear error
+  auto bad = WriteScenario(*b, o, scaled_dir);
   REQUIRE_FALSE(bad.ok());
-  CHECK(bad.status().code() == StatusCode::kOutOfRange);
-  fs::remove_all(dir);
+  CHECK(bad.status().message().find("--footprint-scale") != std::string::npos);
+  fs::remove_all(full_dir);
+  fs::remove_all(scaled_dir);
 }
 
 TEST_CASE("floorplan: a crop of a real map with its ground truth gives a usable scenario") {

@@ -1,7 +1,8 @@
 // Decluttering by dominant wall directions: the dominant angle of an axis-aligned map, runs of
 // rotated walls,
 // wall runs versus furniture, doorways only between collinear runs (never across a corridor),
-// and clutter islands filled unless they hold a wall or touch the border.
+// openings only from a thin wall's free end to the next wall within the opening width, and
+// clutter islands filled unless they hold a wall or touch the border.
 #include "zones/declutter.h"
 
 #include <doctest/doctest.h>
@@ -56,6 +57,30 @@ TEST_CASE("walls are long straight runs; doorways join collinear runs only") {
   // A gap wider than a door stays open.
   const WallEvidence narrow = FindWalls(occ, 0.0, 20, 9, /*door_px=*/12);
   CHECK(narrow.doorways.at<std::uint8_t>(40, 100) == 0);
+}
+
+TEST_CASE("openings continue a thin wall from its free end to the next wall, nowhere else") {
+  // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 m partition from the top wall (free end at row
+  // 60, 2.5 m above the bottom wall), a 0.6 m deep solid block against the bottom wall and a
+  // 2.5 m partition from the left wall, lower down, ending 3.5 m short of the right wall.
+  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
+  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
+  cv::rectangle(occ, cv::Rect(69, 10, 2, 50), cv::Scalar(255), cv::FILLED);
+  cv::rectangle(occ, cv::Rect(90, 78, 30, 12), cv::Scalar(255), cv::FILLED);
+  cv::rectangle(occ, cv::Rect(10, 70, 50, 2), cv::Scalar(255), cv::FILLED);
+  const WallEvidence w = FindWalls(occ, 0.0, /*min_length_px=*/20, /*gap_px=*/9,
+                                   /*door_px=*/24, /*opening_px=*/60, /*thickness_px=*/6);
+  // The partition's free end is continued down to the bottom wall: a 2.5 m opening.
+  for (int r = 62; r < 88; ++r) CHECK(w.openings.at<std::uint8_t>(r, 70) == 255);
+  // Its top end meets the top wall (a T): nothing is continued above it or beside it.
+  CHECK(w.openings.at<std::uint8_t>(30, 75) == 0);
+  // The left partition's end is 3.5 m (70 cells) from the right wall: beyond an opening.
+  CHECK(w.openings.at<std::uint8_t>(71, 90) == 0);
+  // The solid block's top face is no free end of its columns: no openings above it.
+  CHECK(w.openings.at<std::uint8_t>(60, 100) == 0);
+  // Without the opening width nothing is continued.
+  const WallEvidence none = FindWalls(occ, 0.0, 20, 9, 24);
+  CHECK(cv::countNonZero(none.openings) == 0);
 }
 
 TEST_CASE("walls rotated off the axes are found in the rotated frame") {

@@ -1,0 +1,236 @@
+// The device under test: a memory cgroup, or the ledger standing in for one. See device_model.h.
+#include "harness/device_model.h"
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <csignal>
+#include <cstring>
+#include <utility>
+
+#include "runtime/budget.h"
+
+namespace zm {
+namespace {
+
+class CgroupDevice final : public DeviceModel {
+ public:
+  explicit CgroupDevice(Cgroup cgroup) : cgroup_(std::move(cgroup)) {}
+
+  DeviceKind kind() const noexcept override { return DeviceKind::kCgroup; }
+  std::uint64_t limit_bytes() const noexcept override { return cgroup_.limit_bytes(); }
+  std::string Describe() const override {
+    return "cgroup " + std::string(CgroupVersionName(cgroup_.version())) + " " + cgroup_.dir() +
+           ", limit " + FormatBytes(cgroup_.limit_bytes()) +
+           (cgroup_.swap_limited() ? ", no swap" : ", swap not accounted by this kernel");
+  }
+  Status AddProcess(pid_t pid) override { return cgroup_.AddProcess(pid); }
+  int EnterSelf() const noexcept override { return cgroup_.EnterSelf(); }
+  DeviceSample Sample() noexcept override {
+    const CgroupSample c = cgroup_.Sample();
+    DeviceSample s;
+    s.usage_bytes = c.usage_bytes;
+    s.peak_bytes = c.peak_bytes;
+    s.oom_kills = c.oom_kills;
+    s.limit_hits = c.limit_hits;
+    s.under_oom = c.under_oom;
+    s.ok = c.ok;
+    return s;
+  }
+  Status Remove() override { return cgroup_.Remove(); }
+  Cgroup* cgroup() noexcept override { return &cgroup_; }
+
+ private:
+  Cgroup cgroup_;
+};
+
+class LedgerDevice final : public DeviceModel {
+ public:
+  LedgerDevice(DeviceLedger ledger, std::string reason) : ledger_(std::move(ledger)) {
+    fallback_reason_ = std::move(reason);
+  }
+  ~LedgerDevice() override { (void)Remove(); }
+
+  DeviceKind kind() const noexcept override { return DeviceKind::kLedger; }
+  std::uint64_t limit_bytes() const noexcept override {
+    return ledger_ ? ledger_->device_bytes() : 0;
+  }
+  std::string Describe() const override {
+    std::string d = "ledger " + path_ + ", " + FormatBytes(limit_bytes()) +
+                    " (simulated: out of memory is a refused grant, not the kernel's)";
+    if (!fallback_reason_.empty()) d += "; no cgroup: " + fallback_reason_;
+    return d;
+  }
+  Status AddProcess(pid_t) override { return Status::Ok(); }
+  int EnterSelf() const noexcept override { return 0; }
+  DeviceSample Sample() noexcept override {
+    DeviceSample s;
+    if (!ledger_) return s;
+    s.usage_bytes = ledger_->sum_bytes();
+    s.peak_bytes = ledger_->peak_sum_bytes();
+    s.oom_kills = ledger_->oom_events();
+    s.limit_hits = s.oom_kills;
+    s.under_oom = ledger_->OverCommitted();
+    s.ok = true;
+    return s;
+  }
+  Status Remove() override {
+    if (!ledger_) return Status::Ok();
+    ledger_.reset();
+    return DeviceLedger::Remove(path_);
+  }
+  DeviceLedger* ledger() noexcept override { return ledger_ ? &*ledger_ : nullptr; }
+
+  void set_path(std::string path) { path_ = std::move(path); }
+
+ private:
+  std::optional<DeviceLedger> ledger_;
+  std::string path_;
+};
+
+// What the child reports through the close-on-exec pipe when it fails before exec.
+struct ChildFailure {
+  int stage = 0;  // 1: entering the device, 2: exec
+  int err = 0;
+};
+
+void ReportAndExit(int fd, int stage, int err) noexcept {
+  const ChildFailure f{stage, err};
+  (void)!write(fd, &f, sizeof f);
+  _exit(127);
+}
+
+// Reads the child's failure report; false when the pipe closed empty (exec happened, or the
+// forked child is running inside the device).
+bool ReadFailure(int fd, ChildFailure* f) {
+  for (;;) {
+    const ssize_t n = read(fd, f, sizeof *f);
+    if (n < 0 && errno == EINTR) continue;
+    return n == static_cast<ssize_t>(sizeof *f);
+  }
+}
+
+}  // namespace
+
+std::string_view DeviceKindName(DeviceKind kind) {
+  return kind == DeviceKind::kCgroup ? "cgroup" : "ledger";
+}
+
+Result<DeviceKind> ParseDeviceKind(std::string_view text) {
+  if (text == "cgroup") return DeviceKind::kCgroup;
+  if (text == "ledger") return DeviceKind::kLedger;
+  return InvalidArgument("--device '" + std::string(text) + "': expected cgroup or ledger");
+}
+
+Result<std::unique_ptr<DeviceModel>> OpenDeviceModel(const DeviceModelOptions& options) {
+  if (options.limit_bytes == 0) return InvalidArgument("device: limit_bytes is 0");
+  std::string reason;
+  if (options.kind == DeviceKind::kCgroup) {
+    CgroupOptions co = options.cgroup;
+    co.limit_bytes = options.limit_bytes;
+    auto cg = Cgroup::Create(co);
+    if (cg.ok()) return std::unique_ptr<DeviceModel>(new CgroupDevice(std::move(cg).value()));
+    if (!options.fall_back_to_ledger) return cg.status();
+    reason = cg.status().message();
+  }
+  const std::string path =
+      options.ledger_path.empty()
+          ? DeviceLedger::DefaultLedgerPath() + "-" + std::to_string(static_cast<long>(getpid()))
+          : options.ledger_path;
+  (void)DeviceLedger::Remove(path);  // a fresh device every run
+  ZM_ASSIGN_OR_RETURN(DeviceLedger ledger, DeviceLedger::Open(path, options.limit_bytes));
+  auto device = std::make_unique<LedgerDevice>(std::move(ledger), std::move(reason));
+  device->set_path(path);
+  return std::unique_ptr<DeviceModel>(std::move(device));
+}
+
+Result<pid_t> SpawnInDevice(const SpawnRequest& request, const DeviceModel& device) {
+  if (request.argv.empty()) return InvalidArgument("spawn: empty command line");
+  // Everything the child needs is built before fork: after it, only async-signal-safe calls.
+  std::vector<char*> argv;
+  argv.reserve(request.argv.size() + 1);
+  for (const std::string& a : request.argv) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0)
+    return IoError(std::string("spawn: pipe: ") + std::strerror(errno));
+  const pid_t pid = fork();
+  if (pid < 0) {
+    const int err = errno;
+    close(fds[0]);
+    close(fds[1]);
+    return IoError("spawn " + request.argv[0] + ": fork: " + std::strerror(err));
+  }
+  if (pid == 0) {
+    close(fds[0]);
+    if (request.stdout_fd >= 0 && dup2(request.stdout_fd, STDOUT_FILENO) < 0) {
+      ReportAndExit(fds[1], 2, errno);
+    }
+    if (request.stderr_fd >= 0 && dup2(request.stderr_fd, STDERR_FILENO) < 0) {
+      ReportAndExit(fds[1], 2, errno);
+    }
+    const int err = device.EnterSelf();
+    if (err != 0) ReportAndExit(fds[1], 1, err);
+    execvp(argv[0], argv.data());
+    ReportAndExit(fds[1], 2, errno);
+  }
+  close(fds[1]);
+  ChildFailure f;
+  const bool failed = ReadFailure(fds[0], &f);
+  close(fds[0]);
+  if (!failed) return pid;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (f.stage == 1) {
+    return IoError("spawn " + request.argv[0] + ": the child could not enter the device (" +
+                   device.Describe() + "): " + std::strerror(f.err));
+  }
+  return IoError("spawn " + request.argv[0] + ": cannot execute it: " + std::strerror(f.err));
+}
+
+Result<pid_t> ForkInDevice(const DeviceModel& device) {
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0)
+    return IoError(std::string("fork: pipe: ") + std::strerror(errno));
+  const pid_t pid = fork();
+  if (pid < 0) {
+    const int err = errno;
+    close(fds[0]);
+    close(fds[1]);
+    return IoError(std::string("fork: ") + std::strerror(err));
+  }
+  if (pid == 0) {
+    close(fds[0]);
+    const int err = device.EnterSelf();
+    if (err != 0) ReportAndExit(fds[1], 1, err);
+    close(fds[1]);  // empty: inside
+    return pid_t{0};
+  }
+  close(fds[1]);
+  ChildFailure f;
+  const bool failed = ReadFailure(fds[0], &f);
+  close(fds[0]);
+  if (!failed) return pid;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  return IoError("fork: the child could not enter the device (" + device.Describe() +
+                 "): " + std::strerror(f.err));
+}
+
+ChildExit DescribeWaitStatus(int wait_status) noexcept {
+  ChildExit e;
+  if (WIFEXITED(wait_status)) {
+    e.exited = true;
+    e.code = WEXITSTATUS(wait_status);
+  } else if (WIFSIGNALED(wait_status)) {
+    e.signaled = true;
+    e.signal = WTERMSIG(wait_status);
+  }
+  return e;
+}
+
+}  // namespace zm
