@@ -181,16 +181,19 @@ class ZoneManager {
   // with hysteresis, or the nearest keyframe's), then the policy's plan (semantic, predictive,
   // radius and oracle decide here; the first call is the start-up load), as the net answer.
   // Cost: the zone lookup (constant time, ~20 ns) plus the policy's decision (semantic 0.01-0.2
-  // µs, radius up to ~6 µs; docs/memory.md) plus O(keyframes in the answer). Allocates nothing
-  // (after the first call). A bad pose (non-finite, quaternion norm outside [0.5, 1.5]), a
+  // µs, radius up to ~6 µs; docs/memory.md) plus O(keyframes in the answer): a steady tick
+  // (Update + AfterLocalization) ~0.2 µs whatever the map size, ~6 ns more per id in the answer
+  // (zm_api_bench, docs/api.md). Allocates nothing (after the first call). A bad pose (non-finite, quaternion norm outside [0.5, 1.5]), a
   // decreasing stamp or an unknown zone id is kInvalidArgument and changes nothing.
   [[nodiscard]] Result<Answer> Update(const TickInput& input);
 
   // The same tick, after the host localized: basic's retrieval around the highest hypothesis
   // and the pose, and its transfer (RTAB-Map runs both after its likelihood step); an empty
   // answer for every other policy. Call it after every Update when the policy is basic.
-  // Cost: basic's decision (1.5-6 µs on maps of 1,000-100,000 keyframes, docs/memory.md) plus
-  // O(answer). Allocates nothing. kFailedPrecondition before the first Update; an unknown id
+  // Cost: basic's decision (1.5-6 µs on maps of 1,000-100,000 keyframes with a working memory
+  // near MemoryThr, docs/memory.md) plus O(answer); its transfer scans the working memory,
+  // which starts as the whole map and drains a few keyframes a tick (up to ~0.7 ms a tick on
+  // 100,000 keyframes until then; docs/api.md). Allocates nothing. kFailedPrecondition before the first Update; an unknown id
   // is kInvalidArgument.
   [[nodiscard]] Result<Answer> AfterLocalization(const LocalizationInput& input);
 
