@@ -13,7 +13,7 @@
 # release). scripts/package-test.sh checks it: the arm64 binaries need exactly the shared
 # libraries the amd64 ones need, each is in the sysroot, and the list equals the amd64 package's
 # computed Depends. Cross-building for another distribution (JetPack's Ubuntu) means setting
-# ZM_DEB_CROSS_DEPENDS to that distribution's package names, or building the package natively.
+# ZM_DEB_CROSS_DEPENDS_OVERRIDE to that distribution's package names, or building natively.
 if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64|amd64)$")
   set(ZM_DEB_ARCH amd64)
 elseif(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64|ARM64)$")
@@ -22,9 +22,16 @@ else()
   set(ZM_DEB_ARCH ${CMAKE_SYSTEM_PROCESSOR})
 endif()
 
+# A plain variable, not a cache entry: a cache entry keeps the value of the first configure, so a
+# build tree would package a stale list after this one changes (it did, when libjpeg-turbo came
+# in). Another distribution's names go in ZM_DEB_CROSS_DEPENDS_OVERRIDE.
 set(ZM_DEB_CROSS_DEPENDS
-  "libc6 (>= 2.35), libgcc-s1 (>= 3.4), libopencv-core406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libsqlite3-0 (>= 3.30.1+fossil191229), libstdc++6 (>= 11), libtomlplusplus3 (>= 3.2.0), zlib1g (>= 1:1.2.0)"
-  CACHE STRING "Depends of the zonemap package on a cross build (see cmake/ZmPackaging.cmake)")
+  "libc6 (>= 2.35), libgcc-s1 (>= 3.4), libjpeg62-turbo (>= 1.3.1), libopencv-core406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libsqlite3-0 (>= 3.30.1+fossil191229), libstdc++6 (>= 11), libtomlplusplus3 (>= 3.2.0), zlib1g (>= 1:1.2.0)")
+set(ZM_DEB_CROSS_DEPENDS_OVERRIDE "" CACHE STRING
+  "Depends of the zonemap package on a cross build for another distribution (empty: Debian 12's)")
+if(ZM_DEB_CROSS_DEPENDS_OVERRIDE)
+  set(ZM_DEB_CROSS_DEPENDS "${ZM_DEB_CROSS_DEPENDS_OVERRIDE}")
+endif()
 
 set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME zonemap)
