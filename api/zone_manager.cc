@@ -313,7 +313,6 @@ Result<Answer> ZoneManager::Update(const TickInput& input) {
   m.ctx.small_displacement = small;
   m.ctx.highest_hypothesis = zm::KeyframeId{0};
   m.ctx.localized_on = zm::KeyframeId{0};
-  m.ctx.load_ms_per_keyframe = 0.0;  // the host's loads are not timed here
   m.ctx.route = m.route;
 
   m.plan.Clear();

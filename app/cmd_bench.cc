@@ -6,6 +6,14 @@
 //   zonemap bench --quick --out out/demo      # hospital, semantic vs basic (+ predictive), one
 //                                             # budget, with and without qwen3-vl-2b (stand-in)
 //   zonemap bench --out out/full              # the full matrix
+//   zonemap bench --scenarios dir:DENSE --budgets 400kf --models none
+//                 --policies unbounded,basic,semantic,predictive,semantic:unsliced
+//                 --out out/latency           # tick latency per policy on an existing scenario
+//                                             # (issue 14: time-sliced loads vs loads in the tick)
+//
+// Every run also lands in the tick-latency table (latency.md: tick p50/p99/max after start-up,
+// the start-up load apart, each against unbounded's of the same scenario) and figure
+// (figures/latency_<scenario>.png: the CDF of tick time per policy).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -51,6 +59,10 @@ std::string Quote(const std::string& s) { return "'" + s + "'"; }
 Status EnsureScenario(const std::string& spec, const std::string& dir, const std::string& floorplans,
                       bool quick) {
   if (fs::exists(dir + "/scenario.json") && fs::exists(dir + "/map.db")) return Status::Ok();
+  if (spec.rfind("dir:", 0) == 0) {  // an existing scenario directory: used as it is
+    return NotFound("scenario directory '" + spec.substr(4) +
+                    "' has no scenario.json and map.db (make one with `zonemap sim`)");
+  }
   std::string cmd = Quote(SelfExe()) + " sim ";
   if (spec == "hospital") {
     cmd += "hospital --seed 1 --quiet --out " + Quote(dir);
@@ -86,6 +98,33 @@ double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// A policy entry of --policies: NAME, or NAME:unsliced (loads finish inside the tick that plans
+// them, as before issue 14: [loads] sliced = false), measured side by side with the sliced one.
+struct PolicyVariant {
+  std::string policy;
+  bool unsliced = false;
+  std::string label;  // what the tables and figures call it
+};
+
+Result<PolicyVariant> ParsePolicyVariant(const std::string& entry) {
+  PolicyVariant v;
+  const auto colon = entry.find(':');
+  v.policy = entry.substr(0, colon);
+  v.label = entry;
+  if (colon != std::string::npos) {
+    if (entry.substr(colon + 1) != "unsliced") {
+      return InvalidArgument("policy variant '" + entry + "': only NAME:unsliced is known");
+    }
+    v.unsliced = true;
+  }
+  return v;
+}
+
+std::string Label(const nlohmann::json& r) {
+  return r.contains("policy_label") ? r["policy_label"].get<std::string>()
+                                    : r["policy"].get<std::string>();
 }
 
 struct Table {
@@ -131,10 +170,10 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--out", o->out, "output directory")->required();
   cmd->add_flag("--quick", o->quick, "the short default of `make demo`");
   cmd->add_option("--profile", o->profile, "device profile (default orin-nano-8gb)");
-  cmd->add_option("--scenarios", o->scenarios, "comma list: hospital, floorplan:NAME");
-  cmd->add_option("--policies", o->policies, "comma list of policies");
+  cmd->add_option("--scenarios", o->scenarios, "comma list: hospital, floorplan:NAME, dir:PATH (an existing scenario)");
+  cmd->add_option("--policies", o->policies, "comma list of policies; NAME:unsliced = loads inside the tick (as before issue 14)");
   cmd->add_option("--models", o->models, "comma list of co-tenant models ('none' = without)");
-  cmd->add_option("--budgets", o->budgets, "comma list of MemoryThr as fractions of the map (e.g. 1,0.5,0.25) or 'two-zones'");
+  cmd->add_option("--budgets", o->budgets, "comma list of MemoryThr as fractions of the map (e.g. 1,0.5,0.25), 'two-zones' or a count 'Nkf'");
   cmd->add_option("--floorplans", o->floorplans, "folder with <name>_map.png and <name>_gt.png");
   cmd->add_option("--cotenant-scale", o->cotenant_scale, "scale the stand-in's weights");
   cmd->add_option("--repeat", o->repeat, "runs per cell; timings are medians over them");
@@ -160,7 +199,12 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
 
     for (const std::string& spec : scenarios) {
       std::string name = spec.substr(spec.find(':') == std::string::npos ? 0 : spec.find(':') + 1);
-      const std::string sdir = o->out + "/scenarios/" + name;
+      std::string sdir = o->out + "/scenarios/" + name;
+      if (spec.rfind("dir:", 0) == 0) {
+        sdir = spec.substr(4);
+        name = fs::path(sdir).lexically_normal().filename().string();
+        if (name.empty()) name = fs::path(sdir).lexically_normal().parent_path().filename().string();
+      }
       if (Status s = EnsureScenario(spec, sdir, o->floorplans, q); !s.ok()) return ctx.Fail("bench", s);
       auto info = sim::LoadScenario(sdir);
       if (!info.ok()) return ctx.Fail("bench", info.status());
@@ -177,14 +221,20 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
         std::uint64_t k = 0;
         if (b == "two-zones") {
           k = zs.size() >= 2 ? zs[0] + zs[1] : n;
+        } else if (b.size() > 2 && b.substr(b.size() - 2) == "kf") {  // "400kf": a count
+          k = std::strtoull(b.c_str(), nullptr, 10);
         } else {
           k = static_cast<std::uint64_t>(std::llround(std::atof(b.c_str()) * static_cast<double>(n)));
         }
         k = std::clamp<std::uint64_t>(k, zs.empty() ? 1 : zs[0], n);
         for (const std::string& model : models) {
-          for (const std::string& policy : policies) {
+          for (const std::string& entry : policies) {
+            auto variant = ParsePolicyVariant(entry);
+            if (!variant.ok()) return ctx.Fail("bench", variant.status());
+            const std::string& policy = variant->policy;
             if (model != "none" && policy == "oracle") continue;  // a bound, not a contender
-            const std::string run_name = policy + "-k" + std::to_string(k) + "-" + model;
+            const std::string run_name = policy + (variant->unsliced ? "-unsliced" : "") + "-k" +
+                                         std::to_string(k) + "-" + model;
             std::vector<double> tick_means;
             nlohmann::json last;
             for (int rep = 0; rep < std::max(1, o->repeat); ++rep) {
@@ -194,6 +244,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               ov.policy = policy;
               ov.memory_thr = std::to_string(k);
               if (Status s = ApplyOverrides(ov, profile->core); !s.ok()) return ctx.Fail("bench", s);
+              if (variant->unsliced) profile->core.loads.sliced = false;
               if (model != "none") {
                 if (Status s = ApplyModelOverride(model, profile.value()); !s.ok()) {
                   return ctx.Fail("bench", s);
@@ -222,6 +273,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               if (StopFlag()->load()) return ctx.Fail("bench", "interrupted");
             }
             last["scenario_name"] = name;
+            last["policy_label"] = variant->label;
             last["budget"] = b;
             last["model"] = model;
             last["tick_ms_mean_median_of_repeats"] = Median(tick_means);
@@ -239,7 +291,8 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     Table t2{{"scenario", "K_max", "model (stand-in)", "policy", "outcome", "TPS", "latency (ms)"}, {}};
     Table t3{{"scenario", "K_max", "policy", "co-tenant", "peak resident kf", "peak resident MB",
               "over-budget ticks", "max excess kf", "OOM events", "kf loaded", "kf unloaded",
-              "DB transactions", "DB queries", "DB MB read", "zone loads", "zone loads / oracle"}, {}};
+              "DB statements start-up / steady", "DB transactions start-up / steady",
+              "DB blob reads start-up / steady", "DB MB read", "zone loads", "zone loads / oracle"}, {}};
     std::map<std::string, double> oracle_loads;
     for (const auto& r : all) {
       if (r["policy"] == "oracle") {
@@ -248,7 +301,11 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       }
     }
     for (const auto& r : all) {
-      const std::string sc = r["scenario_name"], pol = r["policy"], model = r["model"];
+      const std::string sc = r["scenario_name"], pol = Label(r), model = r["model"];
+      const auto split = [&r](const char* key) {
+        return std::to_string(r["startup"].value(key, std::uint64_t{0})) + " / " +
+               std::to_string(r["steady_state"].value(key, std::uint64_t{0}));
+      };
       const std::string k = std::to_string(r["k_max"].get<int>());
       t1.rows.push_back({sc, k, pol, model, Fmt(Num(r, "update_rate_hz"), 2),
                          std::to_string(r["loop_closures"].get<std::uint64_t>()),
@@ -272,9 +329,9 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                          std::to_string(r.value("oom_events", std::uint64_t{0})),
                          std::to_string(r["keyframes_loaded"].get<std::uint64_t>()),
                          std::to_string(r["keyframes_unloaded"].get<std::uint64_t>()),
-                         std::to_string(r["db_transactions"].get<std::uint64_t>()),
-                         std::to_string(r["db_queries"].get<std::uint64_t>() +
-                                        r["search_queries"].get<std::uint64_t>()),
+                         // Database work in one unit for every policy (basic's searches included),
+                         // the start-up load apart from the rest of the run.
+                         split("db_queries"), split("db_transactions"), split("db_blob_reads"),
                          Fmt(r["db_bytes_read"].get<double>() / 1e6, 1), Fmt(zl, 0),
                          ok != oracle_loads.end() && ok->second > 0 && zl > 0 ? Fmt(zl / ok->second, 2) : "–"});
     }
@@ -283,13 +340,13 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               "DB bytes read", "ATE"}, {}};
     auto find = [&](const std::string& sc, int k, const std::string& model, const std::string& pol) {
       for (const auto& r : all) {
-        if (r["scenario_name"] == sc && r["k_max"] == k && r["model"] == model && r["policy"] == pol) return &r;
+        if (r["scenario_name"] == sc && r["k_max"] == k && r["model"] == model && Label(r) == pol) return &r;
       }
       return static_cast<const nlohmann::json*>(nullptr);
     };
     auto ratio = [](double a, double b) { return b != 0 ? Fmt(a / b, 2) : std::string("–"); };
     for (const auto& r : all) {
-      if (r["policy"] != "semantic") continue;
+      if (Label(r) != "semantic") continue;
       const std::string sc = r["scenario_name"], model = r["model"];
       const int k = r["k_max"];
       for (auto [num, den] : {std::pair{"semantic", "basic"}, std::pair{"predictive", "semantic"}}) {
@@ -304,6 +361,39 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                            ratio(Num(*a, "ate_rmse_m"), Num(*b, "ate_rmse_m"))});
       }
     }
+    // Tick latency per policy (issue 14): steady-state ticks (after the start-up tick), each
+    // against unbounded's in the same scenario and co-tenant setting (no loads at all: the
+    // floor); the start-up load apart.
+    Table t5{{"scenario", "K_max", "policy", "co-tenant", "ticks", "tick p50 (ms)", "tick p99 (ms)",
+              "tick max (ms)", "p99 / unbounded", "max / unbounded", "start-up tick (ms)",
+              "start-up kf", "start-up MB", "idle load (ms)", "late ticks", "loop closures", "ATE RMSE (m)"}, {}};
+    for (const auto& r : all) {
+      const std::string sc = r["scenario_name"], model = r["model"];
+      const auto& tm = r["tick_ms"];
+      const nlohmann::json* floor = nullptr;
+      for (const auto& u : all) {
+        if (u["scenario_name"] == sc && u["model"] == model && u["policy"] == "unbounded") floor = &u;
+      }
+      const auto vs = [&](const char* key) {
+        if (floor == nullptr) return std::string("–");
+        const double d = (*floor)["tick_ms"][key].get<double>();
+        return d > 0 ? Fmt(tm[key].get<double>() / d, 2) : std::string("–");
+      };
+      const nlohmann::json st = r.value("startup", nlohmann::json::object());
+      const nlohmann::json ld = r.value("loads", nlohmann::json::object());
+      t5.rows.push_back({sc, std::to_string(r["k_max"].get<int>()), Label(r), model,
+                         std::to_string(tm.value("count", std::uint64_t{0})),
+                         Fmt(tm["p50"].get<double>(), 2), Fmt(tm["p99"].get<double>(), 2),
+                         Fmt(tm["max"].get<double>(), 1), vs("p99"), vs("max"),
+                         Fmt(st.value("tick_ms", std::nan("")), 1),
+                         std::to_string(st.value("keyframes_loaded", std::uint64_t{0})),
+                         Fmt(st.value("bytes_read", 0.0) / 1e6, 1),
+                         Fmt(ld.value("idle_load_ms_total", 0.0), 0),
+                         std::to_string(ld.value("late_ticks", std::uint64_t{0})),
+                         std::to_string(r["loop_closures"].get<std::uint64_t>()),
+                         Fmt(Num(r, "ate_rmse_m"), 4)});
+    }
+    t5.Write(o->out + "/latency", "Tick latency (steady state; start-up apart)");
     t1.Write(o->out + "/table1", "Table I analogue: SLAM with and without the co-tenant");
     t2.Write(o->out + "/table2", "Table II analogue: the co-tenant beside SLAM (stand-in for VLM decoding)");
     t3.Write(o->out + "/memory", "Memory and churn");
@@ -312,7 +402,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       nlohmann::json tables = {{"results", all}};
       std::ofstream(o->out + "/tables.json") << tables.dump(2) << '\n';
     }
-    for (const char* f : {"table1", "table2", "memory", "ratios"}) {
+    for (const char* f : {"table1", "table2", "memory", "ratios", "latency"}) {
       std::ifstream in(o->out + "/" + f + ".md");
       std::ostringstream text;
       text << in.rdbuf();
@@ -326,7 +416,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       const std::string c = py + " " + Quote(plots) + " " + Quote(o->out);
       if (std::system(c.c_str()) != 0) std::fprintf(stderr, "bench: figures failed (%s)\n", c.c_str());
     }
-    std::printf("bench: wrote %s/{table1,table2,memory,ratios}.{md,csv}, results.json, figures/\n",
+    std::printf("bench: wrote %s/{table1,table2,memory,ratios,latency}.{md,csv}, results.json, figures/\n",
                 o->out.c_str());
   });
 }

@@ -56,6 +56,10 @@ nlohmann::json ToJson(const RtabmapImportReport& r, const std::string& out) {
                                                    {"width", r.camera.width},
                                                    {"height", r.camera.height}}
                                   : nlohmann::json(nullptr)},
+          {"last_working_memory", r.last_wm_recorded
+                                      ? nlohmann::json{{"nodes", r.last_wm_nodes},
+                                                       {"info_time_enter", r.last_info_time_enter}}
+                                      : nlohmann::json(nullptr)},
           {"ms", r.ms}};
 }
 
@@ -117,6 +121,13 @@ void AddImportCommand(CLI::App& app, CommandContext& ctx) {
     if (r->has_camera) {
       std::printf("  camera %ux%u fx=%.2f fy=%.2f cx=%.2f cy=%.2f\n", r->camera.width, r->camera.height,
                   r->camera.fx, r->camera.fy, r->camera.cx, r->camera.cy);
+    }
+    // What basic starts from with init_wm_with_all_nodes = false (RTAB-Map's default).
+    if (r->last_wm_recorded) {
+      std::printf("  last working memory %llu nodes (Node.time_enter >= the last Info.time_enter '%s')\n",
+                  static_cast<unsigned long long>(r->last_wm_nodes), r->last_info_time_enter.c_str());
+    } else {
+      std::printf("  last working memory: every node (no Info.time_enter to go by)\n");
     }
   });
 }

@@ -198,7 +198,6 @@ Result<SoakReport> Soak(const SoakOpts& o) {
     ctx.now_s = 0.1 * static_cast<double>(t);
     ctx.zone = walk[(t / o.ticks_per_zone) % walk.size()];
     ctx.pose = PoseFromXYYaw(0.5 * o.keyframes_per_zone * (ctx.zone.value + 0.5), 0.0, 0.0);
-    ctx.load_ms_per_keyframe = ws.load_ms_per_keyframe();
     ctx.highest_hypothesis = KeyframeId{0};
     ctx.localized_on = KeyframeId{0};
     plan.Clear();

@@ -87,7 +87,6 @@ void BM_Policy(benchmark::State& state, const char* policy) {
   zm::PolicyOptions o;
   o.policy = policy;
   o.k_max = kKMax;
-  o.predictive.max_keyframes_per_tick = 64;
   for (std::uint64_t t = 0; t < kFutureTicks; ++t) o.oracle.future.push_back(w.zone_of[kf_at(t)]);
   for (zm::KfIndex k = 0; k < std::min<std::uint32_t>(kKMax, count); ++k) {
     o.basic.initial_wm.push_back(w.index.id(k));

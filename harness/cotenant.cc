@@ -1,112 +1,65 @@
-// Co-tenant stand-in: model table, the weight-streaming decode loop, outcome rules, and the two
-// ways to run it beside the tick loop (thread, child process). Every output says "stand-in".
+// Co-tenant stand-in: the model table and its KV geometry, configuration and sizes, the outcome
+// decision and the report built from event lines. The run loop is cotenant_run.cc, the child
+// process cotenant_process.cc. Every output says "stand-in".
 #include "harness/cotenant.h"
 
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
+#include <time.h>
 
 #include <algorithm>
 #include <array>
-#include <cerrno>
-#include <chrono>
 #include <cmath>
-#include <cstring>
-#include <filesystem>
-#include <nlohmann/json.hpp>
-#include <optional>
+#include <cstdio>
 
-#include "harness/device_ledger.h"
-#include "runtime/memory_cap.h"
+#include "harness/device_scale.h"
 #include "harness/experiment_profile.h"
-#include "runtime/streaming_stats.h"
-
-extern char** environ;
+#include "harness/weights_file.h"
 
 namespace zm {
 namespace {
 
-// Sizes as the paper gives them (decimal gigabytes).
+// Weights: the paper's sizes (decimal GB). KV cache at f16 (2 bytes), K and V, per layer:
+// 2 * kv_heads * head_dim * 2 bytes per token. Geometry from each model's config.json
+// (docs/harness.md, "The paper's models"):
+//   qwen3-vl-2b   28 layers, 8 KV heads x 128            -> 28 * 4096 = 114688 B/token
+//   qwen3-vl-4b   36 layers, 8 KV heads x 128            -> 36 * 4096 = 147456 B/token
+//   qwen3.5-*     24 layers, every 4th full attention (6), 2 KV heads x 256 -> 6 * 2048 =
+//                 12288 B/token; the 18 Gated DeltaNet layers keep a fixed f32 state of
+//                 16 heads x 128 x 128 plus a 3-column conv state of 6144 channels =
+//                 1122304 B each -> 20201472 B per sequence
+//   gemma3-4b     34 layers, 4 KV heads x 256 = 4096 B/token/layer; every 6th layer global
+//                 (5) -> 20480 B/token; the 29 sliding-window layers -> 118784 B/token for at
+//                 most 1024 tokens
 constexpr std::array<CotenantModel, 5> kModels = {{
-    {"qwen3-vl-2b", "qwen3-vl 2B", 1'900'000'000ULL},
-    {"qwen3-vl-4b", "qwen3-vl 4B", 3'300'000'000ULL},
-    {"qwen3.5-0.8b", "qwen3.5 0.8B", 1'000'000'000ULL},
-    {"qwen3.5-2b", "qwen3.5 2B", 2'700'000'000ULL},
-    {"gemma3-4b", "gemma3 4B", 3'300'000'000ULL},
+    {"qwen3-vl-2b", "qwen3-vl 2B", 1'900'000'000ULL, 114'688, 0, 0, 0},
+    {"qwen3-vl-4b", "qwen3-vl 4B", 3'300'000'000ULL, 147'456, 0, 0, 0},
+    {"qwen3.5-0.8b", "qwen3.5 0.8B", 1'000'000'000ULL, 12'288, 0, 0, 20'201'472},
+    {"qwen3.5-2b", "qwen3.5 2B", 2'700'000'000ULL, 12'288, 0, 0, 20'201'472},
+    {"gemma3-4b", "gemma3 4B", 3'300'000'000ULL, 20'480, 118'784, 1024, 0},
 }};
 
-using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+std::uint64_t RoundUpPages(std::uint64_t bytes) {
+  return (bytes + kWeightsPageBytes - 1) / kWeightsPageBytes * kWeightsPageBytes;
 }
 
-bool Stopped(const std::atomic<bool>* stop) {
-  return stop != nullptr && stop->load(std::memory_order_relaxed);
+std::string Plural(std::uint64_t n, const char* what) {
+  return std::to_string(n) + " " + what + (n == 1 ? "" : "s");
 }
 
-// Sleeps up to `ms`, waking early when *stop is set.
-void SleepFor(double ms, const std::atomic<bool>* stop) {
-  if (!(ms > 0.0)) return;
-  const auto until =
-      Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                         std::chrono::duration<double, std::milli>(ms));
-  while (!Stopped(stop) && Clock::now() < until) {
-    const Clock::duration left = until - Clock::now();
-    const Clock::duration step = std::chrono::milliseconds(5);
-    std::this_thread::sleep_for(std::min(left, step));
-  }
+double Num(const nlohmann::json& j, const char* key) {
+  const auto it = j.find(key);
+  return it != j.end() && it->is_number() ? it->get<double>() : 0.0;
 }
-
-// Fills the weights with a cheap pseudo-random sequence (every page written: resident, not the
-// shared zero page).
-void TouchWeights(std::uint64_t* w, std::size_t words) {
-  std::uint64_t x = 0x9E3779B97F4A7C15ULL;
-  for (std::size_t i = 0; i < words; ++i) {
-    x ^= x << 13;
-    x ^= x >> 7;
-    x ^= x << 17;
-    w[i] = x;
-  }
+std::uint64_t U64(const nlohmann::json& j, const char* key) {
+  const auto it = j.find(key);
+  return it != j.end() && it->is_number() ? it->get<std::uint64_t>() : 0;
 }
-
-// One pass over all the weights: the stand-in for one forward pass. Eight independent lanes so
-// the loop is limited by memory bandwidth, not by an add chain; the result seeds the next pass
-// and ends in the reported checksum, and the barrier stops the compiler from merging passes.
-[[gnu::noinline]] std::uint64_t StreamPass(const std::uint64_t* w, std::size_t words,
-                                           std::uint64_t seed) {
-  std::uint64_t a[8] = {seed, 1, 2, 3, 4, 5, 6, 7};
-  std::size_t i = 0;
-  for (; i + 8 <= words; i += 8) {
-    for (std::size_t k = 0; k < 8; ++k) a[k] += w[i + k];
-  }
-  for (; i < words; ++i) a[0] += w[i];
-  std::uint64_t h = 0;
-  for (std::uint64_t v : a) h = (h ^ v) * 0x100000001B3ULL;
-  asm volatile("" : : "r"(h) : "memory");
-  return h;
+bool Bool(const nlohmann::json& j, const char* key) {
+  const auto it = j.find(key);
+  return it != j.end() && it->is_boolean() && it->get<bool>();
 }
-
-// What the run holds; released on every path out of RunCotenant.
-struct Holdings {
-  std::optional<DeviceLedger> ledger;
-  LedgerTenant tenant;
-  void* weights = nullptr;
-  std::size_t weights_bytes = 0;
-  void* overhead = nullptr;
-  std::size_t overhead_bytes = 0;
-  ~Holdings() {
-    UnmapBytes(weights, weights_bytes);
-    UnmapBytes(overhead, overhead_bytes);
-    tenant.Release();
-  }
-};
-
-std::uint64_t Scaled(std::uint64_t bytes, double scale) {
-  const double v = std::round(static_cast<double>(bytes) * scale);
-  return v <= 0.0 ? 0 : static_cast<std::uint64_t>(v);
+std::string Str(const nlohmann::json& j, const char* key) {
+  const auto it = j.find(key);
+  return it != j.end() && it->is_string() ? it->get<std::string>() : std::string();
 }
 
 }  // namespace
@@ -117,8 +70,8 @@ Result<CotenantModel> FindCotenantModel(std::string_view name) {
   for (const CotenantModel& m : kModels) {
     if (m.name == name) return m;
   }
-  return NotFound("unknown co-tenant model '" + std::string(name) + "' (known: " +
-                  CotenantModelNames() + ")");
+  return NotFound("unknown co-tenant model '" + std::string(name) +
+                  "' (known: " + CotenantModelNames() + ")");
 }
 
 std::string CotenantModelNames() {
@@ -127,20 +80,43 @@ std::string CotenantModelNames() {
   return s;
 }
 
+std::uint64_t KvCacheBytes(const CotenantModel& m, std::uint64_t context_tokens) {
+  return m.state_bytes + context_tokens * m.kv_bytes_per_token +
+         std::min<std::uint64_t>(context_tokens, m.window_tokens) * m.window_bytes_per_token;
+}
+
+std::string_view KvAllocationName(KvAllocation a) {
+  return a == KvAllocation::kAtLoad ? "at_load" : "per_request";
+}
+
+std::string_view WeightsLoadName(WeightsLoad w) {
+  return w == WeightsLoad::kRead ? "read" : "mmap";
+}
+
 std::string_view CotenantOutcomeName(CotenantOutcome o) {
   switch (o) {
-    case CotenantOutcome::kCompleted: return "completed";
-    case CotenantOutcome::kStalled: return "stalled";
-    case CotenantOutcome::kFailedToStart: return "failed to start";
+    case CotenantOutcome::kCompleted:
+      return "completed";
+    case CotenantOutcome::kStalled:
+      return "stalled";
+    case CotenantOutcome::kFailedToStart:
+      return "failed_to_start";
+    case CotenantOutcome::kKilled:
+      return "killed";
   }
   return "unknown";
 }
 
 std::string_view CotenantOutcomeSymbol(CotenantOutcome o) {
   switch (o) {
-    case CotenantOutcome::kCompleted: return "\u25cb";      // ○
-    case CotenantOutcome::kStalled: return "\u25b3";        // △
-    case CotenantOutcome::kFailedToStart: return "\u00d7";  // ×
+    case CotenantOutcome::kCompleted:
+      return "\u25cb";  // ○
+    case CotenantOutcome::kStalled:
+      return "\u25b3";  // △
+    case CotenantOutcome::kFailedToStart:
+      return "\u00d7";  // ×
+    case CotenantOutcome::kKilled:
+      return "\u2020";  // †
   }
   return "?";
 }
@@ -149,167 +125,240 @@ CotenantConfig CotenantConfigFromProfile(const ExperimentProfile& profile) {
   CotenantConfig c;
   c.model = profile.core.model.name;
   c.weights_bytes = profile.core.model.weights_bytes;
-  c.overhead_bytes = profile.core.model.kv_cache_bytes;
-  c.prompt_tokens = profile.cotenant.prompt_tokens;
-  c.answer_tokens = profile.cotenant.answer_tokens;
-  c.prompt_batch_tokens = profile.cotenant.prompt_batch_tokens;
-  c.request_period_s = profile.cotenant.request_period_s;
-  c.request_deadline_s = profile.cotenant.request_deadline_s;
+  c.options = profile.cotenant;
   return c;
 }
 
-CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>* stop) {
-  CotenantResult r;
-  r.model = config.model;
-  r.scale = config.scale;
-  r.outcome = CotenantOutcome::kFailedToStart;
-  if (config.weights_bytes != 0) {
-    r.model_weights_bytes = config.weights_bytes;
-  } else if (Result<CotenantModel> m = FindCotenantModel(config.model); m.ok()) {
-    r.model_weights_bytes = m->weights_bytes;
+Result<CotenantSizes> ResolveCotenantSizes(const CotenantConfig& c) {
+  const CotenantOptions& o = c.options;
+  ZM_RETURN_IF_ERROR(ValidateDeviceScale(c.device_scale).Annotate("co-tenant"));
+  if (o.answer_tokens == 0 || o.prompt_batch_tokens == 0) {
+    return InvalidArgument("co-tenant answer_tokens and prompt_batch_tokens must be positive");
+  }
+  if (static_cast<std::uint64_t>(o.prompt_tokens) + o.answer_tokens > o.context_tokens) {
+    return InvalidArgument("co-tenant prompt_tokens + answer_tokens (" +
+                           std::to_string(o.prompt_tokens + std::uint64_t{o.answer_tokens}) +
+                           ") exceed context_tokens (" + std::to_string(o.context_tokens) + ")");
+  }
+  CotenantSizes s;
+  if (Result<CotenantModel> m = FindCotenantModel(c.model); m.ok()) {
+    s.model = *m;
+  } else if (o.kv_bytes_per_token != 0 && c.weights_bytes != 0) {
+    s.model.name = c.model;
   } else {
-    r.reason = m.status().message();
-    return r;
+    return NotFound(m.status().message() +
+                    "; for another model set weights_bytes and [cotenant] kv_bytes_per_token");
   }
-  if (!(config.scale > 0.0) || config.answer_tokens == 0 || config.prompt_batch_tokens == 0) {
-    r.reason = "bad configuration: scale, answer_tokens and prompt_batch_tokens must be positive";
-    return r;
+  if (o.kv_bytes_per_token != 0) {
+    s.model.kv_bytes_per_token = o.kv_bytes_per_token;
+    s.model.window_bytes_per_token = 0;
+    s.model.window_tokens = 0;
+    s.model.state_bytes = 0;
   }
-  r.weights_bytes = std::max<std::uint64_t>(Scaled(r.model_weights_bytes, config.scale) / 8 * 8, 8);
-  r.overhead_bytes = Scaled(config.overhead_bytes, config.scale);
+  s.model_weights_bytes = c.weights_bytes != 0 ? c.weights_bytes : s.model.weights_bytes;
+  s.weights_bytes = std::max<std::uint64_t>(
+      ScaleBytes(s.model_weights_bytes, c.device_scale) / kWeightsPageBytes * kWeightsPageBytes,
+      kWeightsPageBytes);
+  s.kv_reserved_bytes = RoundUpPages(ScaledKvBytes(s, c.device_scale, o.context_tokens));
+  s.request_kv_bytes =
+      ScaledKvBytes(s, c.device_scale, std::uint64_t{o.prompt_tokens} + o.answer_tokens);
+  return s;
+}
 
-  Holdings hold;
-  std::uint64_t oom0 = 0;  // ledger OOM events before this tenant existed
-  if (!config.ledger_path.empty()) {
-    Result<DeviceLedger> ledger = DeviceLedger::Open(config.ledger_path, config.ledger_device_bytes);
-    if (!ledger.ok()) {
-      r.reason = ledger.status().message();
-      return r;
-    }
-    hold.ledger.emplace(std::move(ledger).value());
-    // Sampled before registering: another tenant may be refused the moment our grant is
-    // visible, before this thread runs again (seen under qemu), and that event is ours to see.
-    oom0 = hold.ledger->oom_events();
-    std::string name = config.ledger_name.empty() ? "cotenant:" + config.model : config.ledger_name;
-    if (name.size() >= kLedgerNameBytes) name.resize(kLedgerNameBytes - 1);
-    Result<LedgerTenant> tenant = hold.ledger->Register(name, r.weights_bytes + r.overhead_bytes);
-    if (!tenant.ok()) {
-      r.reason = "weights do not fit: " + tenant.status().message();
-      return r;
-    }
-    hold.tenant = std::move(tenant).value();
-  }
-  const auto touch0 = Clock::now();
-  hold.weights = TryMapBytes(r.weights_bytes);
-  if (hold.weights == nullptr) {
-    r.reason = "allocating " + FormatBytes(r.weights_bytes) +
-               " of weights failed (process cap or out of memory)";
-    return r;
-  }
-  hold.weights_bytes = r.weights_bytes;
-  if (r.overhead_bytes != 0) {
-    hold.overhead = TryMapBytes(r.overhead_bytes);
-    if (hold.overhead == nullptr) {
-      r.reason = "allocating " + FormatBytes(r.overhead_bytes) +
-                 " of KV cache/activations failed (process cap or out of memory)";
-      return r;
-    }
-    hold.overhead_bytes = r.overhead_bytes;
-    std::memset(hold.overhead, 0x5A, r.overhead_bytes);
-  }
-  auto* w = static_cast<std::uint64_t*>(hold.weights);
-  const std::size_t words = r.weights_bytes / 8;
-  TouchWeights(w, words);
-  r.touch_ms = MsSince(touch0);
+std::uint64_t ScaledKvBytes(const CotenantSizes& s, double device_scale,
+                            std::uint64_t context_tokens) {
+  return ScaleBytes(KvCacheBytes(s.model, context_tokens), device_scale);
+}
 
-  const std::uint32_t prefill_passes =
-      (config.prompt_tokens + config.prompt_batch_tokens - 1) / config.prompt_batch_tokens;
-  const double deadline_ms = config.request_deadline_s * 1000.0;
-  // Per-request samples kept for the distributions (the summaries come from StreamingStats).
-  const std::size_t keep = config.requests == 0 ? 1024 : config.requests;
-  StreamingStats tps, prefill_tps, latency, gbps;
-  std::uint64_t h = 0;
-  bool abandoned = false;
-  const auto run0 = Clock::now();
-  for (std::uint32_t req = 0; config.requests == 0 || req < config.requests; ++req) {
-    if (config.request_period_s > 0.0) {
-      SleepFor(static_cast<double>(req) * config.request_period_s * 1000.0 - MsSince(run0), stop);
-    }
-    if (Stopped(stop)) break;
-    const auto t0 = Clock::now();
-    bool late = false;
-    // Waits while the device is over-committed. False if the request must be abandoned.
-    auto wait_for_memory = [&]() {
-      if (!hold.ledger || !hold.ledger->OverCommitted()) return true;
-      const auto w0 = Clock::now();
-      while (hold.ledger->OverCommitted() && !Stopped(stop)) {
-        if (deadline_ms > 0.0 && MsSince(t0) > deadline_ms) break;
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
-      r.stall_ms += MsSince(w0);
-      return !hold.ledger->OverCommitted();
-    };
-    bool ok = true;
-    for (std::uint32_t p = 0; p < prefill_passes && ok; ++p) {
-      ok = wait_for_memory() && !Stopped(stop);
-      if (ok) h = StreamPass(w, words, h);
-    }
-    const double prefill_ms = MsSince(t0);
-    const auto d0 = Clock::now();
-    std::uint32_t generated = 0;
-    for (; generated < config.answer_tokens && ok; ++generated) {
-      ok = wait_for_memory() && !Stopped(stop);
-      if (ok) h = StreamPass(w, words, h + generated);
-    }
-    if (!ok) {
-      if (Stopped(stop)) break;  // stopped mid-request: not a request at all
-      ++r.requests_late;       // gave up waiting for memory past the deadline
-      abandoned = true;
-      break;
-    }
-    const double decode_ms = MsSince(d0);
-    const double total_ms = MsSince(t0);
-    r.tokens_generated += generated;
-    ++r.requests;
-    if (deadline_ms > 0.0 && total_ms > deadline_ms) late = true;
-    if (late) ++r.requests_late;
-    latency.Add(total_ms);
-    tps.Add(decode_ms > 0.0 ? generated * 1000.0 / decode_ms : 0.0);
-    if (r.per_request.size() < keep) {
-      r.per_request.push_back({MsSince(run0) / 1000.0,
-                               decode_ms > 0.0 ? generated * 1000.0 / decode_ms : 0.0, total_ms});
-    }
-    prefill_tps.Add(prefill_ms > 0.0 ? config.prompt_tokens * 1000.0 / prefill_ms : 0.0);
-    gbps.Add(decode_ms > 0.0
-                 ? static_cast<double>(r.weights_bytes) * generated / (decode_ms * 1e6)
-                 : 0.0);
-  }
-  r.checksum = h;
-  r.oom_events_seen = hold.ledger ? hold.ledger->oom_events() - oom0 : 0;
-  r.latency_ms_p50 = latency.Quantile(0.5);
-  r.latency_ms_p95 = latency.Quantile(0.95);
-  r.tokens_per_s = tps.Quantile(0.5);
-  r.prefill_tokens_per_s = prefill_tps.Quantile(0.5);
-  r.stream_gbps = gbps.Quantile(0.5);
+Result<std::uint64_t> CotenantKvReserveBytes(const CotenantConfig& config) {
+  CotenantConfig unscaled = config;
+  unscaled.device_scale = 1.0;
+  ZM_ASSIGN_OR_RETURN(const CotenantSizes s, ResolveCotenantSizes(unscaled));
+  return s.kv_reserved_bytes;
+}
 
-  if (r.oom_events_seen > 0) {
-    r.outcome = CotenantOutcome::kStalled;
-    r.reason = std::to_string(r.oom_events_seen) +
-               " out-of-memory event(s) on the device ledger while it ran";
-  } else if (abandoned) {
-    r.outcome = CotenantOutcome::kStalled;
-    r.reason = "a request waited past its deadline for an over-committed device";
-  } else if (r.requests_late > 0) {
-    r.outcome = CotenantOutcome::kStalled;
-    r.reason = std::to_string(r.requests_late) + " request(s) missed the " +
-               std::to_string(config.request_deadline_s) + " s deadline";
-  } else if (r.requests == 0) {
-    r.outcome = CotenantOutcome::kStalled;
-    r.reason = "stopped before completing any request";
-  } else {
-    r.outcome = CotenantOutcome::kCompleted;
+OutcomeDecision DecideCotenantOutcome(const CotenantResult& r) {
+  const std::uint32_t submitted = r.requests + r.requests_failed + r.requests_unfinished;
+  std::string restarts;
+  if (r.restarts > 0) restarts += "; restarted " + Plural(r.restarts, "time");
+  if (r.failed_starts > 0) restarts += "; " + Plural(r.failed_starts, "start") + " failed";
+  if (r.starts == 0) {
+    std::string why = r.start_failure;
+    if (r.kills + r.crashes > 0) {
+      why += std::string(why.empty() ? "" : "; ") + "killed " +
+             Plural(r.kills + r.crashes, "time") + " while loading" +
+             (r.kills > 0 ? " (SIGKILL: an OOM kill)" : "");
+    }
+    return {CotenantOutcome::kFailedToStart, why.empty() ? "it never started" : why};
   }
+  if (r.kills + r.crashes > 0) {
+    std::string why;
+    if (r.kills > 0)
+      why = "killed by SIGKILL " + Plural(r.kills, "time") + " (an OOM kill, or the operator)";
+    if (r.crashes > 0)
+      why += std::string(why.empty() ? "" : ", ") + "crashed " + Plural(r.crashes, "time");
+    return {CotenantOutcome::kKilled, why + restarts};
+  }
+  if (r.stalls > 0) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", r.watchdog_s);
+    return {CotenantOutcome::kStalled, "the watchdog saw no token for " + std::string(buf) + " s " +
+                                           Plural(r.stalls, "time") + restarts};
+  }
+  if (submitted > 0 && r.requests == 0) {
+    return {CotenantOutcome::kStalled,
+            "none of the " + Plural(submitted, "submitted request") + " completed" + restarts};
+  }
+  return {CotenantOutcome::kCompleted,
+          r.requests_failed > 0 ? Plural(r.requests_failed, "request") + " failed" + restarts
+          : restarts.empty()    ? ""
+                                : restarts.substr(2)};
+}
+
+// ---- CotenantReportBuilder ----
+
+CotenantReportBuilder::CotenantReportBuilder(double origin_mono_s) {
+  r_.origin_mono_s = origin_mono_s;
+}
+
+Status CotenantReportBuilder::Add(const nlohmann::json& e) {
+  // A field of the wrong type would throw from nlohmann's accessors: turned into a value here,
+  // since this runs on the supervisor's thread.
+  try {
+    return AddEvent(e);
+  } catch (const nlohmann::json::exception& ex) {
+    return InvalidArgument(std::string("co-tenant event ") + e.dump() + ": " + ex.what());
+  }
+}
+
+Status CotenantReportBuilder::AddEvent(const nlohmann::json& e) {
+  if (!e.is_object() || !e.contains("event") || !e["event"].is_string()) {
+    return InvalidArgument("co-tenant event without an \"event\" name: " + e.dump());
+  }
+  const std::string ev = e["event"].get<std::string>();
+  const double origin = r_.origin_mono_s;
+  auto rel = [&](const char* key) { return Num(e, key) - origin; };
+  auto sizes = [&]() {
+    if (e.contains("model")) r_.model = Str(e, "model");
+    if (e.contains("device_scale")) r_.device_scale = Num(e, "device_scale");
+    if (e.contains("model_weights_bytes")) r_.model_weights_bytes = U64(e, "model_weights_bytes");
+    if (e.contains("weights_bytes")) r_.weights_bytes = U64(e, "weights_bytes");
+    if (e.contains("kv_reserved_bytes")) r_.kv_reserved_bytes = U64(e, "kv_reserved_bytes");
+    if (e.contains("request_kv_bytes")) r_.request_kv_bytes = U64(e, "request_kv_bytes");
+    if (e.contains("context_tokens"))
+      r_.context_tokens = static_cast<std::uint32_t>(U64(e, "context_tokens"));
+    if (e.contains("watchdog_s")) r_.watchdog_s = Num(e, "watchdog_s");
+  };
+  auto record = [&](bool ok) {
+    CotenantRequestRecord q;
+    q.id = U64(e, "id");
+    q.instance = instance_;
+    q.pid = static_cast<std::int64_t>(Num(e, "pid"));
+    q.ok = ok;
+    q.reason = Str(e, "reason");
+    q.submitted_s = e.contains("submitted_s") ? rel("submitted_s") : 0.0;
+    q.started_s = e.contains("started_s") ? rel("started_s") : 0.0;
+    q.ended_s = e.contains("ended_s") ? rel("ended_s") : rel("mono_s");
+    q.tokens_per_s = Num(e, "tokens_per_s");
+    q.prefill_tokens_per_s = Num(e, "prefill_tokens_per_s");
+    q.latency_ms = Num(e, "latency_ms");
+    q.queue_ms = Num(e, "queue_ms");
+    q.kv_bytes = U64(e, "kv_bytes");
+    q.kv_resident_bytes = U64(e, "kv_resident_bytes");
+    q.major_faults = U64(e, "major_faults");
+    q.minor_faults = U64(e, "minor_faults");
+    q.max_token_gap_ms = Num(e, "max_token_gap_ms");
+    q.stalls = static_cast<std::uint32_t>(U64(e, "stalls"));
+    if (r_.per_request.size() < kMaxRecords) r_.per_request.push_back(std::move(q));
+  };
+  if (ev == "spawn") {
+    instance_ = static_cast<std::uint32_t>(U64(e, "instance"));
+    if (instance_ > 0) ++r_.restarts;
+  } else if (ev == "start") {
+    ++r_.starts;
+    sizes();
+    r_.weights_path = Str(e, "weights_path");
+    r_.weights_load = Str(e, "weights_load");
+    r_.kv_allocation = Str(e, "kv_allocation");
+    r_.file_backed = Bool(e, "file_backed");
+    r_.evictable = Bool(e, "evictable");
+    r_.load_ms = Num(e, "load_ms");
+    if (Bool(e, "weights_file_created")) r_.weights_create_ms = Num(e, "weights_create_ms");
+  } else if (ev == "weights_file") {
+    r_.weights_path = Str(e, "weights_path");
+    if (Bool(e, "weights_file_created")) r_.weights_create_ms = Num(e, "weights_create_ms");
+  } else if (ev == "failed_to_start") {
+    ++r_.failed_starts;
+    sizes();
+    r_.start_failure = Str(e, "reason");
+  } else if (ev == "request") {
+    ++r_.requests;
+    r_.tokens_generated += U64(e, "answer_tokens");
+    r_.major_faults += U64(e, "major_faults");
+    tps_.Add(Num(e, "tokens_per_s"));
+    prefill_tps_.Add(Num(e, "prefill_tokens_per_s"));
+    latency_.Add(Num(e, "latency_ms"));
+    record(true);
+  } else if (ev == "request_failed") {
+    if (Bool(e, "unfinished")) {
+      ++r_.requests_unfinished;
+    } else {
+      ++r_.requests_failed;
+    }
+    record(false);
+  } else if (ev == "stall") {
+    ++r_.stalls;
+  } else if (ev == "exit") {
+    const std::string kind = Str(e, "kind");
+    if (kind == "killed") ++r_.kills;
+    if (kind == "crashed") ++r_.crashes;
+  } else if (ev == "end") {
+    r_.checksum ^= U64(e, "checksum");
+  }
+  return Status::Ok();
+}
+
+Status CotenantReportBuilder::AddLine(std::string_view line) {
+  const nlohmann::json j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) {
+    return InvalidArgument("co-tenant event line is not JSON: " + std::string(line.substr(0, 200)));
+  }
+  return Add(j);
+}
+
+CotenantResult CotenantReportBuilder::Report() const {
+  CotenantResult r = r_;
+  r.tokens_per_s = tps_.Quantile(0.5);
+  r.prefill_tokens_per_s = prefill_tps_.Quantile(0.5);
+  r.latency_ms_p50 = latency_.Quantile(0.5);
+  r.latency_ms_p95 = latency_.Quantile(0.95);
+  OutcomeDecision d = DecideCotenantOutcome(r);
+  r.outcome = d.outcome;
+  r.reason = std::move(d.reason);
   return r;
+}
+
+// ---- JSON ----
+
+nlohmann::json ToJson(const CotenantRequestRecord& q) {
+  return {{"id", q.id},
+          {"instance", q.instance},
+          {"pid", q.pid},
+          {"ok", q.ok},
+          {"reason", q.reason},
+          {"submitted_s", q.submitted_s},
+          {"started_s", q.started_s},
+          {"ended_s", q.ended_s},
+          {"tokens_per_s", q.tokens_per_s},
+          {"prefill_tokens_per_s", q.prefill_tokens_per_s},
+          {"latency_ms", q.latency_ms},
+          {"queue_ms", q.queue_ms},
+          {"kv_bytes", q.kv_bytes},
+          {"kv_resident_bytes", q.kv_resident_bytes},
+          {"major_faults", q.major_faults},
+          {"minor_faults", q.minor_faults},
+          {"max_token_gap_ms", q.max_token_gap_ms},
+          {"stalls", q.stalls}};
 }
 
 nlohmann::json ToJson(const CotenantResult& r) {
@@ -319,263 +368,59 @@ nlohmann::json ToJson(const CotenantResult& r) {
       {"stand_in", true},
       {"note", r.note},
       {"model", r.model},
+      {"device_scale", r.device_scale},
       {"model_weights_bytes", r.model_weights_bytes},
-      {"scale", r.scale},
       {"weights_bytes", r.weights_bytes},
-      {"overhead_bytes", r.overhead_bytes},
+      {"kv_reserved_bytes", r.kv_reserved_bytes},
+      {"request_kv_bytes", r.request_kv_bytes},
+      {"context_tokens", r.context_tokens},
+      {"weights_path", r.weights_path},
+      {"weights_load", r.weights_load},
+      {"kv_allocation", r.kv_allocation},
+      {"file_backed", r.file_backed},
+      {"evictable", r.evictable},
+      {"load_ms", r.load_ms},
+      {"weights_create_ms", r.weights_create_ms},
+      {"origin_mono_s", r.origin_mono_s},
+      {"watchdog_s", r.watchdog_s},
       {"outcome", std::string(CotenantOutcomeName(r.outcome))},
       {"outcome_symbol", std::string(CotenantOutcomeSymbol(r.outcome))},
       {"reason", r.reason},
+      {"starts", r.starts},
+      {"failed_starts", r.failed_starts},
+      {"kills", r.kills},
+      {"crashes", r.crashes},
+      {"restarts", r.restarts},
+      {"stalls", r.stalls},
       {"requests", r.requests},
-      {"requests_late", r.requests_late},
+      {"requests_completed", r.requests},
+      {"requests_failed", r.requests_failed},
+      {"requests_unfinished", r.requests_unfinished},
       {"tokens_generated", r.tokens_generated},
+      {"major_faults", r.major_faults},
       {"tokens_per_s", have_rates ? json(r.tokens_per_s) : json(nullptr)},
       {"prefill_tokens_per_s", have_rates ? json(r.prefill_tokens_per_s) : json(nullptr)},
       {"latency_ms",
        have_rates ? json{{"p50", r.latency_ms_p50}, {"p95", r.latency_ms_p95}} : json(nullptr)},
-      {"stream_gbps", have_rates ? json(r.stream_gbps) : json(nullptr)},
-      {"touch_ms", r.touch_ms},
-      {"stall_ms", r.stall_ms},
-      {"oom_events_seen", r.oom_events_seen},
       {"checksum", r.checksum},
   };
-  // Built element by element: converting the vector of arrays in one go trips GCC 12's -O3
-  // -Wnull-dereference false positive inside nlohmann's to_json.
+  // Built element by element: converting a vector of arrays in one go trips GCC 12's -O3
+  // -Wnull-dereference false positive inside nlohmann's to_json (aarch64).
   json per = json::array();
-  for (const auto& q : r.per_request) per.push_back(json::array({q[0], q[1], q[2]}));
+  json detail = json::array();
+  for (const CotenantRequestRecord& q : r.per_request) {
+    if (q.ok) per.push_back(json::array({q.ended_s, q.tokens_per_s, q.latency_ms}));
+    detail.push_back(ToJson(q));
+  }
   j["per_request"] = std::move(per);
+  j["requests_detail"] = std::move(detail);
   return j;
 }
 
-Result<CotenantResult> CotenantResultFromJson(const nlohmann::json& j) {
-  try {
-    if (!j.value("stand_in", false)) {
-      return InvalidArgument("co-tenant result JSON does not say it is a stand-in");
-    }
-    CotenantResult r;
-    r.note = j.at("note").get<std::string>();
-    r.model = j.at("model").get<std::string>();
-    r.model_weights_bytes = j.at("model_weights_bytes").get<std::uint64_t>();
-    r.scale = j.at("scale").get<double>();
-    r.weights_bytes = j.at("weights_bytes").get<std::uint64_t>();
-    r.overhead_bytes = j.at("overhead_bytes").get<std::uint64_t>();
-    const std::string outcome = j.at("outcome").get<std::string>();
-    bool known = false;
-    for (CotenantOutcome o : {CotenantOutcome::kCompleted, CotenantOutcome::kStalled,
-                              CotenantOutcome::kFailedToStart}) {
-      if (CotenantOutcomeName(o) == outcome) {
-        r.outcome = o;
-        known = true;
-      }
-    }
-    if (!known) return InvalidArgument("co-tenant result: unknown outcome '" + outcome + "'");
-    r.reason = j.at("reason").get<std::string>();
-    r.requests = j.at("requests").get<std::uint32_t>();
-    r.requests_late = j.at("requests_late").get<std::uint32_t>();
-    r.tokens_generated = j.at("tokens_generated").get<std::uint64_t>();
-    if (!j.at("tokens_per_s").is_null()) {
-      r.tokens_per_s = j.at("tokens_per_s").get<double>();
-      r.prefill_tokens_per_s = j.at("prefill_tokens_per_s").get<double>();
-      r.latency_ms_p50 = j.at("latency_ms").at("p50").get<double>();
-      r.latency_ms_p95 = j.at("latency_ms").at("p95").get<double>();
-      r.stream_gbps = j.at("stream_gbps").get<double>();
-    }
-    r.touch_ms = j.at("touch_ms").get<double>();
-    r.stall_ms = j.at("stall_ms").get<double>();
-    r.oom_events_seen = j.at("oom_events_seen").get<std::uint64_t>();
-    r.checksum = j.at("checksum").get<std::uint64_t>();
-    if (j.contains("per_request")) {
-      for (const auto& q : j.at("per_request")) {
-        r.per_request.push_back({q.at(0).get<double>(), q.at(1).get<double>(), q.at(2).get<double>()});
-      }
-    }
-    return r;
-  } catch (const nlohmann::json::exception& e) {
-    return InvalidArgument(std::string("co-tenant result JSON: ") + e.what());
-  }
-}
-
-// ---- CotenantThread ----
-
-CotenantThread::~CotenantThread() {
-  RequestStop();
-  if (thread_.joinable()) thread_.join();
-}
-
-Status CotenantThread::Start(CotenantConfig config) {
-  if (thread_.joinable()) return FailedPrecondition("co-tenant stand-in thread already started");
-  stop_.store(false);
-  done_.store(false);
-  try {
-    thread_ = std::thread([this, c = std::move(config)] {
-      result_ = RunCotenant(c, &stop_);
-      done_.store(true);
-    });
-  } catch (const std::system_error& e) {
-    return ResourceExhausted(std::string("co-tenant stand-in thread: ") + e.what());
-  }
-  return Status::Ok();
-}
-
-Result<CotenantResult> CotenantThread::Join() {
-  if (!thread_.joinable()) return FailedPrecondition("co-tenant stand-in thread not started");
-  thread_.join();
-  return result_;
-}
-
-// ---- CotenantProcess ----
-
-std::vector<std::string> CotenantCommandLine(const CotenantConfig& c) {
-  auto num = [](double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.17g", v);
-    return std::string(buf);
-  };
-  std::vector<std::string> a = {
-      "--model",          c.model,
-      "--scale",          num(c.scale),
-      "--prompt-tokens",  std::to_string(c.prompt_tokens),
-      "--answer-tokens",  std::to_string(c.answer_tokens),
-      "--prompt-batch",   std::to_string(c.prompt_batch_tokens),
-      "--requests",       std::to_string(c.requests),
-      "--period-s",       num(c.request_period_s),
-      "--deadline-s",     num(c.request_deadline_s),
-      "--json",
-  };
-  if (c.weights_bytes != 0) a.insert(a.end(), {"--weights-bytes", std::to_string(c.weights_bytes)});
-  if (c.overhead_bytes != 0) {
-    a.insert(a.end(), {"--overhead-bytes", std::to_string(c.overhead_bytes)});
-  }
-  if (!c.ledger_path.empty()) {
-    a.insert(a.end(), {"--ledger", c.ledger_path});
-    if (c.ledger_device_bytes != 0) {
-      a.insert(a.end(), {"--ledger-device-bytes", std::to_string(c.ledger_device_bytes)});
-    }
-  }
-  if (!c.ledger_name.empty()) a.insert(a.end(), {"--ledger-name", c.ledger_name});
-  return a;
-}
-
-std::string FindCotenantExecutable() {
-  if (const char* env = std::getenv("ZM_COTENANT_EXE"); env != nullptr && *env != '\0') return env;
-  std::error_code ec;
-  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const auto dir = exe.parent_path();
-    for (const auto& candidate : {dir / "zonemap-cotenant", dir / ".." / "app" / "zonemap-cotenant",
-                                  dir / ".." / ".." / "app" / "zonemap-cotenant"}) {
-      if (std::filesystem::is_regular_file(candidate, ec)) return candidate.lexically_normal();
-    }
-  }
-  return "zonemap-cotenant";
-}
-
-CotenantProcess::CotenantProcess(CotenantProcess&& o) noexcept
-    : pid_(o.pid_), stdout_fd_(o.stdout_fd_) {
-  o.pid_ = -1;
-  o.stdout_fd_ = -1;
-}
-
-CotenantProcess& CotenantProcess::operator=(CotenantProcess&& o) noexcept {
-  if (this != &o) {
-    this->~CotenantProcess();
-    pid_ = o.pid_;
-    stdout_fd_ = o.stdout_fd_;
-    o.pid_ = -1;
-    o.stdout_fd_ = -1;
-  }
-  return *this;
-}
-
-CotenantProcess::~CotenantProcess() {
-  if (pid_ > 0) {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
-    }
-    pid_ = -1;
-  }
-  if (stdout_fd_ >= 0) {
-    close(stdout_fd_);
-    stdout_fd_ = -1;
-  }
-}
-
-Result<CotenantProcess> CotenantProcess::Spawn(const CotenantConfig& config,
-                                               std::string executable) {
-  if (executable.empty()) executable = FindCotenantExecutable();
-  // ZM_COTENANT_LAUNCHER (space-separated, e.g. "qemu-aarch64 -L /sysroot") runs the program
-  // through an emulator when the kernel cannot execute it directly.
-  std::vector<std::string> args;
-  if (const char* l = std::getenv("ZM_COTENANT_LAUNCHER"); l != nullptr && *l != '\0') {
-    std::string launcher(l);
-    std::size_t pos = 0;
-    while (pos < launcher.size()) {
-      const std::size_t end = launcher.find(' ', pos);
-      const std::string word = launcher.substr(pos, end == std::string::npos ? end : end - pos);
-      if (!word.empty()) args.push_back(word);
-      if (end == std::string::npos) break;
-      pos = end + 1;
-    }
-  }
-  args.push_back(executable);
-  for (std::string& a : CotenantCommandLine(config)) args.push_back(std::move(a));
-  std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-
-  int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0) return IoError(std::string("pipe: ") + std::strerror(errno));
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
-  pid_t pid = -1;
-  const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  close(fds[1]);
-  if (rc != 0) {
-    close(fds[0]);
-    return IoError("cannot start co-tenant stand-in '" + args.front() + "': " + std::strerror(rc));
-  }
-  CotenantProcess p;
-  p.pid_ = pid;
-  p.stdout_fd_ = fds[0];
-  return p;
-}
-
-void CotenantProcess::RequestStop() noexcept {
-  if (pid_ > 0) kill(pid_, SIGTERM);
-}
-
-Result<CotenantResult> CotenantProcess::Wait() {
-  if (pid_ <= 0) return FailedPrecondition("co-tenant stand-in process not running");
-  std::string out;
-  char buf[4096];
-  for (;;) {
-    const ssize_t n = read(stdout_fd_, buf, sizeof buf);
-    if (n > 0) {
-      out.append(buf, static_cast<std::size_t>(n));
-    } else if (n == 0 || errno != EINTR) {
-      break;
-    }
-  }
-  close(stdout_fd_);
-  stdout_fd_ = -1;
-  int status = 0;
-  while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
-  }
-  const pid_t pid = pid_;
-  pid_ = -1;
-  if (!WIFEXITED(status)) {
-    return Internal("co-tenant stand-in (pid " + std::to_string(pid) + ") was killed by signal " +
-                    std::to_string(WIFSIGNALED(status) ? WTERMSIG(status) : 0));
-  }
-  const nlohmann::json j = nlohmann::json::parse(out, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) {
-    return Internal("co-tenant stand-in (pid " + std::to_string(pid) + ") exited with status " +
-                    std::to_string(WEXITSTATUS(status)) + " without a JSON result");
-  }
-  return CotenantResultFromJson(j);
+double MonotonicSeconds() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
 }
 
 }  // namespace zm

@@ -1,143 +1,242 @@
-// Co-tenant STAND-IN: a stand-in for a VLM/LLM decoding beside the map, not a model. It
-// allocates model-sized weights, faults them in, then serves requests of a fixed prompt and
-// answer length. Each generated token streams ALL the weights once (a dependent reduction over
-// every 64-bit word), so, like real LLM decode, it is memory-bandwidth bound; the prompt is
-// processed in batches, one pass over the weights per prompt_batch_tokens tokens (batched
-// prefill reuses each weight for many tokens). It reports decode tokens/s and request latency.
+// Co-tenant STAND-IN: a stand-in for a VLM served by llama.cpp / Ollama beside the map, not a
+// model. It behaves like one where memory is concerned:
+//   - weights in a file (weights_file.h), mapped read-only and shared, so they are page cache the
+//     kernel may evict under pressure and refault later, costing tokens/s (or read into process
+//     memory, as Ollama's own engine does);
+//   - a KV cache in anonymous memory sized from the model's architecture (bytes per token of
+//     context, CotenantModel), reserved for n_ctx tokens at start-up and touched as each
+//     request's context grows;
+//   - a request = prompt processing (one pass over all the weights per prompt_batch_tokens
+//     tokens) then decode, one pass over ALL the weights (and the KV cache so far) per generated
+//     token: memory-bandwidth bound like real decode.
 //
-// Outcomes (the paper's Table II symbols), decided in this order:
-//   × failed to start: the device ledger refused to register weights + overhead, or the
-//     weights could not be mapped (process cap, out of memory).
-//   △ stalled: it started but could not make steady progress: the ledger counted an
-//     out-of-memory event while it ran, or a request missed request_deadline_s, or it was
-//     stopped before completing any request. While the ledger says the device is
-//     over-committed (some tenant's refused demand would exceed the device), the stand-in waits
-//     (on a real device it would be paging or reclaimed) and the wait counts as stall time.
+// Outcomes are measured, never ruled (the paper's Table II symbols, plus killed):
+//   × failed to start: the weights could not be mapped or the KV cache not allocated (or the
+//     device ledger refused the weights);
+//   † killed: the process died by a signal it did not ask for (SIGKILL: an OOM kill);
+//   △ stalled: the watchdog saw no token for [cotenant] watchdog_s inside a request (or
+//     requests were submitted and none completed);
 //   ○ completed: otherwise.
+// DecideCotenantOutcome() is the one place that turns the counts into an outcome.
 //
-// Invariants: every output (ToJson, the program's text) says "stand-in"; weights are released
-// and the ledger grant returned before RunCotenant() returns.
+// The program (app/zonemap_cotenant.cc) streams one JSON line per event as it happens ("start",
+// "failed_to_start", "request", "request_failed", "stall", "end"), so a supervisor
+// (cotenant_supervisor.h) has every completed request up to a kill. CotenantReportBuilder folds
+// those lines into a CotenantResult, the same way in-process and across restarts.
+//
+// Invariants: every output (event lines, ToJson, the program's text) says "stand-in"; the
+// device scale is in every line and report; RunCotenant releases the weights, the KV cache and
+// any ledger grant before it returns.
 #pragma once
 
 #include <sys/types.h>
 
-#include <array>
 #include <atomic>
 #include <cstdint>
-#include <memory>
+#include <functional>
+#include <limits>
+#include <nlohmann/json.hpp>
 #include <span>
 #include <string>
 #include <string_view>
-#include <thread>
 #include <vector>
 
-#include <nlohmann/json_fwd.hpp>
-
 #include "common/status.h"
+#include "harness/cotenant_options.h"
+#include "runtime/streaming_stats.h"
 
 namespace zm {
 
 struct ExperimentProfile;
 
 inline constexpr std::string_view kCotenantNote =
-    "stand-in for VLM decoding: streams model-sized weights once per generated token "
-    "(memory-bandwidth bound); not a real model";
+    "stand-in for VLM decoding: weights mmap'ed from a file and streamed once per generated "
+    "token (memory-bandwidth bound), a KV cache that grows with the context; not a real model";
 
-// The paper's models and their weight sizes (decimal GB, as the paper gives them).
+// The paper's models: weight sizes as the paper gives them (decimal GB) and the KV cache's
+// geometry at f16 (llama.cpp's and Ollama's default cache type), from each model's config.json
+// (docs/harness.md lists the numbers and their sources). KV bytes at context c:
+//   state_bytes + c * kv_bytes_per_token + min(c, window_tokens) * window_bytes_per_token.
 struct CotenantModel {
   std::string_view name;     // "qwen3-vl-2b"
   std::string_view display;  // "qwen3-vl 2B"
   std::uint64_t weights_bytes = 0;
+  std::uint64_t kv_bytes_per_token = 0;      // layers attending over the whole context
+  std::uint64_t window_bytes_per_token = 0;  // sliding-window layers (gemma3: 5 of 6)
+  std::uint32_t window_tokens = 0;
+  std::uint64_t state_bytes = 0;  // fixed per sequence (linear-attention state)
 };
 [[nodiscard]] std::span<const CotenantModel> CotenantModels();
 [[nodiscard]] Result<CotenantModel> FindCotenantModel(std::string_view name);
 [[nodiscard]] std::string CotenantModelNames();  // "qwen3-vl-2b, qwen3-vl-4b, ..."
 
-enum class CotenantOutcome { kCompleted, kStalled, kFailedToStart };
-[[nodiscard]] std::string_view CotenantOutcomeName(CotenantOutcome o);    // "completed", ...
-[[nodiscard]] std::string_view CotenantOutcomeSymbol(CotenantOutcome o);  // "○", "△", "×"
+// KV cache bytes of `model` holding `context_tokens` tokens, unscaled.
+[[nodiscard]] std::uint64_t KvCacheBytes(const CotenantModel& model, std::uint64_t context_tokens);
+
+enum class CotenantOutcome { kCompleted, kStalled, kFailedToStart, kKilled };
+// "completed", "stalled", "failed_to_start", "killed" (summary.json's cotenant.outcome).
+[[nodiscard]] std::string_view CotenantOutcomeName(CotenantOutcome o);
+// "○", "△", "×", "†" (killed).
+[[nodiscard]] std::string_view CotenantOutcomeSymbol(CotenantOutcome o);
 
 struct CotenantConfig {
-  std::string model = "qwen3-vl-2b";
-  std::uint64_t weights_bytes = 0;   // 0 = the model table's size
-  std::uint64_t overhead_bytes = 0;  // KV cache / activations, allocated and touched too
-  double scale = 1.0;                // multiplies weights and overhead (tests, CI)
-  std::uint32_t prompt_tokens = 256;
-  std::uint32_t answer_tokens = 64;
-  std::uint32_t prompt_batch_tokens = 64;
-  std::uint32_t requests = 5;        // 0 = serve until stopped
-  double request_period_s = 0.0;     // start a request every period; 0 = back to back
-  double request_deadline_s = 0.0;   // 0 = no deadline
-  std::string ledger_path;           // empty = no device ledger
+  std::string model = "qwen3-vl-2b";  // the model table's name (for the KV geometry)
+  std::uint64_t weights_bytes = 0;    // 0 = the model table's size
+  double device_scale = 1.0;          // 0 < S <= 1: multiplies weights and KV cache together
+  CotenantOptions options;            // [cotenant]
+  // Self-paced requests (the program without --serve): this many (0 = until stopped), one every
+  // options.request_period_s.
+  std::uint32_t requests = 5;
+  std::string ledger_path;                // empty = no device ledger (the portable fallback's)
   std::uint64_t ledger_device_bytes = 0;  // creates the ledger if absent; 0 = attach only
-  std::string ledger_name;           // tenant name; empty = "cotenant:<model>"
+  std::string ledger_name;                // tenant name; empty = "cotenant:<model>"
 };
 
-// The [cotenant] section of a profile (ledger and request count left at their defaults).
+// [model] (name, weights) + [cotenant] of a profile; requests and ledger left at their defaults.
 [[nodiscard]] CotenantConfig CotenantConfigFromProfile(const ExperimentProfile& profile);
+// KV cache bytes the co-tenant reserves at start-up for options.context_tokens, at device scale 1
+// (the number the map's memory split would plan for). Errors as ResolveCotenantSizes.
+[[nodiscard]] Result<std::uint64_t> CotenantKvReserveBytes(const CotenantConfig& config);
 
-struct CotenantResult {
-  std::string model;
-  std::uint64_t model_weights_bytes = 0;  // the table's (or given) size before scaling
-  double scale = 1.0;
-  std::uint64_t weights_bytes = 0;        // actually allocated
-  std::uint64_t overhead_bytes = 0;
-  CotenantOutcome outcome = CotenantOutcome::kFailedToStart;
-  std::string reason;                     // why it failed or stalled; empty when completed
-  std::uint32_t requests = 0;             // completed requests
-  std::uint32_t requests_late = 0;        // missed the deadline (or abandoned waiting)
-  std::uint64_t tokens_generated = 0;
-  double tokens_per_s = 0.0;              // median decode rate over completed requests
-  double prefill_tokens_per_s = 0.0;      // median
-  double latency_ms_p50 = 0.0;            // request latency
-  double latency_ms_p95 = 0.0;
-  double stream_gbps = 0.0;               // median bytes streamed per second while decoding
-  double touch_ms = 0.0;                  // faulting the weights in
-  double stall_ms = 0.0;                  // waited while the device was over-committed
-  std::uint64_t oom_events_seen = 0;      // ledger OOM events (any tenant) while running
-  std::uint64_t checksum = 0;             // the reduction's result (keeps it from being elided)
-  // Every completed request: {seconds since the first request started, decode tokens/s,
-  // latency ms}; for distributions and for values along the robot's path.
-  std::vector<std::array<double, 3>> per_request;
-  std::string note{kCotenantNote};
+// The sizes a configuration resolves to, device scale applied.
+struct CotenantSizes {
+  CotenantModel model;                    // table entry (or one built from the overrides)
+  std::uint64_t model_weights_bytes = 0;  // before scaling
+  std::uint64_t weights_bytes = 0;        // scaled, whole pages
+  std::uint64_t kv_reserved_bytes = 0;    // scaled KV cache for context_tokens
+  std::uint64_t request_kv_bytes = 0;     // scaled KV cache for prompt + answer
+};
+// Errors: unknown model without a kv_bytes_per_token override, device scale outside (0, 1],
+// zero answer or batch tokens, prompt + answer above context_tokens.
+[[nodiscard]] Result<CotenantSizes> ResolveCotenantSizes(const CotenantConfig& config);
+// Scaled KV bytes at `context_tokens` (the one formula RunCotenant and the reports use).
+[[nodiscard]] std::uint64_t ScaledKvBytes(const CotenantSizes& sizes, double device_scale,
+                                          std::uint64_t context_tokens);
+
+// One request, as the report keeps it. Times are seconds since the report's origin (the
+// supervisor's start, or RunCotenant's).
+struct CotenantRequestRecord {
+  std::uint64_t id = 0;
+  std::uint32_t instance = 0;  // which start of the process served it (0 = first)
+  std::int64_t pid = 0;
+  bool ok = false;  // completed; false = failed (reason says why)
+  std::string reason;
+  double submitted_s = 0.0;
+  double started_s = 0.0;
+  double ended_s = 0.0;
+  double tokens_per_s = 0.0;  // decode
+  double prefill_tokens_per_s = 0.0;
+  double latency_ms = 0.0;              // started -> ended
+  double queue_ms = 0.0;                // submitted -> started
+  std::uint64_t kv_bytes = 0;           // KV cache at the end of the request (scaled)
+  std::uint64_t kv_resident_bytes = 0;  // of it, resident (mincore) at the end of the request
+  std::uint64_t major_faults = 0;       // during the request (refaulted weights show here)
+  std::uint64_t minor_faults = 0;
+  double max_token_gap_ms = 0.0;
+  std::uint32_t stalls = 0;  // watchdog events inside this request
 };
 
-// Runs the stand-in in the calling thread until `requests` are served or *stop is set
-// (checked between tokens). Never throws; a start-up failure is the kFailedToStart outcome.
-[[nodiscard]] CotenantResult RunCotenant(const CotenantConfig& config,
-                                         const std::atomic<bool>* stop = nullptr);
+// What a co-tenant run measured (one process, or every instance a supervisor started).
+struct CotenantResult {
+  std::string note{kCotenantNote};
+  std::string model;
+  double device_scale = 1.0;
+  std::uint64_t model_weights_bytes = 0;
+  std::uint64_t weights_bytes = 0;      // scaled, as mapped
+  std::uint64_t kv_reserved_bytes = 0;  // scaled KV cache for context_tokens
+  std::uint64_t request_kv_bytes = 0;   // scaled KV cache of one request
+  std::uint32_t context_tokens = 0;
+  std::string weights_path;
+  std::string weights_load;   // "mmap" | "read"
+  std::string kv_allocation;  // "per_request" | "at_load"
+  bool file_backed = false;
+  bool evictable = false;
+  double load_ms = 0.0;            // last start's weights load
+  double weights_create_ms = 0.0;  // > 0 when a start created the weights file
+  double origin_mono_s = 0.0;      // CLOCK_MONOTONIC of t = 0 in the records
+  double watchdog_s = 0.0;
+  std::string start_failure;  // why the last failed start failed
 
-// {"stand_in": true, "note", "model", "weights_bytes", "tokens_per_s", "latency_ms": {"p50",
-// "p95"}, "requests", "outcome", "outcome_symbol", ...}; rates and latencies are null when the
-// stand-in failed to start or completed nothing.
-[[nodiscard]] nlohmann::json ToJson(const CotenantResult& result);
-[[nodiscard]] Result<CotenantResult> CotenantResultFromJson(const nlohmann::json& json);
+  CotenantOutcome outcome = CotenantOutcome::kFailedToStart;
+  std::string reason;        // why it is not ○; empty when completed
+  std::uint32_t starts = 0;  // instances that started (weights + KV in memory)
+  std::uint32_t failed_starts = 0;
+  std::uint32_t kills = 0;     // deaths by SIGKILL
+  std::uint32_t crashes = 0;   // other unexpected deaths
+  std::uint32_t restarts = 0;  // spawns after the first
+  std::uint32_t stalls = 0;    // watchdog events
+  std::uint32_t requests_submitted = 0;
+  std::uint32_t requests = 0;             // completed
+  std::uint32_t requests_failed = 0;      // refused, lost to a death, or the service was down
+  std::uint32_t requests_unfinished = 0;  // in flight when the run was stopped
+  std::uint64_t tokens_generated = 0;
+  std::uint64_t major_faults = 0;     // over completed requests
+  double tokens_per_s = 0.0;          // median decode rate over completed requests
+  double prefill_tokens_per_s = 0.0;  // median
+  double latency_ms_p50 = 0.0;
+  double latency_ms_p95 = 0.0;
+  std::uint64_t checksum = 0;  // the passes' reduction (keeps them from being elided)
+  std::vector<CotenantRequestRecord> per_request;  // every request, completed or failed
+};
 
-// The stand-in on its own thread of this process. Its weights count against this process's
-// memory (and any RLIMIT_AS/RLIMIT_DATA cap): beside a capped map process use CotenantProcess.
-class CotenantThread {
+// The outcome of the counts in `r` (r.outcome and r.reason are ignored and not changed).
+struct OutcomeDecision {
+  CotenantOutcome outcome;
+  std::string reason;
+};
+[[nodiscard]] OutcomeDecision DecideCotenantOutcome(const CotenantResult& r);
+
+// Folds event lines (the program's, and the supervisor's own) into a CotenantResult.
+class CotenantReportBuilder {
  public:
-  CotenantThread() = default;
-  CotenantThread(CotenantThread&&) = delete;
-  CotenantThread& operator=(CotenantThread&&) = delete;
-  ~CotenantThread();  // requests a stop and joins
+  static constexpr std::size_t kMaxRecords = 100'000;  // bounded however long it runs
 
-  // Starts it. kFailedPrecondition if already running.
-  [[nodiscard]] Status Start(CotenantConfig config);
-  void RequestStop() noexcept { stop_.store(true); }
-  [[nodiscard]] bool done() const noexcept { return done_.load(); }
-  // Waits for it to finish (call RequestStop() first to end an open-ended run).
-  [[nodiscard]] Result<CotenantResult> Join();
+  explicit CotenantReportBuilder(double origin_mono_s = 0.0);
+  // One event object (a parsed line). Unknown events are ignored; malformed ones are an error.
+  Status Add(const nlohmann::json& event);
+  // Parses and adds one line.
+  Status AddLine(std::string_view line);
+  // The result so far, with quantiles and the outcome decided.
+  [[nodiscard]] CotenantResult Report() const;
+  [[nodiscard]] const CotenantResult& partial() const noexcept { return r_; }
 
  private:
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> done_{false};
-  CotenantResult result_;
-  std::thread thread_;
+  Status AddEvent(const nlohmann::json& event);
+
+  CotenantResult r_;
+  StreamingStats tps_, prefill_tps_, latency_;
+  std::uint32_t instance_ = 0;  // the latest "spawn" event's
 };
 
-// The stand-in as a child process (the `zonemap-cotenant` program with --json), so it has its
-// own memory and the map process can be capped alone.
+// Feeds requests to RunCotenant. Blocks until the next request; false = no more requests.
+struct CotenantTicket {
+  std::uint64_t id = 0;
+  double submitted_mono_s = 0.0;
+};
+struct CotenantHooks {
+  // Every event line, in order (calls are serialized). Default: none.
+  std::function<void(std::string_view line)> emit;
+  // Before anything is mapped: false = do not start (stopped). Default: start at once.
+  std::function<bool()> await_start;
+  // Default: config.requests requests, one every options.request_period_s.
+  std::function<bool(CotenantTicket&)> next_request;
+};
+
+// Runs the stand-in in the calling thread until the requests run out or *stop is set (checked
+// between passes). Never throws; a start-up failure is the kFailedToStart outcome.
+[[nodiscard]] CotenantResult RunCotenant(const CotenantConfig& config,
+                                         const std::atomic<bool>* stop = nullptr,
+                                         CotenantHooks hooks = {});
+
+// {"stand_in": true, "note", "model", "device_scale", "weights_bytes", "tokens_per_s",
+// "latency_ms": {"p50", "p95"}, "requests", "outcome", "outcome_symbol", "per_request": [[end s,
+// tokens/s, latency ms]...], "requests_detail": [...], ...}; rates are null without a completed
+// request.
+[[nodiscard]] nlohmann::json ToJson(const CotenantResult& result);
+[[nodiscard]] nlohmann::json ToJson(const CotenantRequestRecord& record);
+
+// One co-tenant child process (the zonemap-cotenant program streaming JSON lines on stdout).
+// Move-only; the destructor stops (SIGTERM) and reaps a child still running.
 class CotenantProcess {
  public:
   CotenantProcess() = default;
@@ -145,26 +244,58 @@ class CotenantProcess {
   CotenantProcess& operator=(CotenantProcess&& other) noexcept;
   CotenantProcess(const CotenantProcess&) = delete;
   CotenantProcess& operator=(const CotenantProcess&) = delete;
-  ~CotenantProcess();  // SIGTERM and reap if still running
+  ~CotenantProcess();
 
-  // Starts `executable` (empty = FindCotenantExecutable()) with CotenantCommandLine(config).
+  // Starts `executable` (empty = FindCotenantExecutable()) with CotenantCommandLine(config,
+  // serve). serve = requests come as command lines on its stdin ("start", "request ID T", "stop");
+  // otherwise it paces itself (config.requests, options.request_period_s) and starts at once.
+  // enter_device, when given, runs in the child between fork and exec and must be
+  // async-signal-safe (e.g. DeviceModel::EnterSelf: one write); a nonzero errno makes the child
+  // write a failed_to_start line and exit 127 without running the program.
   [[nodiscard]] static Result<CotenantProcess> Spawn(const CotenantConfig& config,
-                                                     std::string executable = {});
-  // Asks the child to finish (SIGTERM: it stops between tokens and prints its results).
+                                                     std::string executable = {},
+                                                     bool serve = false,
+                                                     const std::function<int()>& enter_device = {});
+  // SIGTERM: it stops between passes, writes its "end" line and exits 0.
   void RequestStop() noexcept;
-  // Reads the child's JSON result and reaps it.
+  // Sends one command line (serve mode). False when the child no longer reads (it died).
+  [[nodiscard]] bool SendLine(std::string_view line) noexcept;
+  // Reads what the child wrote within timeout_ms; appends complete lines. False at end of file
+  // (the child closed stdout: it is exiting).
+  [[nodiscard]] bool ReadLines(std::vector<std::string>& lines, int timeout_ms);
+  // Waits for the child to exit (SIGKILL after timeout_s) and returns its wait status.
+  [[nodiscard]] int Reap(double timeout_s);
+  // Reads every line to the end, reaps, and folds them: the result of a self-paced child. A
+  // death by a signal is recorded (kills/crashes) like the supervisor does.
   [[nodiscard]] Result<CotenantResult> Wait();
   [[nodiscard]] pid_t pid() const noexcept { return pid_; }
+  [[nodiscard]] int stdout_fd() const noexcept { return out_fd_; }
 
  private:
+  void Reset() noexcept;  // stop, reap, close: the state of a default-constructed object
+
   pid_t pid_ = -1;
-  int stdout_fd_ = -1;
+  int out_fd_ = -1;      // the child's stdout (read end of a pipe)
+  int in_fd_ = -1;       // the child's stdin (a socket, so a dead reader is EPIPE, not SIGPIPE)
+  std::string partial_;  // a line not yet complete
+  double spawned_mono_s_ = 0.0;
 };
 
-// Arguments (without argv[0]) that make `zonemap-cotenant` run `config` and print JSON.
-[[nodiscard]] std::vector<std::string> CotenantCommandLine(const CotenantConfig& config);
+// How a reaped child ended, as the reports count it.
+struct CotenantExit {
+  std::string_view kind;  // "exited", "killed" (SIGKILL), "crashed" (another signal)
+  int code = 0;           // exit code, or the signal number
+};
+[[nodiscard]] CotenantExit ClassifyCotenantExit(int wait_status);
+
+// Arguments (without argv[0]) that make `zonemap-cotenant` run `config` and stream JSON lines.
+[[nodiscard]] std::vector<std::string> CotenantCommandLine(const CotenantConfig& config,
+                                                           bool serve = false);
 // $ZM_COTENANT_EXE, else zonemap-cotenant next to this executable or in ../app/, else the bare
 // name (looked up in PATH).
 [[nodiscard]] std::string FindCotenantExecutable();
+
+// CLOCK_MONOTONIC in seconds: the clock every event line carries (same for every process).
+[[nodiscard]] double MonotonicSeconds() noexcept;
 
 }  // namespace zm

@@ -36,7 +36,7 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   std::optional<CotenantProcess> cotenant;
   if (request.with_cotenant) {
     CotenantConfig cc = CotenantConfigFromProfile(request.profile);
-    cc.scale = request.cotenant_scale;
+    cc.device_scale = request.cotenant_scale;
     cc.requests = 0;  // serve until the loop ends
     if (ledger) cc.ledger_path = ledger_path;
     ZM_ASSIGN_OR_RETURN(CotenantProcess proc, CotenantProcess::Spawn(cc));
@@ -73,7 +73,7 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
       const CotenantResult& c = r.value();
       ct = {{"model", c.model},
             {"weights_bytes", c.weights_bytes},
-            {"scale", c.scale},
+            {"device_scale", c.device_scale},
             {"tokens_per_s", c.tokens_per_s},
             {"latency_ms", c.latency_ms_p50},
             {"latency_ms_p95", c.latency_ms_p95},

@@ -9,11 +9,38 @@ Result<ExperimentProfile> Read(ProfileDocument& doc) {
   ExperimentProfile p;
   ZM_ASSIGN_OR_RETURN(p.core, ReadProfile(doc));
   TableReader co = doc.root().Sub("cotenant");
-  co.U32("prompt_tokens", p.cotenant.prompt_tokens);
-  co.U32("answer_tokens", p.cotenant.answer_tokens, 1);
-  co.U32("prompt_batch_tokens", p.cotenant.prompt_batch_tokens, 1);
-  co.Double("request_period_s", p.cotenant.request_period_s, 0.0, 1e6);
-  co.Double("request_deadline_s", p.cotenant.request_deadline_s, 0.0, 1e6);
+  CotenantOptions& c = p.cotenant;
+  co.U32("prompt_tokens", c.prompt_tokens);
+  co.U32("answer_tokens", c.answer_tokens, 1);
+  co.U32("prompt_batch_tokens", c.prompt_batch_tokens, 1);
+  co.U32("context_tokens", c.context_tokens, 1);
+  co.Double("request_period_s", c.request_period_s, 0.0, 1e6);
+  co.Double("watchdog_s", c.watchdog_s, 0.0, 1e6);
+  co.Double("restart_delay_s", c.restart_delay_s, 0.0, 1e6);
+  co.Bytes("kv_bytes_per_token", c.kv_bytes_per_token);
+  std::string kv_allocation(KvAllocationName(c.kv_allocation));
+  co.String("kv_allocation", kv_allocation);
+  if (kv_allocation == "per_request" || kv_allocation == "at_load") {
+    c.kv_allocation = kv_allocation == "at_load" ? KvAllocation::kAtLoad : KvAllocation::kPerRequest;
+  } else {
+    co.FailKey("kv_allocation", "must be \"per_request\" or \"at_load\", not \"" + kv_allocation + "\"");
+  }
+  std::string weights_load(WeightsLoadName(c.weights_load));
+  co.String("weights_load", weights_load);
+  if (weights_load == "mmap" || weights_load == "read") {
+    c.weights_load = weights_load == "read" ? WeightsLoad::kRead : WeightsLoad::kMmap;
+  } else {
+    co.FailKey("weights_load", "must be \"mmap\" or \"read\", not \"" + weights_load + "\"");
+  }
+  co.Bool("prefetch", c.prefetch);
+  co.Bool("mlock", c.mlock);
+  co.Bool("cold_start", c.cold_start);
+  co.String("weights_dir", c.weights_dir);
+  if (std::uint64_t{c.prompt_tokens} + c.answer_tokens > c.context_tokens) {
+    co.FailKey("context_tokens", "must hold prompt_tokens + answer_tokens (" +
+                                     std::to_string(std::uint64_t{c.prompt_tokens} + c.answer_tokens) +
+                                     " tokens), not " + std::to_string(c.context_tokens));
+  }
   co.Finish();
   ZM_RETURN_IF_ERROR(doc.Finish());
   return p;

@@ -1,5 +1,5 @@
 // The evaluation's view of a profile: the core's Profile (runtime/profile.h) plus the sections
-// only the harness reads ([cotenant]: how the VLM stand-in behaves). The same file serves both;
+// only the harness reads ([cotenant]: how the VLM stand-in behaves, harness/cotenant_options.h). The same file serves both;
 // zonemapd skips the harness's sections.
 //
 // Invariants: as runtime/profile.h (every key known, every value checked, the memory split adds
@@ -11,22 +11,14 @@
 #include <string_view>
 
 #include "common/status.h"
+#include "harness/cotenant_options.h"
 #include "runtime/profile.h"
 
 namespace zm {
 
-// [cotenant]: the co-tenant stand-in's requests (its memory is [model]'s).
-struct CotenantOptions {
-  std::uint32_t prompt_tokens = 256;
-  std::uint32_t answer_tokens = 64;
-  std::uint32_t prompt_batch_tokens = 64;  // prompt tokens processed per pass over the weights
-  double request_period_s = 0.0;           // start a request every period; 0 = back to back
-  double request_deadline_s = 0.0;         // a request slower than this is a stall; 0 = none
-};
-
 struct ExperimentProfile {
   Profile core;
-  CotenantOptions cotenant;
+  CotenantOptions cotenant;  // [cotenant]
 };
 
 [[nodiscard]] Result<ExperimentProfile> LoadExperimentProfile(const std::string& name_or_path);

@@ -86,12 +86,21 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     if (request.telemetry.flush_ticks != 0 && (rec.tick + 1) % request.telemetry.flush_ticks == 0) {
       telemetry.Flush();
     }
+    // The idle part of the tick (time-sliced loads): until the next frame is due on the
+    // frames' clock (the frame period after this tick started), or on the paced clock.
     if (request.pace_speedup > 0) {
       const double stamp = loop->last_record().stamp_s;
       if (stamp0 < 0) stamp0 = stamp;
-      std::this_thread::sleep_until(
-          wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                      std::chrono::duration<double>((stamp - stamp0) / request.pace_speedup)));
+      const auto at = [&](double s) {
+        return wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                           std::chrono::duration<double>((s - stamp0) / request.pace_speedup));
+      };
+      // This pacing starts the next tick at the paced time of this frame's stamp (one frame
+      // period after this tick was due): that is when the next frame is due.
+      (void)loop->Idle(at(stamp));
+      std::this_thread::sleep_until(at(stamp));
+    } else {
+      (void)loop->Idle();
     }
   }
   telemetry.Flush();

@@ -10,6 +10,9 @@ OUT/scenarios/<scenario>/{zones.geojson,localization_gt.tum} and writes OUT/figu
   zones_<scenario>.png         the zone map with the route, coloured by the active zone
   cotenant_<scenario>.png      co-tenant tokens/s and latency per policy (distributions), and
                                tokens/s along the robot's path (stand-in co-tenant)
+  latency_<scenario>.png       tick time per policy after start-up: its CDF (log time axis,
+                               p99 marked) and its tail (the share of ticks slower than t, log-log:
+                               the slow ticks a load inside a tick makes) (issue 14)
 
 Usage: scripts/plots.py OUT
 """
@@ -90,7 +93,7 @@ def plot_memory(out, scenario, runs, fig_dir):
                 continue
             xs = [t["tick"] for t in ticks]
             ys = [t["resident_keyframes"] for t in ticks]
-            label = f'{s["policy"]} (peak {s.get("peak_resident_keyframes", max(ys))})'
+            label = f'{run_label(s)} (peak {s.get("peak_resident_keyframes", max(ys))})'
             ax.plot(xs, ys, color=colour(s["policy"]), lw=1.2, label=label)
             if s["policy"] not in ("unbounded",):
                 thr = s.get("k_max", thr)
@@ -123,7 +126,7 @@ def plot_trajectories(out, scenario, runs, fig_dir):
         est = read_tum(os.path.join(d, "estimate.tum"))
         if est:
             ax.plot([p[1] for p in est], [p[2] for p in est], color=colour(s["policy"]), lw=0.8, zorder=3,
-                    label=f'{s["policy"]} (ATE {s.get("ate_rmse_m", float("nan")):.2f} m)')
+                    label=f'{run_label(s)} (ATE {s.get("ate_rmse_m", float("nan")):.2f} m)')
         ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
         lc = [(t["x"], t["y"]) for t in ticks if t.get("loop_closure")]
         if lc:
@@ -223,6 +226,54 @@ def plot_cotenant(out, scenario, runs, fig_dir):
     plt.close(fig)
 
 
+def run_label(summary):
+    """A run's name in the figures: the policy, marked when its loads were not time-sliced."""
+    loads = summary.get("loads") or {}
+    return summary["policy"] + ("" if loads.get("sliced", True) else " (unsliced)")
+
+
+def plot_latency(out, scenario, runs, fig_dir):
+    group = [r for r in runs if not r[2].get("cotenant")] or runs
+    series = []
+    for name, d, s in group:
+        ticks = read_jsonl(os.path.join(d, "ticks.jsonl"))
+        ms = [t["tick_ms"] for t in ticks if not t.get("startup")]
+        if ms:
+            series.append((run_label(s), s["policy"], ms, (s.get("startup") or {}).get("tick_ms")))
+    if not series:
+        return
+    fig, axes = plt.subplots(1, 2, figsize=(15, 5))
+    for lab, pol, ms, startup in series:
+        v = sorted(ms)
+        n = len(v)
+        p99 = v[max(0, math.ceil(0.99 * n) - 1)]  # nearest rank, as StreamingStats
+        ls = "--" if lab.endswith("(unsliced)") else "-"
+        axes[0].step(v, [(i + 1) / n for i in range(n)], where="post", color=colour(pol), ls=ls,
+                     lw=1.3, label=f"{lab}: p99 {p99:.1f} ms, max {v[-1]:.0f} ms")
+        axes[0].plot([p99], [0.99], "o", color=colour(pol), ms=4)
+        axes[1].step(v, [(n - i - 1) / n if i < n - 1 else 0.5 / n for i in range(n)], where="post",
+                     color=colour(pol), ls=ls, lw=1.3,
+                     label=lab + (f" (start-up tick {startup:.0f} ms, apart)" if startup else ""))
+    axes[0].set_xscale("log")
+    axes[0].set_xlabel("tick time after start-up (ms, log scale)")
+    axes[0].set_ylabel("fraction of ticks")
+    axes[0].axhline(0.99, color="k", lw=0.5, ls=":")
+    axes[0].set_title(f"{scenario}: tick time CDF per policy")
+    axes[0].legend(fontsize=7, loc="lower right")
+    axes[0].grid(alpha=0.3, which="both")
+    axes[1].set_xscale("log")
+    axes[1].set_yscale("log")
+    axes[1].axhline(0.01, color="k", lw=0.5, ls=":")
+    axes[1].set_xlabel("tick time after start-up (ms, log scale)")
+    axes[1].set_ylabel("fraction of ticks slower (log scale)")
+    axes[1].set_title("the tail: where loads inside a tick show")
+    axes[1].legend(fontsize=7, loc="lower left")
+    axes[1].grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(os.path.join(fig_dir, f"latency_{scenario}.png"), dpi=110)
+    plt.close(fig)
+
+
 def main():
     if len(sys.argv) != 2:
         print(__doc__, file=sys.stderr)
@@ -240,6 +291,7 @@ def main():
         plot_trajectories(out, scenario, runs, fig_dir)
         plot_zones(out, scenario, runs, fig_dir)
         plot_cotenant(out, scenario, runs, fig_dir)
+        plot_latency(out, scenario, runs, fig_dir)
     print(f"plots.py: figures in {fig_dir}")
 
 

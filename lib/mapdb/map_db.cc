@@ -11,6 +11,10 @@
 //   zone(id INTEGER PRIMARY KEY, name UNIQUE, kind, floor, z_min, z_max, polygon BLOB = n x 2 f64)
 //   zone_member(zone_id, keyframe_id, PRIMARY KEY(zone_id, keyframe_id)) WITHOUT ROWID
 //   meta(key TEXT PRIMARY KEY, value) WITHOUT ROWID
+//   last_wm(keyframe_id INTEGER PRIMARY KEY) WITHOUT ROWID   -- the last working memory, when
+//     meta last_wm_rule is set and last_wm_every_node is not 1 (import-rtabmap records one or
+//     the other). Optional: maps written before it lack the table and the keys and are read as
+//     before; readers that predate it ignore them. So the schema version stays 1.
 // The page size is the writer's choice (PageBytesForPayload): 64 KiB for megabyte payloads.
 //
 // Invariants of the read path:
@@ -85,6 +89,8 @@ CREATE TABLE zone_member(
 CREATE TABLE meta(
   key TEXT PRIMARY KEY,
   value) WITHOUT ROWID;
+CREATE TABLE last_wm(
+  keyframe_id INTEGER PRIMARY KEY) WITHOUT ROWID;
 )sql";
 
 constexpr int kPoseBlobBytes = 12 * 8;
@@ -726,6 +732,60 @@ Result<std::vector<std::uint32_t>> MapDb::ZoneSizes() const {
   return out;
 }
 
+Result<RecordedWorkingMemory> MapDb::LastWorkingMemory() const {
+  // Read once at start-up, so prepared here rather than at Open (the table is optional).
+  sqlite3* db = impl_->db.get();
+  const std::string& path = impl_->path;
+  impl_->CountMetadataRead();
+  ZM_ASSIGN_OR_RETURN(sqlite::Stmt rule_stmt,
+                      PrepareOn(db, path, "meta", "SELECT value FROM meta WHERE key='last_wm_rule'"));
+  ZM_ASSIGN_OR_RETURN(
+      sqlite::Stmt all_stmt,
+      PrepareOn(db, path, "meta", "SELECT value FROM meta WHERE key='last_wm_every_node'"));
+  RecordedWorkingMemory out;
+  bool recorded = false;
+  int rc = sqlite3_step(rule_stmt.get());
+  if (rc == SQLITE_ROW) {
+    const auto* t = reinterpret_cast<const char*>(sqlite3_column_text(rule_stmt.get(), 0));
+    recorded = true;
+    out.rule = t != nullptr ? t : "";
+  } else if (rc != SQLITE_DONE) {
+    return FromSqlite(rc, db, path + ": reading meta last_wm_rule");
+  }
+  if (!recorded) {
+    if (impl_->meta.source.rfind("rtabmap:", 0) == 0) {
+      return FailedPrecondition(
+          path + " was imported from RTAB-Map before zonemap recorded a map's last working "
+                 "memory (Node.time_enter >= the last Info.time_enter); re-import it with "
+                 "`zonemap import-rtabmap`, or set policy.basic.init_wm_with_all_nodes = true");
+    }
+    return out;  // built without memory management: every node
+  }
+  rc = sqlite3_step(all_stmt.get());
+  if (rc == SQLITE_ROW && sqlite3_column_int(all_stmt.get(), 0) == 1) return out;  // every node
+  if (rc != SQLITE_ROW && rc != SQLITE_DONE) {
+    return FromSqlite(rc, db, path + ": reading meta last_wm_every_node");
+  }
+  out.every_node = false;
+  ZM_ASSIGN_OR_RETURN(const bool has_table, sqlite::TableExists(db, "last_wm"));
+  if (!has_table) return Corrupt(path + ": meta last_wm_rule is set but table last_wm is missing");
+  impl_->CountMetadataRead();
+  ZM_ASSIGN_OR_RETURN(sqlite::Stmt ids,
+                      PrepareOn(db, path, "last_wm",
+                                "SELECT l.keyframe_id, k.id FROM last_wm AS l LEFT JOIN keyframe "
+                                "AS k ON k.id = l.keyframe_id ORDER BY l.keyframe_id"));
+  while ((rc = sqlite3_step(ids.get())) == SQLITE_ROW) {
+    const KeyframeId id{sqlite3_column_int64(ids.get(), 0)};
+    if (sqlite3_column_type(ids.get(), 1) == SQLITE_NULL) {
+      return Corrupt(path + ": table last_wm names keyframe " + std::to_string(id.value) +
+                     ", which is not in the map");
+    }
+    out.ids.push_back(id);
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, db, path + ": reading table last_wm");
+  return out;
+}
+
 Result<LoadStats> MapDb::BeginZoneLoad(ZoneId zone, Arena& arena, LoadSink& sink) {
   const auto t0 = std::chrono::steady_clock::now();
   Impl& im = *impl_;
@@ -1250,6 +1310,45 @@ Status MapDbWriter::SetSource(const std::string& source) {
     return Status::Ok();
   }
   return im.InTransaction("source", [&] { return im.PutMeta("source", source); });
+}
+
+Status MapDbWriter::SetLastWorkingMemory(std::span<const KeyframeId> ids, const std::string& rule) {
+  Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.EnsureSchema());
+  sqlite3* db = im.db.get();
+  return im.InTransaction("the last working memory", [&]() -> Status {
+    // A map written before last_wm existed gets the table here (OpenExisting).
+    ZM_RETURN_IF_ERROR(sqlite::Exec(db,
+                                    "CREATE TABLE IF NOT EXISTS last_wm(keyframe_id INTEGER "
+                                    "PRIMARY KEY) WITHOUT ROWID; DELETE FROM last_wm;",
+                                    "preparing table last_wm in " + im.path));
+    ZM_ASSIGN_OR_RETURN(sqlite::Stmt ins,
+                        Prepare(db, "INSERT OR IGNORE INTO last_wm(keyframe_id) VALUES(?1)"));
+    for (const KeyframeId id : ids) {
+      ZM_ASSIGN_OR_RETURN(const bool exists, im.KeyframeExists(id));
+      if (!exists) {
+        return InvalidArgument("the last working memory names " + Kf(id) + ", which is not in " +
+                               im.path);
+      }
+      sqlite3_bind_int64(ins.get(), 1, id.value);
+      ZM_RETURN_IF_ERROR(sqlite::StepDone(db, ins.get(), "writing the last working memory"));
+    }
+    ZM_RETURN_IF_ERROR(im.PutMeta("last_wm_every_node", sqlite3_int64{0}));
+    return im.PutMeta("last_wm_rule", rule);
+  });
+}
+
+Status MapDbWriter::SetLastWorkingMemoryEveryNode(const std::string& rule) {
+  Impl& im = *impl_;
+  ZM_RETURN_IF_ERROR(im.EnsureSchema());
+  return im.InTransaction("the last working memory", [&]() -> Status {
+    ZM_RETURN_IF_ERROR(sqlite::Exec(im.db.get(),
+                                    "CREATE TABLE IF NOT EXISTS last_wm(keyframe_id INTEGER "
+                                    "PRIMARY KEY) WITHOUT ROWID; DELETE FROM last_wm;",
+                                    "preparing table last_wm in " + im.path));
+    ZM_RETURN_IF_ERROR(im.PutMeta("last_wm_every_node", sqlite3_int64{1}));
+    return im.PutMeta("last_wm_rule", rule);
+  });
 }
 
 Result<std::vector<KeyframeMeta>> MapDbWriter::Keyframes() const {

@@ -212,6 +212,17 @@ class KeyframeSource {
                                                          GraphNodeSink* sink) = 0;
 };
 
+// The working memory a map ended its last mapping session with: what RTAB-Map's start-up loads
+// with Mem/InitWMWithAllNodes=false (Memory::loadDataFromDb -> loadLastNodes; basic-baseline.md
+// §3.4). `zonemap import-rtabmap` records it; a map built without memory management (zonemap's
+// simulator) records none, and its last working memory is then every node.
+struct RecordedWorkingMemory {
+  bool every_node = true;       // the whole map (no record, or a record saying so)
+  std::string rule;             // how it was decided, for reports; empty when nothing recorded
+  std::vector<KeyframeId> ids;  // when !every_node: ascending; may be empty (RTAB-Map then
+                                // starts with none)
+};
+
 // What the tick loop needs of a map: its metadata (read once at start) and keyframe loads. MapDb
 // is the implementation; tests may fake it.
 class MapReader : public KeyframeSource {
@@ -222,6 +233,10 @@ class MapReader : public KeyframeSource {
   [[nodiscard]] virtual Result<std::vector<LinkRecord>> Links() const = 0;        // each edge once
   [[nodiscard]] virtual Result<std::vector<ZoneRecord>> Zones() const = 0;        // by id
   [[nodiscard]] virtual Result<std::vector<ZoneMember>> ZoneMembers() const = 0;  // zone, keyframe
+  // The map's last working memory (read once at start). The default: every node.
+  [[nodiscard]] virtual Result<RecordedWorkingMemory> LastWorkingMemory() const {
+    return RecordedWorkingMemory{};
+  }
 };
 // mmap_bytes that maps the whole file (SQLite caps it at its compile-time limit, 2 GiB on Debian;
 // pages past the limit are read with read() calls).
@@ -257,6 +272,12 @@ class MapDb final : public MapReader {
   [[nodiscard]] Result<std::vector<ZoneRecord>> Zones() const override;        // ordered by id
   [[nodiscard]] Result<std::vector<ZoneMember>> ZoneMembers() const override;  // by zone, then keyframe
   [[nodiscard]] Result<std::vector<std::uint32_t>> ZoneSizes() const;  // index = ZoneId
+  // The recorded last working memory (meta last_wm_rule, last_wm_every_node; table last_wm), or
+  // every node when the map records nothing (the simulator's maps). A map imported from RTAB-Map
+  // before zonemap recorded it is refused (FailedPrecondition naming the file and the fix),
+  // since "every node" could be wrong for it; a last_wm naming a keyframe the map does not hold
+  // is Corrupt.
+  [[nodiscard]] Result<RecordedWorkingMemory> LastWorkingMemory() const override;
 
   Result<LoadStats> LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) override;
   Result<LoadStats> LoadKeyframes(std::span<const KeyframeId> ids, Arena& arena,
@@ -324,6 +345,11 @@ class MapDbWriter {
   Status ReplaceZones(std::span<const ZoneRecord> zones, std::span<const ZoneMember> members);
   Status SetCamera(const CameraIntrinsics& camera);
   Status SetSource(const std::string& source);
+  // Records the map's last working memory (see RecordedWorkingMemory), replacing any earlier
+  // record, in one transaction: `ids` (every one a keyframe already inserted), or every node.
+  // `rule` says how it was decided (reports print it).
+  Status SetLastWorkingMemory(std::span<const KeyframeId> ids, const std::string& rule);
+  Status SetLastWorkingMemoryEveryNode(const std::string& rule);
   // Called every 256 rows and at the end of each bulk insert; empty = no reports.
   void SetProgress(WriteProgressFn progress);
   // Reads back (for annotation: positions of the keyframes to assign).

@@ -281,6 +281,7 @@ class Importer {
     ZM_ASSIGN_OR_RETURN(std::vector<NodeRow> nodes, ReadNodes(optimized));
     ZM_RETURN_IF_ERROR(WriteKeyframes(writer, nodes));
     ZM_RETURN_IF_ERROR(WriteLinks(writer));
+    ZM_RETURN_IF_ERROR(WriteLastWorkingMemory(writer));
     if (report_.has_camera) ZM_RETURN_IF_ERROR(writer.SetCamera(report_.camera));
     ZM_RETURN_IF_ERROR(writer.SetSource(
         "rtabmap:" + in_ + (report_.rtabmap_version.empty() ? "" : " v" + report_.rtabmap_version)));
@@ -562,6 +563,50 @@ class Importer {
     ZM_RETURN_IF_ERROR(writer.InsertLinks(links));
     if (options_.progress) options_.progress("links", links.size(), links.size());
     report_.links = links.size();
+    return Status::Ok();
+  }
+
+  // RTAB-Map's last working memory: Memory::loadDataFromDb loads it when
+  // Mem/InitWMWithAllNodes is false, with loadLastNodesQuery's
+  //   SELECT ... FROM Node WHERE time_enter >= (SELECT MAX(time_enter) FROM Info)
+  // (Info since RTAB-Map 0.11.11; its row is written when a mapping session ends, after the
+  // final working memory is re-stamped, so these are the nodes that session ended with). The
+  // same SQL runs here on the same DATE text, so the comparison is SQLite's, as in RTAB-Map.
+  Status WriteLastWorkingMemory(MapDbWriter& writer) {
+    sqlite3* db = db_.get();
+    const auto every_node = [&](const std::string& why) {
+      return writer.SetLastWorkingMemoryEveryNode("every node: " + why);
+    };
+    ZM_ASSIGN_OR_RETURN(const bool has_info, sqlite::TableExists(db, "Info"));
+    if (!has_info) return every_node("the RTAB-Map database has no table Info");
+    ZM_ASSIGN_OR_RETURN(const Columns info, ColumnsOf(db, "Info"));
+    ZM_ASSIGN_OR_RETURN(const Columns node, ColumnsOf(db, "Node"));
+    if (!info.Has("time_enter") || !node.Has("time_enter")) {
+      return every_node("the RTAB-Map database has no Info.time_enter or Node.time_enter");
+    }
+    {
+      ZM_ASSIGN_OR_RETURN(sqlite::Stmt last, sqlite::Prepare(db, "SELECT MAX(time_enter) FROM Info"));
+      const int rc = sqlite3_step(last.get());
+      if (rc != SQLITE_ROW) return FromSqlite(rc, db, in_ + ": reading Info.time_enter");
+      const auto* t = reinterpret_cast<const char*>(sqlite3_column_text(last.get(), 0));
+      if (t == nullptr) return every_node("the RTAB-Map database has no Info row with a time_enter");
+      report_.last_info_time_enter = t;
+    }
+    ZM_ASSIGN_OR_RETURN(sqlite::Stmt s,
+                        sqlite::Prepare(db, "SELECT id FROM Node WHERE time_enter >= (SELECT "
+                                            "MAX(time_enter) FROM Info) ORDER BY id"));
+    std::vector<KeyframeId> ids;
+    int rc;
+    while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
+      const std::int64_t id = sqlite3_column_int64(s.get(), 0);
+      if (imported_.contains(id)) ids.push_back(KeyframeId{id});  // not invalid, has a pose
+    }
+    if (rc != SQLITE_DONE) return FromSqlite(rc, db, in_ + ": reading Node.time_enter");
+    ZM_RETURN_IF_ERROR(writer.SetLastWorkingMemory(
+        ids, "RTAB-Map Node.time_enter >= MAX(Info.time_enter) = '" + report_.last_info_time_enter +
+                 "'"));
+    report_.last_wm_recorded = true;
+    report_.last_wm_nodes = ids.size();
     return Status::Ok();
   }
 

@@ -8,6 +8,12 @@
 //   Feature  raw 32-byte binary descriptors, keypoints (pos_x, pos_y), 3-D points (depth_x/y/z
 //            in the node's frame, moved to the map frame with the node's pose)
 //   Admin    opt_ids / opt_poses (zlib + 12-byte trailer) used as the map poses when present
+//   Info     the last working memory: the imported nodes whose Node.time_enter >= the last
+//            Info.time_enter, RTAB-Map's own query for its start-up with
+//            Mem/InitWMWithAllNodes=false (DBDriverSqlite3 loadLastNodesQuery; basic-baseline.md
+//            §3.4), recorded with MapDbWriter::SetLastWorkingMemory. Without an Info row with a
+//            time or without time_enter columns there is nothing to go by: "every node" is
+//            recorded, and the report says why.
 //
 // Columns are discovered with PRAGMA table_info, never assumed. NULL blobs and pose-only maps
 // are fine. A damaged blob stops the import with one error naming the node (or link), the
@@ -55,6 +61,9 @@ struct RtabmapImportReport {
   std::uint64_t total_payload_bytes = 0;
   bool has_camera = false;
   CameraIntrinsics camera;
+  bool last_wm_recorded = false;         // a last working memory was found (else: every node)
+  std::uint64_t last_wm_nodes = 0;       // its size (imported nodes only)
+  std::string last_info_time_enter;      // MAX(Info.time_enter), empty when none
   double ms = 0.0;
 };
 

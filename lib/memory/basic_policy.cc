@@ -15,8 +15,11 @@ bool IsNeighborLink(LinkType t) {
 
 }  // namespace
 
-BasicPolicy::BasicPolicy(const MapIndex& index, BasicOptions options)
-    : index_(index), options_(std::move(options)) {
+BasicPolicy::BasicPolicy(const MapIndex& index, BasicOptions options, LtmGraph* ltm)
+    : index_(index),
+      options_(std::move(options)),
+      index_graph_(index),
+      ltm_(ltm != nullptr ? ltm : &index_graph_) {
   const std::size_t n = index.keyframe_count();
   in_wm_.assign(n, 0);
   age_s_.assign(n, 0.0);
@@ -125,8 +128,8 @@ void BasicPolicy::Start(const TickContext& ctx, Plan* plan) {
   report_.wm_size = wm_count_;
 }
 
-std::uint32_t BasicPolicy::Neighbors(KfIndex start, std::uint32_t max_depth,
-                                     std::uint32_t max_ltm, bool ignore_loops) {
+void BasicPolicy::Neighbors(KfIndex start, std::uint32_t max_depth, std::uint32_t max_ltm,
+                            bool ignore_loops) {
   if (++search_epoch_ == 0) {
     std::fill(seen_.begin(), seen_.end(), 0U);
     search_epoch_ = 1;
@@ -136,7 +139,6 @@ std::uint32_t BasicPolicy::Neighbors(KfIndex start, std::uint32_t max_depth,
   next_margin_.push_back(start);
   seen_[start] = search_epoch_;
   std::uint32_t admitted_ltm = 0;
-  std::uint32_t queries = 0;
   for (std::uint32_t m = 0; (max_depth == 0 || m < max_depth) && !next_margin_.empty(); ++m) {
     std::swap(margin_, next_margin_);
     next_margin_.clear();
@@ -144,17 +146,28 @@ std::uint32_t BasicPolicy::Neighbors(KfIndex start, std::uint32_t max_depth,
     std::sort(margin_.begin(), margin_.end(),
               [&](KfIndex a, KfIndex b) { return index_.id(a) > index_.id(b); });
     for (KfIndex n : margin_) {
+      std::int32_t weight = index_.weight(n);
+      std::span<const GraphEdge> edges = index_.Edges(n);
       if (in_wm_[n] == 0) {
-        // LTM: admitted (2 point queries: getWeight, loadLinks) only under the limit.
+        // LTM: admitted only under the limit, then read (getWeight, loadLinks: M.cpp:1772-1813)
+        // and expanded along the links that read returned.
         if (admitted_ltm >= max_ltm) {
           seen_[n] = 0;  // may be reached again by another path, and refused again
           continue;
         }
-        queries += 2;
-        if (index_.weight(n) != -1) ++admitted_ltm;
+        LtmNode node;
+        Status read = ltm_->Read(n, &node, &search_);
+        if (!read.ok()) {
+          if (search_error_.ok()) search_error_ = std::move(read);
+          seen_[n] = 0;
+          continue;
+        }
+        weight = node.weight;
+        edges = node.edges;
+        if (weight != -1) ++admitted_ltm;
       }
-      found_.emplace_back(n, m);
-      for (const GraphEdge& e : index_.Edges(n)) {
+      found_.push_back(Found{n, m, weight});
+      for (const GraphEdge& e : edges) {
         if (seen_[e.to] == search_epoch_) continue;
         if (!IsNeighborLink(e.type)) {
           if (ignore_loops) continue;
@@ -165,7 +178,6 @@ std::uint32_t BasicPolicy::Neighbors(KfIndex start, std::uint32_t max_depth,
       }
     }
   }
-  return queries;
 }
 
 void BasicPolicy::RebuildLocalMap(KfIndex from, bool intersect) {
@@ -233,6 +245,8 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
   report_.transferred.clear();
   report_.local_retrieved = 0;
   report_.search_queries = 0;
+  search_ = LoadStats{};
+  search_error_ = Status::Ok();
   reactivated_.clear();
   local_.clear();
   local_inter_.clear();
@@ -250,7 +264,6 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
   if (ctx.small_displacement && prev_localized_) highest = prev_highest_;
   prev_highest_ = highest;
 
-  std::uint32_t queries = 0;
   const bool skip_retrieval =
       (all_in_wm_ || options_.max_retrieved == 0) && max_local_imm == 0;  // R.cpp:2265
   if (!skip_retrieval) {
@@ -264,18 +277,18 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
                            });
       std::sort(near_.begin(), near_.end());
       std::uint32_t imm_local = 0;
-      auto take_ltm_neighbours = [&](KfIndex from) {
-        const auto left = static_cast<std::uint32_t>(quota - local_.size());
-        queries += Neighbors(from, 2, left, /*ignore_loops=*/false);
+      // `limit`: how many LTM nodes the search may admit (getNeighborsId's maxCheckedInDatabase).
+      auto take_ltm_neighbours = [&](KfIndex from, std::uint32_t limit) {
+        Neighbors(from, 2, limit, /*ignore_loops=*/false);
         // Returned ids by descending id; LTM ones join the local list up to the quota.
-        std::sort(found_.begin(), found_.end(), [&](const auto& a, const auto& b) {
-          return index_.id(a.first) > index_.id(b.first);
-        });
-        for (const auto& [id, margin] : found_) {
+        std::sort(found_.begin(), found_.end(),
+                  [&](const Found& a, const Found& b) { return index_.id(a.k) > index_.id(b.k); });
+        for (const Found& f : found_) {
+          const KfIndex id = f.k;
           if (local_.size() >= quota) break;
           if (in_wm_[id] != 0 || InReactivated(id)) continue;
-          if (index_.weight(id) == -1) {
-            if (margin == 0) local_inter_.push_back(id);
+          if (f.weight == -1) {
+            if (f.margin == 0) local_inter_.push_back(id);
             react_mark_[id] = tick_epoch_;
           } else {
             local_.push_back(id);
@@ -285,15 +298,20 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
       };
       for (const auto& [d, n] : near_) {
         if (local_.size() >= quota && imm_local >= max_local_imm) break;
-        if (index_.weight(n) != -1 && local_.size() < quota) take_ltm_neighbours(n);
+        if (index_.weight(n) != -1 && local_.size() < quota) {
+          take_ltm_neighbours(n, quota - static_cast<std::uint32_t>(local_.size()));
+        }
         if (imm_local < max_local_imm) {
           Immunize(n);
           ++imm_local;
         }
       }
-      // Quota not filled: expand one hop from the LTM ids already selected (R.cpp:2602-2632).
+      // Quota not filled: expand one hop from the LTM ids already selected. Each search starts
+      // at an LTM node, which is itself read and counts against the limit, so RTAB-Map asks for
+      // one more: getNeighborsId(*iter, 2, _maxLocalRetrieved - retrievalLocalIds.size() + 1,
+      // true, false) in Rtabmap.cpp's RETRIEVAL 2/3 (basic-baseline.md R.cpp:2602-2632).
       for (std::size_t i = 0; i < local_.size() && local_.size() < quota; ++i) {
-        take_ltm_neighbours(local_[i]);
+        take_ltm_neighbours(local_[i], quota - static_cast<std::uint32_t>(local_.size()) + 1);
       }
       // Ages of the nodes near the pose: now (farthest first; one clock value per tick here).
       for (auto it = near_.rbegin(); it != near_.rend(); ++it) age_s_[it->second] = now;
@@ -304,13 +322,13 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
     // Rule 4: the neighbourhood of the highest hypothesis.
     if (highest != kNoKf && options_.max_retrieved > 0) {
       const std::uint32_t depth = options_.prediction_lc_size - 1;  // margins 0..16
-      queries += Neighbors(highest, depth, options_.max_retrieved, /*ignore_loops=*/true);
-      for (const auto& [id, margin] : found_) {
-        Immunize(id);  // time search: everything it returns, no budget
-        AppendReactivated(id);
+      Neighbors(highest, depth, options_.max_retrieved, /*ignore_loops=*/true);
+      for (const Found& f : found_) {
+        Immunize(f.k);  // time search: everything it returns, no budget
+        AppendReactivated(f.k);
       }
-      queries += Neighbors(highest, depth, options_.max_retrieved, /*ignore_loops=*/false);
-      for (const auto& [id, margin] : found_) AppendReactivated(id);  // space search: appended only
+      Neighbors(highest, depth, options_.max_retrieved, /*ignore_loops=*/false);
+      for (const Found& f : found_) AppendReactivated(f.k);  // space search: appended only
     }
 
     // Rule 6: load the first MaxRetrieved + |local| ids not in RAM, as one batch.
@@ -330,8 +348,9 @@ void BasicPolicy::PlanAfterLocalize(const TickContext& ctx, Plan* plan) {
     }
   }
   report_.local_retrieved = static_cast<std::uint32_t>(local_.size());
-  report_.search_queries = queries;
-  plan->search_queries += queries;
+  report_.search_queries = search_.queries;
+  plan->search += search_;
+  if (plan->search_error.ok() && !search_error_.ok()) plan->search_error = search_error_;
   const auto retrieved = static_cast<std::uint32_t>(report_.retrieved.size());
 
   // Rule 10 and 6: localization and the local map.

@@ -22,6 +22,13 @@
 // which has no links), intermediate nodes (weight -1) are excluded from WM size and transfer
 // but expanded like normal nodes, TimeThr is not modelled (MemoryThr only).
 //
+// Graph searches: nodes in WM are expanded from the MapIndex (RAM, as RTAB-Map holds them);
+// each LTM node a search admits is read through the LtmGraph given at construction, its weight
+// and links, and the search goes on with what that read returned. With the run-time's
+// SourceLtmGraph that is the map database, two statements per node (rule 11), accounted in
+// Plan::search; an LTM node whose read fails is treated as not admitted and the error is
+// reported through the plan.
+//
 // Invariant: no allocation per tick once constructed (every scratch buffer is sized from N).
 #pragma once
 
@@ -29,13 +36,16 @@
 #include <utility>
 #include <vector>
 
+#include "memory/ltm_graph.h"
 #include "memory/policy.h"
 
 namespace zm {
 
 class BasicPolicy final : public MemoryPolicy {
  public:
-  BasicPolicy(const MapIndex& index, BasicOptions options);
+  // `ltm` reads long-term-memory nodes (the run-time passes the map's SourceLtmGraph; it must
+  // outlive the policy); null = the MapIndex stands in for the database (IndexLtmGraph).
+  BasicPolicy(const MapIndex& index, BasicOptions options, LtmGraph* ltm = nullptr);
 
   [[nodiscard]] std::string_view name() const override { return "basic"; }
   void Start(const TickContext& ctx, Plan* plan) override;
@@ -50,7 +60,7 @@ class BasicPolicy final : public MemoryPolicy {
     std::uint32_t max_local_imm = 0;
     std::uint32_t immunized = 0;
     std::uint32_t wm_size = 0;         // after the transfer (Memory/Working_memory_size)
-    std::uint32_t search_queries = 0;  // 2 per admitted LTM node
+    std::uint32_t search_queries = 0;  // statements its searches executed (2 per LTM node read)
   };
   [[nodiscard]] const TickReport& last_tick() const { return report_; }
   [[nodiscard]] std::uint32_t wm_size() const { return wm_count_; }
@@ -62,11 +72,15 @@ class BasicPolicy final : public MemoryPolicy {
   [[nodiscard]] double age_s(KfIndex k) const { return age_s_[k]; }
 
  private:
+  struct Found {
+    KfIndex k = kNoKf;
+    std::uint32_t margin = 0;
+    std::int32_t weight = 0;  // WM: from RAM; LTM: as read through ltm_
+  };
   // getNeighborsId: breadth-first over margins 0..max_depth-1 from `start`; WM nodes are free,
-  // LTM nodes admitted while fewer than max_ltm were. Fills found_ with (index, margin) in
-  // visit order: margin ascending, id descending within a margin. Returns queries spent.
-  std::uint32_t Neighbors(KfIndex start, std::uint32_t max_depth, std::uint32_t max_ltm,
-                          bool ignore_loops);
+  // LTM nodes admitted (read through ltm_) while fewer than max_ltm non-intermediate ones were.
+  // Fills found_ in visit order: margin ascending, id descending within a margin.
+  void Neighbors(KfIndex start, std::uint32_t max_depth, std::uint32_t max_ltm, bool ignore_loops);
   void AddToWm(KfIndex k, double now_s);
   void RemoveFromWm(KfIndex k);
   // L = WM component containing `from` (intersected with the old L if `intersect`).
@@ -80,6 +94,10 @@ class BasicPolicy final : public MemoryPolicy {
 
   const MapIndex& index_;
   BasicOptions options_;
+  IndexLtmGraph index_graph_;  // used when no LtmGraph is given
+  LtmGraph* ltm_;
+  LoadStats search_;     // this tick's search reads
+  Status search_error_;  // this tick's first failed read
   std::vector<std::uint8_t> in_wm_;
   std::vector<double> age_s_;
   std::vector<KfIndex> wm_list_;
@@ -102,7 +120,7 @@ class BasicPolicy final : public MemoryPolicy {
   // Search scratch.
   std::uint32_t search_epoch_ = 0;
   std::vector<std::uint32_t> seen_;        // == search_epoch_: queued or found in this search
-  std::vector<std::pair<KfIndex, std::uint32_t>> found_;
+  std::vector<Found> found_;
   std::vector<KfIndex> margin_, next_margin_;
   std::vector<std::pair<double, KfIndex>> near_;
   std::vector<KfIndex> queue_;

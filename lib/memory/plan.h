@@ -10,7 +10,10 @@
 //   - the buffers are reserved once (Reserve) from the map size; a policy never pushes more than
 //     that, so building a plan never allocates (asserted);
 //   - order is kUnloadThenLoad for every bounded policy; only basic uses kLoadThenUnload
-//     (RTAB-Map retrieves, then transfers).
+//     (RTAB-Map retrieves, then transfers);
+//   - `search` is database work the policy already did while planning (basic's graph searches
+//     read through its LtmGraph); the WorkingSet only accounts it, so a plan that loads nothing
+//     but searched is not empty().
 #pragma once
 
 #include <algorithm>
@@ -20,6 +23,8 @@
 #include <vector>
 
 #include "common/ids.h"
+#include "common/status.h"
+#include "mapdb/map_db.h"
 #include "memory/map_index.h"
 
 namespace zm {
@@ -59,7 +64,8 @@ class Plan {
     zones_loaded_.clear();
     zones_unloaded_.clear();
     order = PlanOrder::kUnloadThenLoad;
-    search_queries = 0;
+    search = LoadStats{};
+    search_error = Status::Ok();
   }
 
   void Release(KfIndex k) { Push(releases_, k); }
@@ -81,12 +87,18 @@ class Plan {
   [[nodiscard]] std::span<const PlanBatch> batches() const { return batches_; }
   [[nodiscard]] std::span<const ZoneId> zones_loaded() const { return zones_loaded_; }
   [[nodiscard]] std::span<const ZoneId> zones_unloaded() const { return zones_unloaded_; }
-  [[nodiscard]] bool empty() const { return releases_.empty() && acquires_.empty(); }
+  [[nodiscard]] bool empty() const {
+    return releases_.empty() && acquires_.empty() && search.queries == 0 && search_error.ok();
+  }
 
   PlanOrder order = PlanOrder::kUnloadThenLoad;
-  // Point queries a policy's own graph searches would cost against the database (basic's rule
-  // 11: two per admitted long-term-memory node). Reported, not executed.
-  std::uint32_t search_queries = 0;
+  // What the policy's own graph searches read from the database while it planned this step
+  // (basic: each admitted long-term-memory node's weight and links, two statements, two
+  // autocommit transactions; basic-baseline.md §3.1). Executed, not estimated.
+  LoadStats search;
+  // The first read of those searches that failed (the search went on without that node); the
+  // WorkingSet reports it from Apply.
+  Status search_error;
 
  private:
   template <class T>

@@ -22,7 +22,8 @@ Status ValidatePolicyName(std::string_view name) {
 bool IsBoundedPolicy(std::string_view name) { return name != "basic" && name != "unbounded"; }
 
 Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
-                                                 const PolicyOptions& options) {
+                                                 const PolicyOptions& options,
+                                                 LtmGraph* ltm_graph) {
   const std::string& p = options.policy;
   if (p != "unbounded" && options.k_max == 0 && p != "basic") {
     return InvalidArgument("policy " + p + " needs k_max > 0 (MemoryThr)");
@@ -40,7 +41,8 @@ Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
   if (p == "basic") {
     BasicOptions o = options.basic;
     if (options.k_max != 0) o.memory_thr = options.k_max;
-    return std::unique_ptr<MemoryPolicy>(std::make_unique<BasicPolicy>(index, std::move(o)));
+    return std::unique_ptr<MemoryPolicy>(
+        std::make_unique<BasicPolicy>(index, std::move(o), ltm_graph));
   }
   if (p == "radius") {
     RadiusOptions o = options.radius;

@@ -38,7 +38,6 @@ struct TickContext {
   KeyframeId highest_hypothesis{0};   // best-ranked resident keyframe for this frame; 0 = none
   KeyframeId localized_on{0};         // keyframe the frame was localized on; 0 = not localized
   std::span<const ZoneId> route;      // planned zone sequence (predictive); may be empty
-  double load_ms_per_keyframe = 0.0;  // WorkingSet::load_ms_per_keyframe(); 0 = unknown
 };
 
 class MemoryPolicy {
@@ -81,10 +80,10 @@ struct RadiusOptions {
   double update_distance_m = 20.0;  // dynamic_map_loading.update_distance
 };
 
+// Time slicing is not a policy option: the WorkingSet slices every policy's loads
+// (LoadSliceOptions, working_set.h).
 struct PredictiveOptions {
   std::uint32_t k_max = 0;
-  std::uint32_t max_keyframes_per_tick = 64;  // time slice in keyframes; 0 = unlimited
-  double max_ms_per_tick = 0.0;               // time slice in ms (with load_ms_per_keyframe); 0 = off
   bool prefetch = true;
 };
 
@@ -110,9 +109,15 @@ struct PolicyOptions {
 // basic and unbounded model RTAB-Map's growing heap (their arena holds the whole map).
 [[nodiscard]] bool IsBoundedPolicy(std::string_view name);
 
+class LtmGraph;
+
 // Makes the named policy over `index` (which must outlive it). Allocates everything it will
-// ever need here. Errors name the unknown policy or the bad option.
+// ever need here. Errors name the unknown policy or the bad option. `ltm_graph` is where basic
+// reads the long-term-memory nodes its graph searches admit (the run-time passes the map's
+// SourceLtmGraph, which must outlive the policy); null = the MapIndex stands in (tests and the
+// decision benchmark). The other policies ignore it.
 [[nodiscard]] Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
-                                                               const PolicyOptions& options);
+                                                               const PolicyOptions& options,
+                                                               LtmGraph* ltm_graph = nullptr);
 
 }  // namespace zm

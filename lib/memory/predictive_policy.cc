@@ -1,4 +1,4 @@
-// Prefetch, value-based eviction, time-sliced zone loads.
+// Prefetch and value-based eviction over whole-zone batches (the WorkingSet slices them in time).
 #include "memory/predictive_policy.h"
 
 #include <algorithm>
@@ -71,11 +71,10 @@ ZoneId PredictivePolicy::PredictNext(std::span<const ZoneId> route) const {
   return best;
 }
 
-bool PredictivePolicy::LoadSome(ZoneId z, bool is_current, const TickContext& ctx,
-                                std::uint32_t* slice, Plan* plan) {
+bool PredictivePolicy::LoadSome(ZoneId z, bool is_current, const TickContext& ctx, Plan* plan) {
   const std::uint32_t target = Target(z);
   const auto held = static_cast<std::uint32_t>(residency_.held_members(z).size());
-  if (held >= target || *slice == 0) return true;
+  if (held >= target) return true;
   KfIndex* order = order_.data() + index_.ZoneOffset(z);
   const auto members = index_.ZoneMembers(z);
   if (held == 0) {
@@ -86,8 +85,7 @@ bool PredictivePolicy::LoadSome(ZoneId z, bool is_current, const TickContext& ct
     std::sort(sort_scratch_.begin(), sort_scratch_.end());
     for (std::size_t i = 0; i < sort_scratch_.size(); ++i) order[i] = sort_scratch_[i].second;
   }
-  const std::uint32_t n = std::min(target - held, *slice);
-  std::span<const KfIndex> next(order + held, n);
+  std::span<const KfIndex> next(order + held, target - held);
   std::uint64_t k_pred = residency_.resident() + residency_.MarkAndCountNew(next);
   const auto mine = Value(z, ctx.route);
   while (k_pred > options_.k_max) {
@@ -121,7 +119,6 @@ bool PredictivePolicy::LoadSome(ZoneId z, bool is_current, const TickContext& ct
   }
   if (!residency_.active(z)) ++zone_loads_;
   residency_.Hold(z, next, plan);
-  *slice -= static_cast<std::uint32_t>(next.size());
   return true;
 }
 
@@ -147,21 +144,16 @@ void PredictivePolicy::PlanBeforeLocalize(const TickContext& ctx, Plan* plan) {
     }
   }
   if (z_curr_ == kNoZone) return;
-  std::uint32_t slice = options_.max_keyframes_per_tick == 0
-                            ? std::numeric_limits<std::uint32_t>::max()
-                            : options_.max_keyframes_per_tick;
-  if (options_.max_ms_per_tick > 0.0 && ctx.load_ms_per_keyframe > 0.0) {
-    const double fit = std::floor(options_.max_ms_per_tick / ctx.load_ms_per_keyframe);
-    slice = std::min(slice, static_cast<std::uint32_t>(std::clamp(fit, 1.0, 4.0e9)));
-  }
-  LoadSome(z_curr_, /*is_current=*/true, ctx, &slice, plan);
-  const bool current_done =
-      residency_.held_members(z_curr_).size() >= Target(z_curr_);
+  // The current zone's batch first, then the prefetch: the working set loads them in this order
+  // (time-sliced, in the idle part of the ticks), so the next zone is resident by the time the
+  // robot walks into it.
+  LoadSome(z_curr_, /*is_current=*/true, ctx, plan);
+  const bool current_held = residency_.held_members(z_curr_).size() >= Target(z_curr_);
   last_prefetch_ = kNoZone;
-  if (options_.prefetch && current_done && slice > 0) {
+  if (options_.prefetch && current_held) {
     const ZoneId next = PredictNext(ctx.route);
     if (next != kNoZone && next != z_curr_) {
-      if (LoadSome(next, /*is_current=*/false, ctx, &slice, plan)) last_prefetch_ = next;
+      if (LoadSome(next, /*is_current=*/false, ctx, plan)) last_prefetch_ = next;
     }
   }
 }

@@ -1,18 +1,22 @@
 // PredictivePolicy (beyond the paper, which lists it as future work): Algorithm 1's zone
-// batches plus prefetch, value-based eviction and time-sliced loading.
+// batches plus prefetch and value-based eviction.
 //
-//   - current zone first: it is loaded nearest-first (from the pose when its loading starts)
-//     up to min(|zone|, k_max), at most `slice` keyframes per tick;
-//   - then, once the current zone is complete, the next zone is prefetched: the zone after the
+//   - current zone first: up to min(|zone|, k_max) of its keyframes, nearest-first from the pose
+//     when its loading starts (the order decides which part is taken when room is short);
+//   - then, once the current zone is held, the next zone is prefetched: the zone after the
 //     current one on the planned route when one is given, else the adjacent zone with the most
 //     transitions seen so far from the current one (ties: not the zone we came from, then the
 //     smaller id);
 //   - to make room it evicts the zone whose next use on the route is farthest (not on the
 //     route = never), or without a route the least likely one (fewest transitions from the
 //     current zone, then least recently entered). Prefetch only evicts zones worth less than
-//     the zone it brings in; the current zone is never evicted;
-//   - slice = min(max_keyframes_per_tick, max_ms_per_tick / load_ms_per_keyframe); a zone can
-//     be partially resident across ticks and is completed when the robot is in it.
+//     the zone it brings in; the current zone is never evicted; when room is still short it
+//     takes the nearest prefix that fits, completed later when room frees up.
+//
+// Both come out as whole-zone batches of one plan, current zone first. Time slicing is the
+// WorkingSet's (LoadSliceOptions): it loads the batches in the idle part of the ticks, so the
+// prefetched zone is resident when the robot enters it (issue 14). A zone held by the plan may
+// therefore still be loading: held() counts it, the WorkingSet's resident set does not yet.
 //
 // Invariants: resident <= k_max at every instant (unload before load); no allocation after
 // construction.
@@ -46,9 +50,8 @@ class PredictivePolicy final : public MemoryPolicy {
   // Value of keeping z (larger = keep): (route rank or transition count, last entry).
   std::pair<std::int64_t, std::uint64_t> Value(ZoneId z, std::span<const ZoneId> route) const;
   ZoneId PredictNext(std::span<const ZoneId> route) const;
-  // Loads up to *slice more keyframes of z; returns false if it could not make room.
-  bool LoadSome(ZoneId z, bool is_current, const TickContext& ctx, std::uint32_t* slice,
-                Plan* plan);
+  // Holds the rest of z (what fits); returns false if it could not make room for any of it.
+  bool LoadSome(ZoneId z, bool is_current, const TickContext& ctx, Plan* plan);
   std::uint32_t Target(ZoneId z) const;
 
   const MapIndex& index_;

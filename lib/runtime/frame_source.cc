@@ -2,6 +2,7 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -41,6 +42,22 @@ LineFrameSource::LineFrameSource(int fd, std::uint32_t max_features)
     : fd_(fd), max_features_(max_features), cap_(LineBytesFor(max_features)) {
   buf_ = std::make_unique<char[]>(cap_);
 }
+
+namespace {
+// Input is readable now (or the descriptor is at its end or broken: Next() would not block).
+bool Readable(int fd) {
+  pollfd p{fd, POLLIN, 0};
+  return ::poll(&p, 1, 0) > 0;
+}
+}  // namespace
+
+bool LineFrameSource::FrameWaiting() {
+  if (eof_) return false;
+  if (std::memchr(buf_.get() + begin_, '\n', end_ - begin_) != nullptr) return true;
+  return Readable(fd_);
+}
+
+bool UdpFrameSource::FrameWaiting() { return Readable(fd_); }
 
 Result<bool> LineFrameSource::Next(Frame* frame) {
   for (;;) {

@@ -26,6 +26,9 @@ class FrameSource {
   [[nodiscard]] virtual Result<bool> Next(Frame* frame) = 0;
   [[nodiscard]] virtual std::uint64_t malformed_lines() const { return 0; }
   [[nodiscard]] virtual std::uint32_t max_features() const = 0;
+  // True when input is already waiting, so Next() would not block: the loop's idle part stops
+  // loading then (TickLoop::Idle). Never blocks. A recorded replay has no arrival times: false.
+  [[nodiscard]] virtual bool FrameWaiting() { return false; }
 };
 
 [[nodiscard]] Result<std::unique_ptr<FrameSource>> OpenReplaySource(const std::string& frames_path);
@@ -37,6 +40,7 @@ class LineFrameSource final : public FrameSource {
   Result<bool> Next(Frame* frame) override;
   [[nodiscard]] std::uint64_t malformed_lines() const override { return malformed_; }
   [[nodiscard]] std::uint32_t max_features() const override { return max_features_; }
+  bool FrameWaiting() override;
   [[nodiscard]] const LineError& last_error() const { return last_error_; }
 
  private:
@@ -60,6 +64,7 @@ class UdpFrameSource final : public FrameSource {
   Result<bool> Next(Frame* frame) override;
   [[nodiscard]] std::uint64_t malformed_lines() const override { return malformed_; }
   [[nodiscard]] std::uint32_t max_features() const override { return max_features_; }
+  bool FrameWaiting() override;
   [[nodiscard]] std::uint16_t port() const { return port_; }
 
  private:

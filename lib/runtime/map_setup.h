@@ -34,7 +34,9 @@ namespace zm {
 // and for basic its MemoryThr (memory management is on when a count or byte limit is set, as
 // RTAB-Map's MemoryThr > 0) and its start-up working memory: Mem/InitWMWithAllNodes=false
 // starts from the map's last working memory, which a map built without memory management
-// records as every node (basic-baseline.md §3.4).
+// records as every node (basic-baseline.md §3.4). A caller without a map database (the public
+// API's ZoneManager) has no recorded one, so this gives every node; TickLoop::Create uses the
+// database's LastWorkingMemory() first when it has one.
 [[nodiscard]] PolicyOptions PolicyOptionsFor(const LoopConfig& config, const Budget& budget,
                                              std::span<const KeyframeMeta> keyframes,
                                              std::vector<ZoneId> oracle_future);

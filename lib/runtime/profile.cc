@@ -81,10 +81,19 @@ Result<Profile> ReadProfile(ProfileDocument& doc) {
   radius.Double("update_distance_m", p.policy.radius.update_distance_m, 0.0, 1e6);
   radius.Finish();
   TableReader predictive = policy.Sub("predictive");
-  predictive.U32("max_keyframes_per_tick", p.policy.predictive.max_keyframes_per_tick);
-  predictive.Double("max_ms_per_tick", p.policy.predictive.max_ms_per_tick, 0.0, 1e6);
+  predictive.Bool("prefetch", p.policy.predictive.prefetch);
   predictive.Finish();
   policy.Finish();
+
+  TableReader loads = top.Sub("loads");
+  LoadSliceOptions& lo = p.loads;
+  loads.Bool("sliced", lo.sliced);
+  loads.Double("tick_ms", lo.tick_ms, 0.0, 1e6);
+  loads.Bytes("tick_bytes", lo.tick_bytes);
+  loads.Double("idle_ms", lo.idle_ms, 0.0, 1e6);
+  loads.Bytes("idle_bytes", lo.idle_bytes);
+  loads.Double("margin_ms", lo.margin_ms, 0.0, 1e6);
+  loads.Finish();
 
   TableReader loc = top.Sub("localization");
   LocalizerConfig& l = p.localizer;

@@ -27,7 +27,14 @@ nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
                   {"keyframes_loaded", t.startup.keyframes_loaded},
                   {"bytes_read", t.startup.bytes_read},
                   {"db_transactions", t.startup.db_transactions},
-                  {"db_queries", t.startup.db_queries}};
+                  {"db_queries", t.startup.db_queries},
+                  {"db_blob_reads", t.startup.db_blob_reads}};
+  // Everything after the start-up load, in the same unit (db_* below are the whole run's).
+  const DbWork steady = SteadyDbWork(t);
+  s["steady_state"] = {{"db_queries", steady.queries},
+                       {"db_transactions", steady.transactions},
+                       {"db_blob_reads", steady.blob_reads},
+                       {"db_bytes_read", steady.bytes_read}};
   s["loop_closures"] = t.loop_closures;
   s["closures_rejected"] = t.closures_rejected;
   s["peak_resident_keyframes"] = t.peak_resident_keyframes;
@@ -44,10 +51,26 @@ nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
   s["zone_loads"] = t.zone_loads;
   s["db_transactions"] = t.db_transactions;
   s["db_queries"] = t.db_queries;
+  s["db_blob_reads"] = t.db_blob_reads;
   s["search_queries"] = t.search_queries;
+  s["search_transactions"] = t.search_transactions;
   s["db_bytes_read"] = t.db_bytes_read;
   s["load_ms_total"] = t.load_ms;
   s["unload_ms_total"] = t.unload_ms;
+  const LoadSliceOptions& lo = loop.config().loads;
+  s["loads"] = {{"sliced", lo.sliced},
+                {"tick_ms", lo.tick_ms},
+                {"tick_bytes", lo.tick_bytes},
+                {"idle_ms", lo.idle_ms},
+                {"idle_bytes", lo.idle_bytes},
+                {"margin_ms", lo.margin_ms},
+                {"idle_load_ms_total", t.idle_load_ms},
+                {"idle_keyframes_loaded", t.idle_keyframes_loaded},
+                {"keyframes_cancelled", t.keyframes_cancelled},
+                {"loads_preempted", t.loads_preempted},
+                {"max_pending_keyframes", t.max_pending_keyframes},
+                {"late_ticks", t.late_ticks},
+                {"max_late_ms", t.max_late_ms}};
   s["malformed_lines"] = loop.malformed_lines();
   return s;
 }

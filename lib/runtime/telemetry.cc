@@ -44,13 +44,15 @@ bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
       "{\"tick\":%llu,\"stamp\":%.6f,\"x\":%.4f,\"y\":%.4f,\"yaw\":%.5f,\"zone\":%d,"
       "\"resident_keyframes\":%u,\"resident_bytes\":%llu,\"loaded\":%u,\"unloaded\":%u,"
       "\"db_transactions\":%u,\"db_queries\":%u,\"db_bytes_read\":%llu,\"load_ms\":%.4f,"
-      "\"unload_ms\":%.4f,\"over_budget\":%s,\"refused\":%llu,\"loop_closure\":%s,"
+      "\"unload_ms\":%.4f,\"pending\":%u,\"idle_load_ms\":%.4f,\"idle_loaded\":%u,"
+      "\"late_ms\":%.4f,\"over_budget\":%s,\"refused\":%llu,\"loop_closure\":%s,"
       "\"matched\":%lld,\"inliers\":%u,\"highest\":%lld,\"candidates\":%u,"
       "\"startup\":%s,\"stalled\":%s,\"tick_ms\":%.4f,\"steps_ms\":{",
       static_cast<unsigned long long>(r.tick), r.stamp_s, r.x_m, r.y_m, r.yaw_rad, r.zone.value,
       r.resident_keyframes, static_cast<unsigned long long>(r.resident_bytes), r.keyframes_loaded,
       r.keyframes_unloaded, r.db_transactions, r.db_queries,
       static_cast<unsigned long long>(r.db_bytes_read), r.load_ms, r.unload_ms,
+      r.pending_keyframes, r.idle_load_ms, r.idle_keyframes_loaded, r.late_ms,
       r.over_budget ? "true" : "false", static_cast<unsigned long long>(r.refused_acquisitions),
       r.loop_closure ? "true" : "false", static_cast<long long>(r.matched_keyframe), r.inliers,
       static_cast<long long>(r.highest_hypothesis), r.candidates, r.startup ? "true" : "false",
@@ -65,6 +67,20 @@ bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
   }
   if (used + 1 > sizeof line_) return false;
   line_[used++] = '}';
+  // Database work beyond the loads' (issue 17 §5): blob reads, the searching part, and on the
+  // start-up tick the part that was the start-up load.
+  n = std::snprintf(line_ + used, sizeof line_ - used,
+                    ",\"db_blob_reads\":%u,\"search_queries\":%u,\"search_transactions\":%u",
+                    r.db_blob_reads, r.search_queries, r.search_transactions);
+  if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
+  used += static_cast<std::size_t>(n);
+  if (r.startup) {
+    n = std::snprintf(line_ + used, sizeof line_ - used,
+                      ",\"startup_db\":{\"queries\":%u,\"transactions\":%u,\"blob_reads\":%u}",
+                      r.startup_db_queries, r.startup_db_transactions, r.startup_db_blob_reads);
+    if (n < 0 || static_cast<std::size_t>(n) >= sizeof line_ - used) return false;
+    used += static_cast<std::size_t>(n);
+  }
   if (!extra.empty()) {
     if (used + 1 + extra.size() > sizeof line_) return false;
     line_[used++] = ',';

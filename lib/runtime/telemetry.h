@@ -49,8 +49,21 @@ struct TickRecord {
   std::uint32_t db_transactions = 0;
   std::uint32_t db_queries = 0;
   std::uint64_t db_bytes_read = 0;
+  // Database work in one unit (LoadStats): db_queries are SQL statements executed, loads and
+  // basic's graph searches alike; search_* is the searching part; startup_db_* the part of the
+  // first tick that was the start-up load (0 on every other tick).
+  std::uint32_t db_blob_reads = 0;
+  std::uint32_t search_queries = 0;
+  std::uint32_t search_transactions = 0;
+  std::uint32_t startup_db_queries = 0;
+  std::uint32_t startup_db_transactions = 0;
+  std::uint32_t startup_db_blob_reads = 0;
   double load_ms = 0.0;
   double unload_ms = 0.0;
+  std::uint32_t pending_keyframes = 0;      // queued to load after this tick (time-sliced loads)
+  double idle_load_ms = 0.0;                // idle part(s) between the last tick and this one
+  std::uint32_t idle_keyframes_loaded = 0;  // loaded there (not in keyframes_loaded)
+  double late_ms = 0.0;                     // this frame's wait on that idle part (in tick_ms)
   bool over_budget = false;
   std::uint64_t refused_acquisitions = 0;  // cumulative arena refusals
   bool loop_closure = false;               // a closure was accepted this tick

@@ -31,6 +31,10 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   if (meta.keyframe_count == 0) return InvalidArgument("the map database has no keyframes");
   ZM_RETURN_IF_ERROR(ValidatePolicyName(config.policy.policy));
   if (!(config.loop.rate_hz > 0.0)) return InvalidArgument("loop rate_hz must be > 0");
+  const LoadSliceOptions& lo = config.loads;
+  if (!(lo.tick_ms >= 0.0) || !(lo.idle_ms >= 0.0) || !(lo.margin_ms >= 0.0)) {
+    return InvalidArgument("loads: tick_ms, idle_ms and margin_ms must be >= 0");
+  }
 
   // Metadata only: no payload is read to decide anything.
   ZM_ASSIGN_OR_RETURN(std::vector<KeyframeMeta> keyframes, map.Keyframes());
@@ -95,16 +99,25 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
     popt.basic.memory_thr = any_limit ? budget.k_max : 0;
     popt.k_max = popt.basic.memory_thr;
     if (!popt.basic.init_wm_with_all_nodes && popt.basic.initial_wm.empty()) {
-      // Mem/InitWMWithAllNodes=false starts from the map's last working memory. A zonemap map
-      // records none: it was built without memory management, so its last working memory is
-      // every node (basic-baseline.md §3.4).
-      popt.basic.initial_wm.reserve(keyframes.size());
-      for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+      // Mem/InitWMWithAllNodes=false starts from the map's last working memory: the one an
+      // imported RTAB-Map database recorded (Node.time_enter >= the last Info.time_enter), or,
+      // for a map built without memory management (the simulator's), every node
+      // (basic-baseline.md §3.4). An RTAB-Map import that predates the record is refused.
+      ZM_ASSIGN_OR_RETURN(RecordedWorkingMemory last, map.LastWorkingMemory());
+      if (!last.every_node) {
+        popt.basic.initial_wm = std::move(last.ids);
+      } else {
+        popt.basic.initial_wm.reserve(keyframes.size());
+        for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+      }
     }
   }
-  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt));
+  // basic reads the long-term-memory nodes its graph searches admit from the map database.
+  loop->ltm_graph_ = std::make_unique<SourceLtmGraph>(loop->map_index_, map);
+  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt, loop->ltm_graph_.get()));
   loop->working_set_ =
-      std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map, budget.k_max);
+      std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map,
+                                                     budget.k_max, config.loads.sliced);
 
   LocalizerConfig lc = config.localizer;
   lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes, budget.arena_slots);
@@ -125,6 +138,11 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   return loop;
 }
 
+DbWork SteadyDbWork(const LoopTotals& t) {
+  return DbWork{t.db_queries - t.startup.db_queries, t.db_transactions - t.startup.db_transactions,
+                t.db_blob_reads - t.startup.db_blob_reads, t.db_bytes_read - t.startup.bytes_read};
+}
+
 void TickLoop::NoteError(const Status& s) {
   ++totals_.step_errors;
   if (totals_.first_error.ok()) totals_.first_error = s;
@@ -133,11 +151,15 @@ void TickLoop::NoteError(const Status& s) {
 
 void TickLoop::Account(const TickTelemetry& t) {
   totals_.keyframes_loaded += t.keyframes_loaded;
+  totals_.keyframes_cancelled += t.keyframes_cancelled;
+  totals_.loads_preempted += t.loads_preempted;
   totals_.keyframes_unloaded += t.keyframes_unloaded;
   totals_.zone_loads += t.zones_loaded;
   totals_.db_transactions += t.db_transactions;
   totals_.db_queries += t.db_queries;
+  totals_.db_blob_reads += t.db_blob_reads;
   totals_.search_queries += t.search_queries;
+  totals_.search_transactions += t.search_transactions;
   totals_.db_bytes_read += t.db_bytes_read;
   totals_.load_ms += t.load_ms;
   totals_.unload_ms += t.unload_ms;
@@ -148,6 +170,7 @@ void TickLoop::Account(const TickTelemetry& t) {
 Result<bool> TickLoop::Tick() {
   if (config_.loop.max_ticks != 0 && totals_.ticks >= config_.loop.max_ticks) return false;
   const Clock::time_point t_tick = Clock::now();
+  tick_start_ = t_tick;
   const bool startup = totals_.ticks == 0;
 
   // 1. Read a frame. (The previous tick's record stays readable until a frame arrives.)
@@ -158,6 +181,12 @@ Result<bool> TickLoop::Tick() {
   record_ = TickRecord{};
   tel_ = TickTelemetry{};
   record_.step_ms[static_cast<int>(TickStep::kReadFrame)] = MsSince(t0);
+  // What the idle parts since the last tick did (Idle()).
+  record_.idle_load_ms = std::exchange(idle_ms_, 0.0);
+  record_.idle_keyframes_loaded = std::exchange(idle_keyframes_, 0U);
+  record_.late_ms = std::exchange(late_ms_, 0.0);
+  record_.stalled = std::exchange(idle_error_, false);
+  const bool idle_over_budget = std::exchange(idle_over_budget_, false);
 
   // 2. Update the pose: odometry composed with the current correction.
   t0 = Clock::now();
@@ -188,7 +217,6 @@ Result<bool> TickLoop::Tick() {
   ctx_.small_displacement = small;
   ctx_.highest_hypothesis = KeyframeId{0};
   ctx_.localized_on = KeyframeId{0};
-  ctx_.load_ms_per_keyframe = working_set_->load_ms_per_keyframe();
 
   // 4. The policy plans: unload, then load (start-up load on the first frame).
   t0 = Clock::now();
@@ -200,10 +228,28 @@ Result<bool> TickLoop::Tick() {
   }
   record_.step_ms[static_cast<int>(TickStep::kPlan)] = MsSince(t0);
 
-  // 5. Apply the plan.
+  // 5. Apply the plan: releases at once, loads queued (unsliced: loaded). Then the robot's own
+  //    zone first: at start-up its load to the end (the start-up load); afterwards an in-tick
+  //    slice of it, so the zone just entered starts loading now, not after the tick.
   t0 = Clock::now();
   if (!plan_.empty()) {
     const Status s = working_set_->Apply(plan_, &tel_);
+    if (!s.ok()) NoteError(s);
+  }
+  if (working_set_->loading()) {
+    working_set_->Prioritize(zone_);
+    LoadSlice slice;
+    slice.zone = zone_;  // the robot's zone (or a keyframe batch); kNoZone: whatever is first
+    if (!startup) {
+      const LoadSliceOptions& lo = config_.loads;
+      slice.min_keyframes = 1;  // progress even when a tick has no time left
+      if (lo.tick_ms > 0.0) {
+        slice.deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                            std::chrono::duration<double, std::milli>(lo.tick_ms));
+      }
+      if (lo.tick_bytes > 0) slice.max_bytes = lo.tick_bytes;
+    }
+    const Status s = working_set_->StepLoads(slice, &tel_);
     if (!s.ok()) NoteError(s);
   }
   record_.step_ms[static_cast<int>(TickStep::kApply)] = MsSince(t0);
@@ -213,6 +259,10 @@ Result<bool> TickLoop::Tick() {
     totals_.startup.bytes_read = tel_.db_bytes_read;
     totals_.startup.db_transactions = tel_.db_transactions;
     totals_.startup.db_queries = tel_.db_queries;
+    totals_.startup.db_blob_reads = tel_.db_blob_reads;
+    record_.startup_db_queries = tel_.db_queries;
+    record_.startup_db_transactions = tel_.db_transactions;
+    record_.startup_db_blob_reads = tel_.db_blob_reads;
   }
 
   // 6. Localize on the resident set only, then the after-localization plan (basic).
@@ -248,8 +298,10 @@ Result<bool> TickLoop::Tick() {
   const std::uint64_t resident_bytes = working_set_->resident_bytes();
   totals_.peak_resident_keyframes = std::max(totals_.peak_resident_keyframes, resident);
   totals_.peak_resident_bytes = std::max(totals_.peak_resident_bytes, resident_bytes);
+  totals_.max_pending_keyframes =
+      std::max(totals_.max_pending_keyframes, working_set_->pending_count());
   const std::uint32_t tick_peak = std::max(tel_.peak_resident_keyframes, resident);
-  const bool over = tick_peak > budget_.k_max;
+  const bool over = idle_over_budget || tick_peak > budget_.k_max;
   if (over) {
     ++totals_.over_budget_ticks;
     totals_.max_over_budget_keyframes =
@@ -274,8 +326,12 @@ Result<bool> TickLoop::Tick() {
   record_.keyframes_loaded = tel_.keyframes_loaded;
   record_.keyframes_unloaded = tel_.keyframes_unloaded;
   record_.db_transactions = tel_.db_transactions;
-  record_.db_queries = tel_.db_queries + tel_.search_queries;
+  record_.db_queries = tel_.db_queries;  // loads and searches, one unit
   record_.db_bytes_read = tel_.db_bytes_read;
+  record_.db_blob_reads = tel_.db_blob_reads;
+  record_.search_queries = tel_.search_queries;
+  record_.search_transactions = tel_.search_transactions;
+  record_.pending_keyframes = working_set_->pending_count();
   record_.load_ms = tel_.load_ms;
   record_.unload_ms = tel_.unload_ms;
   record_.over_budget = over;
@@ -286,7 +342,12 @@ Result<bool> TickLoop::Tick() {
   record_.highest_hypothesis = loc.highest_hypothesis.value;
   record_.candidates = loc.candidates_examined;
   record_.step_ms[static_cast<int>(TickStep::kRecord)] = MsSince(t0);
-  record_.tick_ms = MsSince(t_tick);
+  // The frame's latency: its own steps plus any wait on the idle part before it (header).
+  record_.tick_ms = MsSince(t_tick) + record_.late_ms;
+  if (record_.late_ms > 0.0) {
+    ++totals_.late_ticks;
+    totals_.max_late_ms = std::max(totals_.max_late_ms, record_.late_ms);
+  }
   if (startup) {
     totals_.startup.tick_ms = record_.tick_ms;
   } else {
@@ -295,6 +356,52 @@ Result<bool> TickLoop::Tick() {
   totals_.simulated_s += std::max(frame_period_s_, record_.tick_ms / 1000.0);
   ++totals_.ticks;
   return true;
+}
+
+TickLoop::IdleReport TickLoop::Idle(Clock::time_point frame_due) {
+  IdleReport report;
+  if (totals_.ticks == 0 || !working_set_->sliced() || !working_set_->loading()) return report;
+  const Clock::time_point start = Clock::now();
+  const LoadSliceOptions& lo = config_.loads;
+  const auto ms = [](double v) {
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(v));
+  };
+  if (frame_due == Clock::time_point{}) {
+    frame_due = tick_start_ + ms(frame_period_s_ * 1000.0);  // the frames' clock
+  }
+  LoadSlice slice;
+  slice.deadline = frame_due - ms(lo.margin_ms);
+  if (lo.idle_ms > 0.0) slice.deadline = std::min(slice.deadline, start + ms(lo.idle_ms));
+  if (lo.idle_bytes > 0) slice.max_bytes = lo.idle_bytes;
+  slice.interrupt = &frame_waiting_;
+  if (slice.deadline <= start) {  // the next frame is (nearly) due: no idle time this tick
+    report.pending_keyframes = working_set_->pending_count();
+    return report;
+  }
+  TickTelemetry t;
+  const Status s = working_set_->StepLoads(slice, &t);
+  if (!s.ok()) {
+    ++totals_.step_errors;
+    if (totals_.first_error.ok()) totals_.first_error = s;
+    idle_error_ = true;
+  }
+  const Clock::time_point end = Clock::now();
+  report.ms = std::chrono::duration<double, std::milli>(end - start).count();
+  report.keyframes_loaded = t.keyframes_loaded;
+  report.bytes_read = t.db_bytes_read;
+  report.pending_keyframes = working_set_->pending_count();
+  // Only the idle part's own overrun: a tick that already ran past the due time left no idle.
+  const Clock::time_point due = std::max(frame_due, start);
+  report.late_ms = end > due ? std::chrono::duration<double, std::milli>(end - due).count() : 0.0;
+  Account(t);
+  totals_.peak_resident_bytes = std::max(totals_.peak_resident_bytes, working_set_->resident_bytes());
+  totals_.idle_load_ms += report.ms;
+  totals_.idle_keyframes_loaded += t.keyframes_loaded;
+  idle_ms_ += report.ms;
+  idle_keyframes_ += t.keyframes_loaded;
+  late_ms_ += report.late_ms;
+  idle_over_budget_ = idle_over_budget_ || t.over_budget;
+  return report;
 }
 
 }  // namespace zm

@@ -6,19 +6,34 @@
 //   3. look up the zone                   ZoneIndex::GetZone with hysteresis
 //   4. the policy plans                   MemoryPolicy::PlanBeforeLocalize (unload, then load);
 //                                         on the first frame MemoryPolicy::Start (start-up load)
-//   5. apply the plan                     WorkingSet::Apply -> KeyframeSource loads into slots
-//   6. localize on the resident set       Localizer::Localize over views of resident slots only;
-//                                         then PlanAfterLocalize + Apply (basic's retrieval and
-//                                         transfer happen here, as in RTAB-Map)
+//   5. apply the plan                     WorkingSet::Apply: releases at once, loads queued;
+//                                         then the in-tick slice (LoadSliceOptions::tick_ms,
+//                                         tick_bytes) of the robot's own zone, nearest batch
+//                                         first, so the zone just entered starts loading at once
+//   6. localize on the resident set       Localizer::Localize over views of resident slots only
+//                                         (complete keyframes; a zone still loading is used
+//                                         keyframe by keyframe); then PlanAfterLocalize + Apply
+//                                         (basic's retrieval and transfer, as in RTAB-Map)
 //   7. record                             fill the TickRecord and the totals
+// and, between ticks, the idle part (Idle(), called by the driver after it has written the
+// tick's outputs and before it waits for the next frame): the queued loads advance one keyframe
+// at a time until the next frame is due (less a margin and the slowest recent keyframe's time),
+// the per-tick idle budget (idle_ms, idle_bytes) is spent, or a frame is already waiting. One
+// thread throughout: a load never runs beside a tick, it runs where the loop would sleep.
 //
 // The loop does no output of its own: the caller reads last_record() after each Tick() and
 // writes whatever it writes (telemetry JSONL, the pose line to the robot, a trajectory file).
 // Totals are typed (LoopTotals); JSON exists only at the edges.
 //
 // Start-up: the first frame's tick carries the policy's start-up load (semantic: the first zone;
-// basic: its whole initial working memory). It is reported apart (LoopTotals::startup) and kept
-// out of the tick-time statistics, which describe the steady state.
+// basic: its whole initial working memory), loaded to the end in that tick (a predictive
+// prefetch is left to the idle part). It is reported apart (LoopTotals::startup) and kept out of
+// the tick-time statistics, which describe the steady state.
+//
+// Tick time (TickRecord::tick_ms, LoopTotals::tick_ms): steps 1-7 of the tick, plus the time the
+// idle part before it ran past this frame's due time (late_ms: the wait that frame would have
+// had on a robot; 0 while the idle part keeps its deadline). The idle part itself is reported
+// apart (idle_load_ms).
 //
 // Everything is built in Create(); a warm tick allocates nothing (tested, for every policy).
 // Errors never unwind through the loop: each step returns a value, and a failed step marks the
@@ -27,9 +42,16 @@
 // after a minute.
 //
 // Time: the loop runs on the frames' own clock (stamps), so a replay is deterministic and
-// basic's whole-second ages mean what they mean on a robot running at the frame rate.
+// basic's whole-second ages mean what they mean on a robot running at the frame rate. The idle
+// part's deadline is the frame period at LoopOptions::rate_hz after this tick started (a replay
+// gets the idle time a robot would have, however fast it replays), or the caller's own due time
+// (a paced replay, a robot whose frames come on a known schedule). A replay stays deterministic
+// as long as the idle part finishes its loads before the deadline, which it does with the
+// shipped budgets on the maps measured (docs/memory.md); a tighter budget makes residency depend
+// on the machine's speed, as it would on a robot.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -42,6 +64,7 @@
 #include "localization/frame.h"
 #include "localization/localizer.h"
 #include "mapdb/map_db.h"
+#include "memory/ltm_graph.h"
 #include "memory/map_index.h"
 #include "memory/plan.h"
 #include "memory/policy.h"
@@ -69,6 +92,7 @@ struct LoopConfig {
   ModelOptions model;
   MapOptions map;
   PolicyOptions policy;
+  LoadSliceOptions loads;
   ZoneIndexOptions zones;
   LocalizerConfig localizer;
   LoopOptions loop;
@@ -80,14 +104,17 @@ struct LoopPlanInputs {
   std::vector<ZoneId> oracle_future;  // the zone of every tick, from tick 0 (oracle only)
 };
 
-// Start-up, reported apart from the steady state.
+// Start-up, reported apart from the steady state: the policy's start-up load (basic: its whole
+// initial working memory), which the first tick carries before it localizes. Database work in
+// the one unit of LoadStats (statements, transactions, blob reads).
 struct StartupTotals {
   double tick_ms = 0.0;               // the whole first tick
   double load_ms = 0.0;               // of which loading
   std::uint32_t keyframes_loaded = 0;
   std::uint64_t bytes_read = 0;
   std::uint32_t db_transactions = 0;
-  std::uint32_t db_queries = 0;
+  std::uint32_t db_queries = 0;       // SQL statements executed
+  std::uint32_t db_blob_reads = 0;
 };
 
 // Totals over a run, typed (summary writers turn them into JSON).
@@ -98,9 +125,15 @@ struct LoopTotals {
   std::uint64_t keyframes_loaded = 0;
   std::uint64_t keyframes_unloaded = 0;
   std::uint64_t zone_loads = 0;
+  // Database work of the whole run, start-up included, one unit for every policy (LoadStats'
+  // definitions: statements executed, transactions with an autocommit statement counted as
+  // one, incremental blob reads), loads and basic's graph searches alike; search_* is the part
+  // that was searching. The steady state is these minus `startup` (SteadyDbWork).
   std::uint64_t db_transactions = 0;
-  std::uint64_t db_queries = 0;
-  std::uint64_t search_queries = 0;
+  std::uint64_t db_queries = 0;        // SQL statements executed
+  std::uint64_t db_blob_reads = 0;
+  std::uint64_t search_queries = 0;    // of db_queries
+  std::uint64_t search_transactions = 0;  // of db_transactions
   std::uint64_t db_bytes_read = 0;
   std::uint32_t peak_resident_keyframes = 0;
   std::uint64_t peak_resident_bytes = 0;
@@ -110,12 +143,31 @@ struct LoopTotals {
   std::uint64_t stalled_ticks = 0;
   std::uint64_t step_errors = 0;
   Status first_error;                             // the first step error (Ok when none)
-  double load_ms = 0.0;
+  double load_ms = 0.0;               // in ticks and in the idle parts
   double unload_ms = 0.0;
+  // Time-sliced loads (LoadSliceOptions): what the idle parts between ticks did, and what the
+  // loads cost the ticks.
+  double idle_load_ms = 0.0;                 // wall time of the idle parts that had loads queued
+  std::uint64_t idle_keyframes_loaded = 0;   // of keyframes_loaded
+  std::uint64_t keyframes_cancelled = 0;     // queued keyframes released before they loaded
+  std::uint64_t loads_preempted = 0;         // zone loads overtaken by a newer zone's
+  std::uint32_t max_pending_keyframes = 0;   // longest load queue after a tick
+  std::uint64_t late_ticks = 0;              // ticks whose frame waited on an idle part
+  double max_late_ms = 0.0;
   double simulated_s = 0.0;  // sum over ticks of max(frame period, tick time)
   StartupTotals startup;
   StreamingStats tick_ms;    // every tick after the first (the steady state)
 };
+
+// Database work after start-up: the run's totals minus the start-up load (the one derivation;
+// summary.json's "steady_state").
+struct DbWork {
+  std::uint64_t queries = 0;       // SQL statements executed
+  std::uint64_t transactions = 0;
+  std::uint64_t blob_reads = 0;
+  std::uint64_t bytes_read = 0;
+};
+[[nodiscard]] DbWork SteadyDbWork(const LoopTotals& totals);
 
 class TickLoop {
  public:
@@ -134,6 +186,21 @@ class TickLoop {
   // max_ticks was reached). Step failures are counted in totals(), not returned; an error
   // returned here is fatal (the frame source failed).
   [[nodiscard]] Result<bool> Tick();
+
+  // What one idle part did.
+  struct IdleReport {
+    double ms = 0.0;                  // wall time spent (0 when nothing was queued)
+    std::uint32_t keyframes_loaded = 0;
+    std::uint64_t bytes_read = 0;
+    std::uint32_t pending_keyframes = 0;  // still queued afterwards
+    double late_ms = 0.0;             // how far it ran past the next frame's due time
+  };
+  // The idle part after a Tick() (see the header): advances the queued loads until `frame_due`
+  // less LoadSliceOptions::margin_ms (and the slowest recent keyframe), the idle budget, or a
+  // frame waiting at the source. frame_due = {} means this tick's start plus the frame period.
+  // Errors are counted in totals() (and mark the next tick stalled), like a step's. Never
+  // blocks, allocates nothing; a no-op when nothing is queued or loads are not sliced.
+  IdleReport Idle(std::chrono::steady_clock::time_point frame_due = {});
 
   [[nodiscard]] const LoopTotals& totals() const { return totals_; }
   [[nodiscard]] const LoopConfig& config() const { return config_; }
@@ -156,6 +223,15 @@ class TickLoop {
   TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index);
   void Account(const TickTelemetry& t);
   void NoteError(const Status& s);
+  // Polls the frame source between two keyframes of the idle part.
+  class FrameWaiting final : public SliceInterrupt {
+   public:
+    explicit FrameWaiting(FrameSource& frames) : frames_(frames) {}
+    bool ShouldStop() override { return frames_.FrameWaiting(); }
+
+   private:
+    FrameSource& frames_;
+  };
 
   LoopConfig config_;
   FrameSource& frames_;
@@ -164,6 +240,7 @@ class TickLoop {
   Budget budget_;
   ZoneSet zone_set_;
   ZoneIndex zone_index_;
+  std::unique_ptr<LtmGraph> ltm_graph_;  // before policy_: the policy reads through it
   std::unique_ptr<MemoryPolicy> policy_;
   std::unique_ptr<WorkingSet> working_set_;
   std::unique_ptr<Localizer> localizer_;
@@ -183,6 +260,14 @@ class TickLoop {
   bool have_kept_pose_ = false;
   ZoneId zone_ = kNoZone;
   std::uint64_t over_budget_run_ = 0;
+  FrameWaiting frame_waiting_{frames_};
+  std::chrono::steady_clock::time_point tick_start_{};
+  // The idle parts since the last tick, reported in the next tick's record.
+  double idle_ms_ = 0.0;
+  std::uint32_t idle_keyframes_ = 0;
+  double late_ms_ = 0.0;
+  bool idle_error_ = false;
+  bool idle_over_budget_ = false;
   LoopTotals totals_;
 };
 

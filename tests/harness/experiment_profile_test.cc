@@ -43,6 +43,34 @@ TEST_CASE("[cotenant] keys are checked like the core's") {
   CHECK(Contains(bad.status().message(), "'gpu'"));
 }
 
+TEST_CASE("[cotenant]'s co-tenant keys: enums by name, the context holds a request") {
+  Result<ExperimentProfile> p = ParseExperimentProfile(
+      "[cotenant]\nkv_allocation = \"at_load\"\nweights_load = \"read\"\nprefetch = false\n"
+      "watchdog_s = 2.5\nrestart_delay_s = 0\ncontext_tokens = 1024\nkv_bytes_per_token = \"1KiB\"\n",
+      "co.toml");
+  REQUIRE_MESSAGE(p.ok(), p.status().ToString());
+  CHECK(p->cotenant.kv_allocation == KvAllocation::kAtLoad);
+  CHECK(p->cotenant.weights_load == WeightsLoad::kRead);
+  CHECK_FALSE(p->cotenant.prefetch);
+  CHECK(p->cotenant.watchdog_s == 2.5);
+  CHECK(p->cotenant.restart_delay_s == 0.0);
+  CHECK(p->cotenant.context_tokens == 1024);
+  CHECK(p->cotenant.kv_bytes_per_token == 1024);
+  CHECK(ParseExperimentProfile("", "empty.toml")->cotenant.kv_allocation == KvAllocation::kPerRequest);
+  Result<ExperimentProfile> bad = ParseExperimentProfile("[cotenant]\nkv_allocation = \"lazy\"\n", "bad.toml");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(Contains(bad.status().message(), "'cotenant.kv_allocation'"));
+  bad = ParseExperimentProfile("[cotenant]\nweights_load = \"swap\"\n", "bad.toml");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(Contains(bad.status().message(), "'cotenant.weights_load'"));
+  bad = ParseExperimentProfile("[cotenant]\ncontext_tokens = 100\n", "bad.toml");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(Contains(bad.status().message(), "'cotenant.context_tokens'"));
+  bad = ParseExperimentProfile("[cotenant]\nrequest_deadline_s = 120\n", "bad.toml");  // removed
+  REQUIRE_FALSE(bad.ok());
+  CHECK(Contains(bad.status().message(), "'cotenant.request_deadline_s'"));
+}
+
 TEST_CASE("--cotenant changes the model but keeps the planned map share") {
   Result<ExperimentProfile> loaded = LoadExperimentProfile("orin-nano-8gb");
   REQUIRE(loaded.ok());

@@ -290,6 +290,129 @@ TEST_CASE("damaged node, data and link blobs give one clear error naming them, n
   }
 }
 
+TEST_CASE("the last working memory: Node.time_enter >= the last Info.time_enter, recorded") {
+  // A mapping session started (Info row at 09:00, written while memory was empty), added nodes
+  // 1..6, and ended: RTAB-Map wrote the closing Info row at 10:00:00 and re-stamped the WM it
+  // ended with (4, 5, 6) at 10:00:00 or later. Node 7 is invalid (weight -9): not imported, so
+  // not in the record either. Node 8 has no time_enter (NULL compares as not >=).
+  TempDir dir;
+  const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
+  {
+    RtabDb r(in, test::kRtabmapSchema023);
+    for (int i = 1; i <= 8; ++i) r.AddNode(i, i == 7 ? -9 : 0, test::PoseBlob(PoseFromXYYaw(i, 0, 0)));
+    r.Exec("UPDATE Node SET time_enter='2024-05-01 09:10:00' WHERE id <= 3");
+    r.Exec("UPDATE Node SET time_enter='2024-05-01 10:00:00' WHERE id IN (4, 5, 7)");
+    r.Exec("UPDATE Node SET time_enter='2024-05-01 10:00:01' WHERE id = 6");
+    r.Exec("INSERT INTO Info(STM_size, time_enter) VALUES(10, '2024-05-01 09:00:00')");
+    r.Exec("INSERT INTO Info(STM_size, time_enter) VALUES(10, '2024-05-01 10:00:00')");
+  }
+  auto rep = ImportRtabmap(in, out);
+  REQUIRE_MESSAGE(rep.ok(), rep.status().ToString());
+  CHECK(rep->last_wm_recorded);
+  CHECK(rep->last_wm_nodes == 3);
+  CHECK(rep->last_info_time_enter == "2024-05-01 10:00:00");
+  auto db = MapDb::Open(out);
+  REQUIRE(db.ok());
+  auto last = (*db)->LastWorkingMemory();
+  REQUIRE_MESSAGE(last.ok(), last.status().ToString());
+  CHECK_FALSE(last->every_node);
+  std::vector<std::int64_t> ids;
+  for (KeyframeId id : last->ids) ids.push_back(id.value);
+  CHECK(ids == std::vector<std::int64_t>{4, 5, 6});
+  CHECK(last->rule.find("2024-05-01 10:00:00") != std::string::npos);
+}
+
+TEST_CASE("the last working memory: nothing to go by means every node, said so") {
+  TempDir dir;
+  const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
+  {
+    RtabDb r(in, test::kRtabmapSchema019);  // an Info table, but no row in it
+    for (int i = 1; i <= 3; ++i) r.AddNode(i, 0, test::PoseBlob(PoseFromXYYaw(i, 0, 0)));
+  }
+  auto rep = ImportRtabmap(in, out);
+  REQUIRE_MESSAGE(rep.ok(), rep.status().ToString());
+  CHECK_FALSE(rep->last_wm_recorded);
+  auto db = MapDb::Open(out);
+  REQUIRE(db.ok());
+  auto last = (*db)->LastWorkingMemory();
+  REQUIRE_MESSAGE(last.ok(), last.status().ToString());
+  CHECK(last->every_node);
+  CHECK(last->rule.find("no Info row") != std::string::npos);
+}
+
+TEST_CASE("the last working memory of maps that predate the record") {
+  TempDir dir;
+  SUBCASE("a simulator map: every node") {
+    const std::string path = dir.File("sim.db");
+    test::BuildMap(path);
+    auto db = MapDb::Open(path);
+    REQUIRE(db.ok());
+    auto last = (*db)->LastWorkingMemory();
+    REQUIRE(last.ok());
+    CHECK(last->every_node);
+    CHECK(last->rule.empty());
+  }
+  SUBCASE("an RTAB-Map import without the record: refused, naming the fix") {
+    const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
+    {
+      RtabDb r(in, test::kRtabmapSchema023);
+      r.AddNode(1, 0, test::PoseBlob(PoseFromXYYaw(1, 0, 0)));
+    }
+    REQUIRE(ImportRtabmap(in, out).ok());
+    {  // what an import by an older zonemap looks like: no last_wm keys, no table
+      sqlite3* raw = nullptr;
+      REQUIRE(sqlite3_open(out.c_str(), &raw) == SQLITE_OK);
+      REQUIRE(sqlite3_exec(raw, "DELETE FROM meta WHERE key LIKE 'last_wm%'; DROP TABLE last_wm;",
+                           nullptr, nullptr, nullptr) == SQLITE_OK);
+      sqlite3_close(raw);
+    }
+    auto db = MapDb::Open(out);
+    REQUIRE_MESSAGE(db.ok(), db.status().ToString());  // still readable
+    auto last = (*db)->LastWorkingMemory();
+    REQUIRE_FALSE(last.ok());
+    CHECK(last.status().code() == StatusCode::kFailedPrecondition);
+    CHECK(last.status().message().find("import-rtabmap") != std::string::npos);
+  }
+}
+
+TEST_CASE("the last working memory record: ids the map does not hold are clear errors") {
+  TempDir dir;
+  const std::string path = dir.File("map.db");
+  test::BuildMap(path);
+  {
+    auto w = MapDbWriter::OpenExisting(path);
+    REQUIRE(w.ok());
+    const KeyframeId missing[] = {KeyframeId{1}, KeyframeId{999999}};
+    const Status st = (*w)->SetLastWorkingMemory(missing, "test");
+    CHECK(st.code() == StatusCode::kInvalidArgument);
+    CHECK(st.message().find("keyframe 999999") != std::string::npos);
+  }
+  {
+    auto db = MapDb::Open(path);
+    REQUIRE(db.ok());
+    auto last = (*db)->LastWorkingMemory();
+    REQUIRE(last.ok());
+    CHECK(last->every_node);  // the failed write left no record behind
+  }
+  {  // a record edited behind zonemap's back
+    auto w = MapDbWriter::OpenExisting(path);
+    REQUIRE(w.ok());
+    const KeyframeId one[] = {KeyframeId{1}};
+    REQUIRE((*w)->SetLastWorkingMemory(one, "test").ok());
+  }
+  sqlite3* raw = nullptr;
+  REQUIRE(sqlite3_open(path.c_str(), &raw) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(raw, "INSERT INTO last_wm(keyframe_id) VALUES(424242)", nullptr, nullptr,
+                       nullptr) == SQLITE_OK);
+  sqlite3_close(raw);
+  auto db = MapDb::Open(path);
+  REQUIRE(db.ok());
+  auto last = (*db)->LastWorkingMemory();
+  REQUIRE_FALSE(last.ok());
+  CHECK(last.status().code() == StatusCode::kCorrupt);
+  CHECK(last.status().message().find("keyframe 424242") != std::string::npos);
+}
+
 TEST_CASE("inputs that are not RTAB-Map databases are refused") {
   TempDir dir;
   const std::string ours = dir.File("ours.db"), out = dir.File("out.db");

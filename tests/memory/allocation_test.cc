@@ -45,12 +45,12 @@ TEST_CASE("no allocation per tick once warm / for every policy") {
     o.k_max = 45;
     o.radius.map_radius_m = 20;
     o.radius.update_distance_m = 5;
-    o.predictive.max_keyframes_per_tick = 8;
     o.oracle.future = future;
     o.basic.init_wm_with_all_nodes = true;
     const std::uint32_t slots = std::string(name) == "basic" || std::string(name) == "unbounded" ? 180 : 45;
-    test::Harness h(s, slots, 45, [&](const MapIndex& index) {
-      auto p = MakePolicy(index, o);
+    // basic reads its long-term-memory nodes through the harness's SourceLtmGraph (the fake).
+    test::Harness h(s, slots, 45, [&](const MapIndex& index, LtmGraph& graph) {
+      auto p = MakePolicy(index, o, &graph);
       REQUIRE(p.ok());
       return std::move(p).value();
     });

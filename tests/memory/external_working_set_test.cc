@@ -132,7 +132,6 @@ TEST_CASE("external working set property: every policy's plans give WorkingSet's
       o.k_max = k_max;
       o.radius.map_radius_m = 14;
       o.radius.update_distance_m = 4;
-      o.predictive.max_keyframes_per_tick = 6;
       o.oracle.future = w.future;
       o.basic.init_wm_with_all_nodes = true;
       const auto n = static_cast<std::uint32_t>(w.spec.positions.size());

@@ -1,6 +1,7 @@
 // Test helpers for lib/memory: small hand-made maps (keyframe id i+1 at positions[i]) and a
 // Harness that wires MapIndex + Arena + FakeKeyframeSource + WorkingSet + a policy and checks
-// the working-set invariants after every Apply.
+// the working-set invariants after every Apply. The fake source also plays the database for
+// basic's graph searches: it holds the spec's links and weights, read through a SourceLtmGraph.
 #pragma once
 
 #include <doctest/doctest.h>
@@ -11,6 +12,7 @@
 #include <variant>
 #include <vector>
 
+#include "memory/ltm_graph.h"
 #include "memory/map_index.h"
 #include "memory/plan.h"
 #include "memory/policy.h"
@@ -42,6 +44,18 @@ inline MapSpec LineMap(const std::vector<int>& zone_sizes) {
   return s;
 }
 
+inline std::vector<LinkRecord> Links(const MapSpec& s) {
+  std::vector<LinkRecord> links;
+  for (auto [a, b, t] : s.links) {
+    LinkRecord l;
+    l.from = KeyframeId{a};
+    l.to = KeyframeId{b};
+    l.type = t;
+    links.push_back(l);
+  }
+  return links;
+}
+
 inline MapIndex BuildIndex(const MapSpec& s) {
   std::vector<KeyframeMeta> kfs;
   for (std::size_t i = 0; i < s.positions.size(); ++i) {
@@ -53,14 +67,7 @@ inline MapIndex BuildIndex(const MapSpec& s) {
     m.payload_bytes = 100;
     kfs.push_back(m);
   }
-  std::vector<LinkRecord> links;
-  for (auto [a, b, t] : s.links) {
-    LinkRecord l;
-    l.from = KeyframeId{a};
-    l.to = KeyframeId{b};
-    l.type = t;
-    links.push_back(l);
-  }
+  const std::vector<LinkRecord> links = Links(s);
   std::vector<ZoneMember> members;
   for (std::size_t z = 0; z < s.zones.size(); ++z) {
     for (std::int64_t id : s.zones[z]) {
@@ -128,14 +135,28 @@ inline TickContext At(std::uint64_t tick, std::int32_t zone, Eigen::Vector3d p =
 class Harness {
  public:
   using Factory = std::function<std::unique_ptr<MemoryPolicy>(const MapIndex&)>;
-  Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max, const Factory& make)
+  // For a policy that reads long-term-memory nodes (basic): it gets `graph`, over the fake.
+  using GraphFactory = std::function<std::unique_ptr<MemoryPolicy>(const MapIndex&, LtmGraph&)>;
+  // sliced: the WorkingSet only queues loads; the test steps them (Step, Drain).
+  Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max, const Factory& make,
+          bool sliced = false)
+      : Harness(spec, arena_slots, k_max,
+                GraphFactory([&make](const MapIndex& i, LtmGraph&) { return make(i); }), sliced) {}
+  Harness(const MapSpec& spec, std::uint32_t arena_slots, std::uint32_t k_max,
+          const GraphFactory& make, bool sliced = false)
       : index(BuildIndex(spec)),
         arena(MakeArena(arena_slots)),
         source(ZoneIds(spec), 100),
-        ws(index, arena, source, k_max),
+        ws(index, arena, source, k_max, sliced),
+        graph(index, source),
         before(index),
         after(index),
-        policy(make(index)) {}
+        policy(make(index, graph)) {
+    source.set_links(Links(spec));
+    for (std::size_t i = 0; i < spec.weights.size(); ++i) {
+      source.set_weight(KeyframeId{static_cast<std::int64_t>(i + 1)}, spec.weights[i]);
+    }
+  }
 
   TickTelemetry Start(const TickContext& ctx) {
     TickTelemetry t;
@@ -155,6 +176,15 @@ class Harness {
     ApplyChecked(after, &t);
     return t;
   }
+  // Time-sliced loads: one slice, then the same checks as after an Apply.
+  TickTelemetry Step(const LoadSlice& slice) {
+    TickTelemetry t;
+    Status s = ws.StepLoads(slice, &t);
+    REQUIRE_MESSAGE(s.ok(), s.ToString());
+    Check();
+    return t;
+  }
+  TickTelemetry Drain() { return Step(LoadSlice{}); }
   // Keyframe ids resident now, sorted.
   std::vector<std::int64_t> ResidentIds() const {
     std::vector<std::int64_t> out;
@@ -167,6 +197,7 @@ class Harness {
   Arena arena;
   FakeKeyframeSource source;
   WorkingSet ws;
+  SourceLtmGraph graph;
   Plan before;
   Plan after;
   std::unique_ptr<MemoryPolicy> policy;
@@ -176,6 +207,9 @@ class Harness {
   void ApplyChecked(const Plan& plan, TickTelemetry* t) {
     Status s = ws.Apply(plan, t);
     REQUIRE_MESSAGE(s.ok(), s.ToString());
+    Check();
+  }
+  void Check() {
     // Working-set invariants: slots hold what the fake wrote; counts match the arena.
     REQUIRE(ws.resident_count() == arena.in_use());
     if (!verify_slots) return;

@@ -80,7 +80,6 @@ TEST_CASE("oracle property: with equal-size zones no policy makes fewer zone loa
     const auto predictive = Run(s, k_max, walk, [&](const MapIndex& index) {
       PredictiveOptions o;
       o.k_max = k_max;
-      o.max_keyframes_per_tick = 0;
       return std::make_unique<PredictivePolicy>(index, o);
     });
     CHECK(oracle <= semantic);

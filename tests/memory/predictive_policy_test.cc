@@ -1,5 +1,6 @@
-// predictive: route prefetch, farthest-next-use eviction, learned transitions, time-sliced
-// loads, and a property walk (never above K_max).
+// predictive: route prefetch, farthest-next-use eviction, learned transitions, the order of
+// its batches (current zone nearest-first, then the prefetch), and a property walk (never
+// above K_max).
 #include "memory/predictive_policy.h"
 
 #include <doctest/doctest.h>
@@ -18,11 +19,10 @@ using test::Zones;
 using V = std::vector<std::int64_t>;
 using Zv = std::vector<std::int32_t>;
 
-Harness::Factory Predictive(std::uint32_t k_max, std::uint32_t per_tick, bool prefetch = true) {
+Harness::Factory Predictive(std::uint32_t k_max, bool prefetch = true) {
   return [=](const MapIndex& index) {
     PredictiveOptions o;
     o.k_max = k_max;
-    o.max_keyframes_per_tick = per_tick;
     o.prefetch = prefetch;
     return std::make_unique<PredictivePolicy>(index, o);
   };
@@ -39,7 +39,7 @@ std::vector<std::vector<ZoneId>> Chain(int zones) {
 TEST_CASE("predictive: prefetches the next zone of the route / evicts the farthest next use") {
   test::MapSpec s = test::LineMap({3, 3, 3, 3});
   s.adjacency = Chain(4);
-  Harness h(s, 9, 9, Predictive(9, 0));
+  Harness h(s, 9, 9, Predictive(9));
   const std::vector<ZoneId> route{ZoneId{0}, ZoneId{1}, ZoneId{2}, ZoneId{3}};
   TickContext c = At(0, 0);
   c.route = route;
@@ -61,7 +61,7 @@ TEST_CASE("predictive: prefetches the next zone of the route / evicts the farthe
 TEST_CASE("predictive: without a route it learns transitions from what it has seen") {
   test::MapSpec s = test::LineMap({2, 2, 2, 2});
   s.adjacency = {{ZoneId{1}}, {ZoneId{2}, ZoneId{3}}, {}, {}};  // 1 is a hub: 0, 2, 3
-  Harness h(s, 4, 4, Predictive(4, 0));
+  Harness h(s, 4, 4, Predictive(4));
   h.Start(At(0, 0));
   CHECK(Policy(h).last_prefetch() == ZoneId{1});  // the only neighbour
   // Walk 1 -> 3 twice, so from 1 the likeliest next zone is 3, not 2.
@@ -72,21 +72,57 @@ TEST_CASE("predictive: without a route it learns transitions from what it has se
   CHECK(h.ws.resident_count() <= 4);
 }
 
-TEST_CASE("predictive: time-sliced loading / current zone first / then prefetch") {
-  test::MapSpec s = test::LineMap({10, 10});
-  s.adjacency = Chain(2);
-  Harness h(s, 20, 20, Predictive(20, 4));
-  auto t = h.Start(At(0, 0, {0, 0, 0}));
-  CHECK(Ids(h.index, h.before.acquires()) == V{1, 2, 3, 4});  // nearest-first from x = 0
-  t = h.Tick(At(1, 0));
-  CHECK(t.keyframes_loaded == 4);
-  t = h.Tick(At(2, 0));  // 2 left of zone 0, then 2 of zone 1 (prefetch)
-  CHECK(Ids(h.index, h.before.acquires()) == V{9, 10, 11, 12});
-  CHECK(h.before.batches().size() == 2);
-  CHECK(t.db_transactions == 2);
-  for (std::uint64_t i = 3; i < 6; ++i) h.Tick(At(i, 0));
+TEST_CASE("predictive: one plan holds the current zone nearest-first, then the prefetch") {
+  test::MapSpec s = test::LineMap({10, 10, 10});
+  s.adjacency = Chain(3);
+  Harness h(s, 20, 20, Predictive(20));
+  // From x = 9.5 (the far end of zone 0) the nearest keyframes come first; the batches are the
+  // current zone, then the next one (the WorkingSet loads them in this order, time-sliced).
+  const std::vector<ZoneId> route{ZoneId{0}, ZoneId{1}, ZoneId{2}};
+  TickContext c = At(0, 0, {9.5, 0, 0});
+  c.route = route;
+  h.Start(c);
+  CHECK(Zones(h.before.zones_loaded()) == Zv{0, 1});
+  REQUIRE(h.before.batches().size() == 2);
+  CHECK(h.before.batches()[0].zone == ZoneId{0});
+  CHECK(Ids(h.index, h.before.acquires().first(3)) == V{10, 9, 8});
+  CHECK(h.before.batches()[1].zone == ZoneId{1});
   CHECK(h.ws.resident_count() == 20);
-  CHECK(h.policy->zone_loads() == 2);  // partial loads of a zone count once
+  // Entering zone 1 (already resident): zone 0 is behind, zone 2 is prefetched in its place.
+  c = At(1, 1, {10.5, 0, 0});
+  c.route = route;
+  h.Tick(c);
+  CHECK(Zones(h.before.zones_unloaded()) == Zv{0});
+  CHECK(Zones(h.before.zones_loaded()) == Zv{2});
+  CHECK(h.policy->zone_loads() == 3);
+  CHECK(h.ws.max_resident_seen() <= 20);
+}
+
+TEST_CASE("predictive: with time-sliced loads the prefetched zone is resident on arrival") {
+  test::MapSpec s = test::LineMap({8, 8, 8});
+  s.adjacency = Chain(3);
+  Harness h(s, 16, 16, Predictive(16), /*sliced=*/true);
+  const std::vector<ZoneId> route{ZoneId{0}, ZoneId{1}, ZoneId{2}};
+  TickContext c = At(0, 0, {0, 0, 0});
+  c.route = route;
+  h.Start(c);
+  LoadSlice own_zone;  // what the loop's start-up does: the robot's zone, to the end
+  own_zone.zone = ZoneId{0};
+  h.Step(own_zone);
+  CHECK(h.ResidentIds() == V{1, 2, 3, 4, 5, 6, 7, 8});
+  CHECK(h.ws.loading_zone() == ZoneId{1});  // the prefetch waits for the idle part
+  h.Drain();                                // the idle part
+  for (int zone = 1; zone <= 2; ++zone) {
+    c = At(static_cast<std::uint64_t>(zone), zone, {8.0 * zone, 0, 0});
+    c.route = route;
+    // Before the tick the zone the robot walks into is complete: nothing of it to load.
+    for (KfIndex k : h.index.ZoneMembers(ZoneId{zone})) CHECK(h.ws.IsResident(k));
+    h.Tick(c);
+    CHECK(h.ws.pending_count() <= 8);  // at most the next prefetch is queued
+    CHECK(h.ws.loading_zone() != ZoneId{zone});
+    h.Drain();
+  }
+  CHECK(h.ws.max_resident_seen() <= 16);
 }
 
 TEST_CASE("predictive property: random walks / overlaps / slices never exceed K_max") {
@@ -110,7 +146,7 @@ TEST_CASE("predictive property: random walks / overlaps / slices never exceed K_
       s.adjacency[rng() % s.adjacency.size()].push_back(ZoneId{static_cast<std::int32_t>(rng() % static_cast<std::uint32_t>(zones))});
     }
     const auto k_max = static_cast<std::uint32_t>(1 + rng() % static_cast<std::uint32_t>(n));
-    Harness h(s, k_max, k_max, Predictive(k_max, rng() % 8));
+    Harness h(s, k_max, k_max, Predictive(k_max, rng() % 4 != 0));
     h.Start(At(0, 0));
     for (std::uint64_t tick = 1; tick < 60; ++tick) {
       const int z = static_cast<int>(rng() % static_cast<std::uint32_t>(zones + 1)) - 1;

@@ -73,7 +73,9 @@ TEST_CASE("the profile fills the modules' own options, with their units") {
   Result<Profile> p = ParseProfile(
       "[policy]\nhysteresis_m = 0.75\n[policy.radius]\nmap_radius_m = 12.5\n"
       "[localization]\nmax_heading_deg = 45\nratio = 0.7\nransac_iterations = 42\n"
-      "[loop]\nrate_hz = 2.5\ntelemetry_flush_ticks = 7\n",
+      "[loop]\nrate_hz = 2.5\ntelemetry_flush_ticks = 7\n"
+      "[loads]\nsliced = false\ntick_ms = 1.5\ntick_bytes = \"4MiB\"\nidle_ms = 100\n"
+      "idle_bytes = \"1GB\"\nmargin_ms = 8\n",
       "units.toml");
   REQUIRE_MESSAGE(p.ok(), p.status().ToString());
   CHECK(p->zones.hysteresis_m == doctest::Approx(0.75));
@@ -83,11 +85,19 @@ TEST_CASE("the profile fills the modules' own options, with their units") {
   CHECK(p->localizer.ransac_iterations == 42);
   CHECK(p->loop.rate_hz == doctest::Approx(2.5));
   CHECK(p->telemetry.flush_ticks == 7);
+  CHECK_FALSE(p->loads.sliced);
+  CHECK(p->loads.tick_ms == doctest::Approx(1.5));
+  CHECK(p->loads.tick_bytes == 4ULL << 20);
+  CHECK(p->loads.idle_ms == doctest::Approx(100.0));
+  CHECK(p->loads.idle_bytes == 1'000'000'000ULL);
+  CHECK(p->loads.margin_ms == doctest::Approx(8.0));
   // Absent keys keep the module's one default (no mirrored copies with other values).
   const Profile empty = *ParseProfile("", "empty.toml");
   CHECK(empty.policy.radius.map_radius_m == RadiusOptions{}.map_radius_m);
-  CHECK(empty.policy.predictive.max_keyframes_per_tick ==
-        PredictiveOptions{}.max_keyframes_per_tick);
+  CHECK(empty.policy.predictive.prefetch == PredictiveOptions{}.prefetch);
+  CHECK(empty.loads.sliced == LoadSliceOptions{}.sliced);
+  CHECK(empty.loads.tick_ms == LoadSliceOptions{}.tick_ms);
+  CHECK(empty.loads.margin_ms == LoadSliceOptions{}.margin_ms);
   CHECK(empty.localizer.ransac_reprojection_px == LocalizerConfig{}.ransac_reprojection_px);
   CHECK(empty.zones.hysteresis_m == ZoneIndexOptions{}.hysteresis_m);
 }
@@ -99,6 +109,10 @@ TEST_CASE("the core accepts the harness's sections without reading them") {
   CHECK(Contains(ParseError("[policy.basic]\nstm_size = 10\n").message(), "'policy.basic.stm_size'"));
   CHECK(Contains(ParseError("[loop]\nrealtime = true\n").message(), "'loop.realtime'"));
   CHECK(Contains(ParseError("[device]\ncpu_max_ghz = 1.5\n").message(), "'device.cpu_max_ghz'"));
+  // Predictive's own per-tick slice gave way to the working set's time slices ([loads]).
+  CHECK(Contains(ParseError("[policy.predictive]\nmax_keyframes_per_tick = 64\n").message(),
+                 "'policy.predictive.max_keyframes_per_tick'"));
+  CHECK(Contains(ParseError("[loads]\ntick_ms = -1\n").message(), "'loads.tick_ms'"));
 }
 
 TEST_CASE("ZM_PROFILES_DIR is searched first and a missing profile names the search path") {
