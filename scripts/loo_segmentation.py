@@ -8,9 +8,14 @@ chose the defaults. The last rows show the pick over all maps (what the code's d
 equal) and the published numbers. Optionally a second directory of held-out maps is scored with
 the all-maps pick only (never used to choose anything).
 
-Usage: scripts/loo_segmentation.py [--wide] ZONEMAP FLOORPLAN_DIR [HELDOUT_DIR ...]
+Usage: scripts/loo_segmentation.py [--wide] [--grid] [--cache FILE] ZONEMAP FLOORPLAN_DIR
+                                   [HELDOUT_DIR ...]
+--grid also chooses the third part's rules (THIRD_PART_GRID) instead of fixing them.
+--cache FILE keeps the shared maps' runs in FILE (JSON) and reuses them: only for runs of the
+same binary (delete FILE after rebuilding).
 Standard library only; each run is `zonemap zones segment MAP --score GT --param K=V ... --json`.
 """
+import concurrent.futures
 import itertools
 import json
 import os
@@ -20,11 +25,20 @@ import tempfile
 
 # Each choice is a physical quantity with a plausible range, not a per-map fit:
 #   opening_merge_ratio: two segments split only by an opening (the layout step, issue 16
-#   second part) merge again when its clearance is at least this fraction of the larger one's
-#   peak clearance (no constriction);
+#   second part) may merge again when its clearance is at least this fraction of the larger
+#   one's peak clearance (no constriction against the whole room);
+#   opening_local_ratio: ...and only when the opening line is at least this open against the
+#   free space just either side of it (third part: the local constriction, 0 = rule off, the
+#   second part's behaviour);
 #   merge_min_opening_m: narrowest opening that joins two segments into one room;
 #   min_room_area_m2: smaller segments merge into a neighbour or are dropped (1 m2: a WC;
-#   2 m2: the issue-10 choice).
+#   0.5 m2: a closet; 2 m2, the issue-10 choice, lost every fold of the second round);
+#   seedless_room_min_area_m2: a space enclosed by walls, doors and openings that no seed
+#   reached is a segment of its own from 0.5 m2 on (third part), or flooded from its neighbour
+#   (0, as before); min_room_area_m2 still merges it when it is smaller than that;
+#   wall_stub_min_length_m: a straight piece this long, joined to a wall and seen free on both
+#   sides (a wall between two doors), bounds doorways and openings like a wall (third part; 0 =
+#   off; 0.3 m: longer than a door frame's return, no longer than a wall between two doors).
 # Fixed on physical grounds, not chosen here: opening_max_width_m 3.0 (a sliding partition or an
 # open-plan opening between two rooms is up to 3 m wide); with --wide it is chosen too, from
 # {0 (off), 2, 3} (docs/segmentation.md reports both). Fixed at the first leave-one-out's pick,
@@ -34,7 +48,20 @@ CANDIDATES = {
     "opening_max_width_m": [3.0],
     "opening_merge_ratio": [0.6, 0.75, 0.9],
     "merge_min_opening_m": [1.8, 2.4],
-    "min_room_area_m2": [1.0, 2.0],
+}
+# Fixed on physical grounds in the third part (docs/segmentation.md), not chosen here; --grid
+# chooses them too (a larger grid, whose folds proved unstable on six maps).
+THIRD_PART = {
+    "opening_local_ratio": [0.75],        # choosable: [0.0, 0.75]
+    "min_room_area_m2": [0.5],            # choosable: [0.5, 1.0]
+    "seedless_room_min_area_m2": [0.5],   # choosable: [0.0, 0.5]
+    "wall_stub_min_length_m": [0.3],      # choosable: [0.0, 0.3]
+}
+THIRD_PART_GRID = {
+    "opening_local_ratio": [0.0, 0.75],
+    "min_room_area_m2": [0.5, 1.0],
+    "seedless_room_min_area_m2": [0.0, 0.5],
+    "wall_stub_min_length_m": [0.0, 0.3],
 }
 WIDE_OPENINGS = [0.0, 2.0, 3.0]
 
@@ -44,7 +71,8 @@ def distinct(grid):
     out = []
     for c in grid:
         d = dict(c)
-        if d["opening_max_width_m"] == 0.0 and d["opening_merge_ratio"] != 0.6:
+        if d["opening_max_width_m"] == 0.0 and (d["opening_merge_ratio"] != 0.6 or
+                                                d["opening_local_ratio"] != 0.0):
             continue
         out.append(c)
     return out
@@ -61,9 +89,11 @@ def maps_in(directory):
 
 
 def run(zonemap, directory, name, params, out):
+    fd, geojson = tempfile.mkstemp(suffix=".geojson", dir=out)  # runs go two at a time
+    os.close(fd)
     cmd = [zonemap, "zones", "segment", os.path.join(directory, name + "_map.png"),
            "--score", os.path.join(directory, name + "_gt.png"),
-           "--out", os.path.join(out, name + ".geojson"), "--json"]
+           "--out", geojson, "--json"]
     for k, v in params:
         cmd += ["--param", f"{k}={v}"]
     j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
@@ -87,12 +117,39 @@ def main():
     if "--wide" in args:
         args.remove("--wide")
         CANDIDATES["opening_max_width_m"] = WIDE_OPENINGS
+    if "--grid" in args:
+        args.remove("--grid")
+        CANDIDATES["opening_merge_ratio"] = [0.6, 0.75]
+        CANDIDATES.update(THIRD_PART_GRID)
+    else:
+        CANDIDATES.update(THIRD_PART)
+    cache_path = None
+    if "--cache" in args:
+        i = args.index("--cache")
+        cache_path = args[i + 1]
+        del args[i:i + 2]
     zonemap, plans, heldout = args[0], args[1], args[2:]
     names = maps_in(plans)
     grid = distinct([tuple(zip(CANDIDATES, values))
                      for values in itertools.product(*CANDIDATES.values())])
     out = tempfile.mkdtemp(prefix="zm_loo_")
-    results = {(c, n): run(zonemap, plans, n, c, out) for c in grid for n in names}
+    cache = {}
+    if cache_path and os.path.exists(cache_path):
+        with open(cache_path) as f:
+            cache = json.load(f)
+    results = {}
+    todo = [(c, n) for c in grid for n in names if n + "|" + label(c) not in cache]
+    # Two runs at a time: the machine has two cores, shared.
+    with concurrent.futures.ThreadPoolExecutor(2) as pool:
+        for (c, n), r in zip(todo, pool.map(lambda cn: run(zonemap, plans, cn[1], cn[0], out),
+                                            todo)):
+            cache[n + "|" + label(c)] = r
+    for c in grid:
+        for n in names:
+            results[(c, n)] = cache[n + "|" + label(c)]
+    if cache_path:
+        with open(cache_path, "w") as f:
+            json.dump(cache, f)
 
     def best(pool):
         # Ties (rare) go to the earlier candidate in grid order.

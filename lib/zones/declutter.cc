@@ -85,23 +85,118 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const c
   }
 }
 
+// Keeps the pieces of `*runs` (rows of 255, one piece per 8-connected component) that have free
+// space on both sides across at least half of their columns: beyond at most `thickness`
+// occupied cells above and below the piece. A partition between two doors is seen from both
+// rooms; the outline of furniture or clutter against a wall has unknown cells (its inside, its
+// shadow) or more obstacles on one side.
+void KeepFreeOnBothSides(const cv::Mat& occupied, const cv::Mat& free, int thickness,
+                         cv::Mat* runs) {
+  cv::Mat ids, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(*runs, ids, stats, centroids, 8, CV_32S);
+  const int rows = runs->rows;
+  auto free_beyond = [&](int r, int c, int step) {
+    for (int k = 0; k <= thickness + 1 && r >= 0 && r < rows; ++k, r += step) {
+      if (free.at<std::uint8_t>(r, c) != 0) return true;
+      if (occupied.at<std::uint8_t>(r, c) == 0) return false;  // unknown
+    }
+    return false;
+  };
+  std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0);
+  for (int i = 1; i < n; ++i) {
+    const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    int both = 0, columns = 0;
+    for (int c = x; c < x + w; ++c) {
+      int top = -1, bottom = -1;
+      for (int r = y; r < y + h; ++r) {
+        if (ids.at<int>(r, c) != i) continue;
+        if (top < 0) top = r;
+        bottom = r;
+      }
+      if (top < 0) continue;
+      ++columns;
+      if (free_beyond(top - 1, c, -1) && free_beyond(bottom + 1, c, +1)) ++both;
+    }
+    keep[static_cast<std::size_t>(i)] = 2 * both >= columns ? 255 : 0;
+  }
+  for (int r = 0; r < rows; ++r) {
+    const int* id = ids.ptr<int>(r);
+    std::uint8_t* o = runs->ptr<std::uint8_t>(r);
+    for (int c = 0; c < runs->cols; ++c) o[c] = keep[static_cast<std::size_t>(id[c])];
+  }
+}
+
 // Wall runs, doorways and openings along the image x and y axes (see FindWalls), in
 // `occupied`'s geometry.
-WallEvidence AxisWalls(const cv::Mat& occupied, int min_length, int gap, int door, int opening,
-                       int thickness) {
+WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, int min_length, int gap,
+                       int door, int opening, int thickness, int stub) {
   WallEvidence out;
   out.walls = cv::Mat::zeros(occupied.size(), CV_8U);
   out.doorways = cv::Mat::zeros(occupied.size(), CV_8U);
   out.openings = cv::Mat::zeros(occupied.size(), CV_8U);
   cv::Mat runs[2];  // horizontal, vertical
+  cv::Mat stubs[2];
   for (const bool horizontal : {true, false}) {
     cv::Mat& m = runs[horizontal ? 0 : 1];
     // Walls of a laser map are 1-2 cells thick and wander by a cell: thicken across the run
     // direction so that a slightly wavy wall still holds one straight line of cells.
     cv::dilate(occupied, m, LineKernel(3, !horizontal));
     if (gap > 0) cv::morphologyEx(m, m, cv::MORPH_CLOSE, LineKernel(gap + 1, horizontal));
+    if (stub > 0 && stub < min_length) {
+      // No gap closing for stubs: dotted clutter must not become a short wall.
+      cv::Mat& st = stubs[horizontal ? 0 : 1];
+      cv::dilate(occupied, st, LineKernel(3, !horizontal));
+      cv::morphologyEx(st, st, cv::MORPH_OPEN, LineKernel(stub, horizontal));
+      if (!free.empty()) {
+        if (horizontal) {
+          KeepFreeOnBothSides(occupied, free, thickness, &st);
+        } else {
+          cv::Mat t_st = st.t(), t_occ = occupied.t(), t_free = free.t();
+          KeepFreeOnBothSides(t_occ, t_free, thickness, &t_st);
+          st = t_st.t();
+        }
+      }
+    }
     cv::morphologyEx(m, m, cv::MORPH_OPEN, LineKernel(min_length, horizontal));
     out.walls |= m;
+  }
+  if (stub > 0 && stub < min_length) {
+    // Short straight pieces joined to the wall structure (a wall between two doors, a door
+    // frame's return) are walls for doors and openings; a free-standing piece of the same
+    // length (a bench, a shelf) is not. Joined: in one 8-connected component of the occupied
+    // cells, a cell of slack allowed, with a run of the full length; or collinear with such a
+    // piece or run across at most a door (the middle piece of a wall between two doors).
+    cv::Mat joined, ids;
+    cv::dilate(occupied, joined, cv::Mat::ones(3, 3, CV_8U));
+    if (door > 0) {
+      for (const bool horizontal : {true, false}) {
+        const int i = horizontal ? 0 : 1;
+        cv::Mat closed;
+        cv::morphologyEx(runs[i] | stubs[i], closed, cv::MORPH_CLOSE,
+                         LineKernel(door + 1, horizontal));
+        joined |= closed;
+      }
+    }
+    const int n = cv::connectedComponents(joined, ids, 8, CV_32S);
+    std::vector<std::uint8_t> anchored(static_cast<std::size_t>(n), 0);
+    for (int r = 0; r < ids.rows; ++r) {
+      const int* id = ids.ptr<int>(r);
+      const std::uint8_t* w = out.walls.ptr<std::uint8_t>(r);
+      for (int c = 0; c < ids.cols; ++c) {
+        if (w[c] != 0 && id[c] > 0) anchored[static_cast<std::size_t>(id[c])] = 255;
+      }
+    }
+    cv::Mat keep = cv::Mat::zeros(occupied.size(), CV_8U);
+    for (int r = 0; r < ids.rows; ++r) {
+      const int* id = ids.ptr<int>(r);
+      std::uint8_t* k = keep.ptr<std::uint8_t>(r);
+      for (int c = 0; c < ids.cols; ++c) k[c] = anchored[static_cast<std::size_t>(id[c])];
+    }
+    for (int i = 0; i < 2; ++i) runs[i] |= stubs[i] & keep;
+  }
+  for (const bool horizontal : {true, false}) {
+    const cv::Mat& m = runs[horizontal ? 0 : 1];
     if (door > 0) {
       // Only runs of this direction are joined, and only along it: two parallel walls (the two
       // sides of a corridor) are never joined across.
@@ -110,21 +205,75 @@ WallEvidence AxisWalls(const cv::Mat& occupied, int min_length, int gap, int doo
       out.doorways |= closed & ~m;
     }
   }
+  out.opening_ids = cv::Mat::zeros(occupied.size(), CV_32S);
   if (opening > 0) {
     // A run may end on a wall of either direction (a partition running into the outer wall),
     // or in a doorway: a wall that ends beside a door is continued across the door only, never
     // on through the corridor the door opens onto.
-    const cv::Mat any_wall = (out.walls & occupied) | out.doorways;
-    ContinueRunsAlongRows(runs[0], occupied, any_wall, opening, thickness, &out.openings);
+    const cv::Mat any_wall = ((runs[0] | runs[1]) & occupied) | out.doorways;
+    cv::Mat row_out = cv::Mat::zeros(occupied.size(), CV_8U);
+    ContinueRunsAlongRows(runs[0], occupied, any_wall, opening, thickness, &row_out);
     cv::Mat t_runs, t_occ, t_wall, t_out;
     cv::transpose(runs[1], t_runs);
     cv::transpose(occupied, t_occ);
     cv::transpose(any_wall, t_wall);
     t_out = cv::Mat::zeros(t_runs.size(), CV_8U);
     ContinueRunsAlongRows(t_runs, t_occ, t_wall, opening, thickness, &t_out);
-    out.openings |= t_out.t();
+    out.openings = row_out | t_out.t();
+    // Each band of continued rows (a wall is a few cells thick) is one opening: its line runs
+    // along the band's middle from end to end.
+    for (const bool transposed : {false, true}) {
+      cv::Mat ids, stats, centroids;
+      const int n = cv::connectedComponentsWithStats(transposed ? t_out : row_out, ids, stats,
+                                                     centroids, 8, CV_32S);
+      const int first = static_cast<int>(out.opening_lines.size());
+      for (int i = 1; i < n; ++i) {
+        const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
+        const int w = stats.at<int>(i, cv::CC_STAT_WIDTH);
+        const int h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+        const float mid = static_cast<float>(y) + 0.5f * static_cast<float>(h - 1);
+        OpeningLine line;
+        line.from = cv::Point2f(static_cast<float>(x), mid);
+        line.to = cv::Point2f(static_cast<float>(x + w - 1), mid);
+        if (transposed) {
+          line.from = cv::Point2f(line.from.y, line.from.x);
+          line.to = cv::Point2f(line.to.y, line.to.x);
+        }
+        line.thickness_px = static_cast<float>(h);
+        out.opening_lines.push_back(line);
+      }
+      if (transposed) ids = ids.t();
+      for (int r = 0; r < ids.rows; ++r) {
+        const int* id = ids.ptr<int>(r);
+        int* o = out.opening_ids.ptr<int>(r);
+        for (int c = 0; c < ids.cols; ++c) {
+          if (id[c] > 0) o[c] = first + id[c];
+        }
+      }
+    }
   }
   return out;
+}
+
+bool IsFree(const cv::Mat& free, cv::Point2f q) {
+  const int c = static_cast<int>(std::lround(q.x)), r = static_cast<int>(std::lround(q.y));
+  return r >= 0 && c >= 0 && r < free.rows && c < free.cols && free.at<std::uint8_t>(r, c) != 0;
+}
+
+// How far the free run through `p` reaches along `dir` (a unit vector): the last free step, in
+// half-cell steps (a rotated line misses no cell it crosses). -1 when `p` is not free.
+float FreeReach(const cv::Mat& free, cv::Point2f p, cv::Point2f dir) {
+  if (!IsFree(free, p)) return -1.0f;
+  float t = 0.5f;
+  while (IsFree(free, p + t * dir)) t += 0.5f;
+  return t - 0.5f;
+}
+
+float Median(std::vector<float>* v) {
+  if (v->empty()) return 0.0f;
+  auto m = v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2);
+  std::nth_element(v->begin(), m, v->end());
+  return *m;
 }
 
 }  // namespace
@@ -173,12 +322,14 @@ double DominantWallAngle(const cv::Mat& occupied) {
 }
 
 WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length_px,
-                       int gap_px, int door_px, int opening_px, int thickness_px) {
+                       int gap_px, int door_px, int opening_px, int thickness_px, int stub_px,
+                       const cv::Mat& free) {
   const double deg = angle_rad * kDegPerRad;
   WallEvidence out;
   if (std::abs(deg) < 1.0) {
     // Within a degree of the axes a run of 1 m (20 cells) drifts by less than half a cell.
-    out = AxisWalls(occupied, min_length_px, gap_px, door_px, opening_px, thickness_px);
+    out = AxisWalls(occupied, free, min_length_px, gap_px, door_px, opening_px, thickness_px,
+                    stub_px);
   } else {
     // Rotate so that walls at `angle_rad` lie along x, on a canvas holding the whole grid.
     const cv::Point2d centre(occupied.cols / 2.0, occupied.rows / 2.0);
@@ -191,8 +342,13 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length
     cv::Mat rotated;
     cv::warpAffine(occupied, rotated, rot, cv::Size(w, h), cv::INTER_NEAREST,
                    cv::BORDER_CONSTANT, cv::Scalar(0));
-    const WallEvidence r = AxisWalls(rotated, min_length_px, gap_px, door_px, opening_px,
-                                      thickness_px);
+    cv::Mat rotated_free;
+    if (!free.empty()) {
+      cv::warpAffine(free, rotated_free, rot, cv::Size(w, h), cv::INTER_NEAREST,
+                     cv::BORDER_CONSTANT, cv::Scalar(0));
+    }
+    const WallEvidence r = AxisWalls(rotated, rotated_free, min_length_px, gap_px, door_px,
+                                      opening_px, thickness_px, stub_px);
     for (const auto& [from, to] : {std::pair{&r.walls, &out.walls},
                                    std::pair{&r.doorways, &out.doorways},
                                    std::pair{&r.openings, &out.openings}}) {
@@ -201,12 +357,69 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length
       // Nearest-neighbour resampling there and back can shift a cell: widen by one.
       cv::dilate(*to, *to, cv::Mat::ones(3, 3, CV_8U));
     }
+    // Opening ids likewise (OpenCV dilates no CV_32S: through float, exact for any id count
+    // a grid can hold).
+    cv::Mat ids;
+    cv::warpAffine(r.opening_ids, ids, rot, occupied.size(),
+                   cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, cv::Scalar(0));
+    ids.convertTo(ids, CV_32F);
+    cv::dilate(ids, ids, cv::Mat::ones(3, 3, CV_8U));
+    ids.convertTo(out.opening_ids, CV_32S);
+    cv::Mat back;
+    cv::invertAffineTransform(rot, back);
+    auto unrotate = [&](cv::Point2f p) {
+      const double x = static_cast<double>(p.x), y = static_cast<double>(p.y);
+      return cv::Point2f(
+          static_cast<float>(back.at<double>(0, 0) * x + back.at<double>(0, 1) * y +
+                             back.at<double>(0, 2)),
+          static_cast<float>(back.at<double>(1, 0) * x + back.at<double>(1, 1) * y +
+                             back.at<double>(1, 2)));
+    };
+    out.opening_lines = r.opening_lines;
+    for (OpeningLine& line : out.opening_lines) {
+      line.from = unrotate(line.from);
+      line.to = unrotate(line.to);
+    }
   }
   out.walls &= occupied;
   out.doorways &= ~occupied;
   out.openings &= ~out.walls;
+  out.opening_ids.setTo(0, out.openings == 0);
   out.angle_rad = angle_rad;
   return out;
+}
+
+void MeasureOpenings(const cv::Mat& free, int side_depth_px, WallEvidence* evidence) {
+  for (OpeningLine& line : evidence->opening_lines) {
+    const cv::Point2f d = line.to - line.from;
+    const float len = std::hypot(d.x, d.y);
+    const cv::Point2f dir = len > 0.0f ? d * (1.0f / len) : cv::Point2f(1.0f, 0.0f);
+    const cv::Point2f normal(-dir.y, dir.x);
+    const int first = static_cast<int>(std::ceil(0.5f * line.thickness_px)) + 1;
+    for (int side = 0; side < 2; ++side) {
+      const float sign = side == 0 ? -1.0f : 1.0f;
+      std::vector<float> widths, shares;
+      for (const float u : {0.25f, 0.5f, 0.75f}) {
+        const cv::Point2f on_line = line.from + u * d;
+        for (int k = first; k <= std::max(first, side_depth_px); ++k) {
+          const cv::Point2f p = on_line + sign * static_cast<float>(k) * normal;
+          const float ahead = FreeReach(free, p, dir);
+          if (ahead < 0.0f) continue;
+          const float behind = FreeReach(free, p, -dir);
+          widths.push_back(ahead + behind + 1.0f);
+          // The line itself over the same interval: free cells are the opening (and whatever
+          // else is open on it), the rest is wall.
+          int open = 0, all = 0;
+          for (float t = -behind; t <= ahead; t += 0.5f, ++all) {
+            if (IsFree(free, on_line + t * dir)) ++open;
+          }
+          shares.push_back(static_cast<float>(open) / static_cast<float>(std::max(1, all)));
+        }
+      }
+      line.side_px[side] = Median(&widths);
+      line.open_share[side] = Median(&shares);
+    }
+  }
 }
 
 cv::Mat FillClutterIslands(const cv::Mat& free, const cv::Mat& walls) {

@@ -25,7 +25,9 @@
 // free cells; cells connected to the border through non-free cells never become free.
 #pragma once
 
+#include <algorithm>
 #include <opencv2/core/mat.hpp>
+#include <vector>
 
 namespace zm {
 
@@ -34,11 +36,35 @@ namespace zm {
 // 0 when there is no occupied boundary.
 [[nodiscard]] double DominantWallAngle(const cv::Mat& occupied);
 
+// One opening as a straight line through the middle of its band of cells, in grid coordinates
+// (x = column, y = row, cell centres at integers), and what MeasureOpenings found around it.
+struct OpeningLine {
+  cv::Point2f from, to;       // the wall's free end and the wall it runs to
+  float thickness_px = 0.0f;  // the band's extent across the line (the wall's, plus a cell)
+  // Filled by MeasureOpenings, per side of the line: the median free width parallel to it just
+  // beside it (cells), and the median share of the line itself that is free within that width
+  // (the rest is wall: the stub the opening continues, walls collinear with it, closed doors).
+  float side_px[2] = {0.0f, 0.0f};
+  float open_share[2] = {0.0f, 0.0f};
+  // How open the line is against the space beside it: the smaller share of the two sides; 0
+  // when a side is not free (a wall continued along another wall or the map's edge separates
+  // nothing). About 1 where a wall's continuation crosses a corridor or any space no wider than
+  // itself; a partition with a 2.3 m sliding door in a 3.5 m room leaves 0.66; a 1 m desk in
+  // the middle of a 4 m room leaves 0.75.
+  [[nodiscard]] double Constriction() const {
+    if (side_px[0] <= 0.0f || side_px[1] <= 0.0f) return 0.0;
+    return static_cast<double>(std::min(open_share[0], open_share[1]));
+  }
+};
+
 struct WallEvidence {
   cv::Mat walls;     // CV_8UC1, 255 = occupied cell on a straight wall run
   cv::Mat doorways;  // CV_8UC1, 255 = non-occupied cell in a gap between two collinear runs
   cv::Mat openings;  // CV_8UC1, 255 = non-occupied cell on a wall run continued from its free
                      // end to the next wall run (candidate border, see declutter.h)
+  cv::Mat opening_ids;  // CV_32SC1, k > 0 where `openings` is set: the cell lies on
+                        // opening_lines[k - 1] (where two cross, one of them)
+  std::vector<OpeningLine> opening_lines;
   double angle_rad = 0.0;
 };
 
@@ -50,9 +76,25 @@ struct WallEvidence {
 // across the run: not a corner, a T or the face of a block) along its own direction across at
 // most `opening_px` cells to the first cell of a wall run of either direction (0 = none; a run
 // that meets no wall within that length is not continued).
+// Stubs (`stub_px` > 0, below `min_length_px`): a straight piece at least `stub_px` long (no
+// gap closing) that is joined to a wall run (one 8-connected occupied component, a cell of
+// slack; pieces and runs collinear across at most `door_px` count as joined) and, when `free`
+// (CV_8UC1, 255 = free, same size) is given, has free space on both sides across at least half
+// its length (beyond at most `thickness_px` occupied cells), counts as a run for doorways and
+// openings (a wall between two doors), though not for `walls` (decluttering).
 [[nodiscard]] WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad,
                                      int min_length_px, int gap_px, int door_px,
-                                     int opening_px = 0, int thickness_px = 0);
+                                     int opening_px = 0, int thickness_px = 0, int stub_px = 0,
+                                     const cv::Mat& free = cv::Mat());
+
+// Measures every opening of `evidence` in `free` (CV_8UC1, 255 = free, same size). On each side,
+// at every offset from just beyond its band to `side_depth_px`, opposite a quarter, the middle
+// and three quarters of its length, the free run parallel to the line gives a width and an
+// interval; the share of free cells on the line itself within that interval is the open share.
+// Medians over those points are kept (OpeningLine); points that are not free are skipped, a
+// side with none is 0.
+// Rotated lines are walked in half-cell steps.
+void MeasureOpenings(const cv::Mat& free, int side_depth_px, WallEvidence* evidence);
 
 // Free space after decluttering (255 = free): `free` plus every non-free island (8-connected
 // component of ~free not touching the border) that holds no cell of `walls`.

@@ -72,13 +72,15 @@ cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res
                        CellsFromMetres(o.wall_line_gap_m, res),
                        CellsFromMetres(o.door_max_width_m, res),
                        CellsFromMetres(o.opening_max_width_m, res),
-                       CellsFromMetres(o.opening_wall_max_thickness_m, res));
+                       CellsFromMetres(o.opening_wall_max_thickness_m, res),
+                       CellsFromMetres(o.wall_stub_min_length_m, res), free_mask);
     free_mask = FillClutterIslands(free_mask, walls->walls);
     occupied &= ~free_mask;
   } else {
     walls->walls = cv::Mat::zeros(cells.size(), CV_8U);
     walls->doorways = cv::Mat::zeros(cells.size(), CV_8U);
     walls->openings = cv::Mat::zeros(cells.size(), CV_8U);
+    walls->opening_ids = cv::Mat::zeros(cells.size(), CV_32S);
   }
   // Close gaps in walls (scan noise) so that rooms do not leak through them.
   const int gap = CellsFromMetres(o.wall_gap_close_m, res);
@@ -235,6 +237,35 @@ void Flood(const cv::Mat& free_mask, const cv::Mat& dt, cv::Mat* labels) {
   }
 }
 
+// Every region of `enclosed` (255 = free space with doorways and openings closed, so each
+// 4-connected region is bounded by walls, doors and openings) that holds no marker and has at
+// least `min_area` cells becomes a marker of its own, numbered after `*count`: a space enclosed
+// by walls and doors is a room even when it is too narrow for any seed level (a closet, a
+// passage), instead of being flooded from its neighbour through the door.
+void AddSeedlessRooms(const cv::Mat& enclosed, int min_area, cv::Mat* markers, int* count) {
+  cv::Mat regions, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(enclosed, regions, stats, centroids, 4, CV_32S);
+  std::vector<int> id(Idx(n), 0);
+  for (int i = 1; i < n; ++i) id[Idx(i)] = stats.at<int>(i, cv::CC_STAT_AREA) >= min_area ? 1 : 0;
+  for (int r = 0; r < regions.rows; ++r) {
+    const int* g = regions.ptr<int>(r);
+    const int* m = markers->ptr<int>(r);
+    for (int c = 0; c < regions.cols; ++c) {
+      if (g[c] > 0 && m[c] != 0) id[Idx(g[c])] = 0;  // holds a seed
+    }
+  }
+  for (int i = 1; i < n; ++i) {
+    if (id[Idx(i)] != 0) id[Idx(i)] = ++*count;
+  }
+  for (int r = 0; r < regions.rows; ++r) {
+    const int* g = regions.ptr<int>(r);
+    int* m = markers->ptr<int>(r);
+    for (int c = 0; c < regions.cols; ++c) {
+      if (g[c] > 0 && id[Idx(g[c])] != 0) m[c] = id[Idx(g[c])];
+    }
+  }
+}
+
 // Merges segments smaller than `min_area` into the neighbour sharing the longest border
 // (dropping isolated ones), then renumbers labels 1..N. Returns N.
 int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
@@ -373,21 +404,41 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
 }
 
 // Merges neighbours whose shared border runs through an opening (a wall continued across a gap,
-// declutter.h) that constricts neither of them: the border's largest clearance in the free space
-// with openings open (`dt_open`) is at least `ratio` x the larger of the two segments' peak
-// clearance with openings closed (`dt_closed`). A corridor cut where an aligned wall crosses it
-// has a border as wide as the corridor on both sides; a partition between two rooms with wall
-// on at least one side of the opening is narrower than at least one of them. Most open first;
-// a merged segment keeps the larger peak. Labels stay in 1..label_count (some unused).
+// declutter.h) that constricts neither of them, by either of two rules (each off at 0):
+// - global (`peak_ratio`): the border's largest clearance in the free space with openings open
+//   (`dt_open`) is at least this x the larger of the two segments' peak clearance with openings
+//   closed (`dt_closed`);
+// - local (`local_ratio`): the opening's Constriction() (its span against the free width just
+//   either side of it, declutter.h) is at least this, for one of the openings on the border;
+//   an opening no wider than a door (`door_px`) counts 0.
+// A corridor cut where an aligned wall crosses it is as wide there as beside the cut; a
+// partition between two rooms with wall on at least one side of the opening is narrower than
+// the room beside it. Most open first; a merged segment keeps the larger peak. Labels stay in
+// 1..label_count (some unused).
 void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat& dt_closed,
-                         const cv::Mat& openings, int label_count, double ratio) {
-  if (ratio <= 0.0 || label_count < 2) return;
+                         const cv::Mat& openings, const cv::Mat& opening_ids,
+                         std::span<const OpeningLine> lines, int label_count, double peak_ratio,
+                         double local_ratio, float door_px) {
+  if ((peak_ratio <= 0.0 && local_ratio <= 0.0) || label_count < 2) return;
   std::vector<float> peak(Idx(label_count) + 1, 0.0f);
   std::map<std::pair<int, int>, float> saddle;
-  auto note = [&](int a, int b, float d) {
+  std::map<std::pair<int, int>, double> local;  // largest Constriction() on the border
+  // An opening no wider than a door (a wall end continued to the next wall across at most
+  // door_px) is a door: it never merges, however open it is against the space beside it (a
+  // door is as wide as the gap it is in).
+  auto constriction = [&](int id) {
+    if (id <= 0 || Idx(id) > lines.size()) return 0.0;
+    const OpeningLine& line = lines[Idx(id - 1)];
+    const cv::Point2f d = line.to - line.from;
+    if (std::hypot(d.x, d.y) + 1.0f <= door_px) return 0.0;
+    return line.Constriction();
+  };
+  auto note = [&](int a, int b, float d, int id_a, int id_b) {
     if (a > b) std::swap(a, b);
     float& s = saddle[{a, b}];
     s = std::max(s, d);
+    double& c = local[{a, b}];
+    c = std::max({c, constriction(id_a), constriction(id_b)});
   };
   for (int r = 0; r < labels->rows; ++r) {
     const int* l = labels->ptr<int>(r);
@@ -397,16 +448,18 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     const float* dc = dt_closed.ptr<float>(r);
     const std::uint8_t* op = openings.ptr<std::uint8_t>(r);
     const std::uint8_t* opbelow = below != nullptr ? openings.ptr<std::uint8_t>(r + 1) : nullptr;
+    const int* id = opening_ids.ptr<int>(r);
+    const int* idbelow = below != nullptr ? opening_ids.ptr<int>(r + 1) : nullptr;
     for (int c = 0; c < labels->cols; ++c) {
       if (l[c] == 0) continue;
       peak[Idx(l[c])] = std::max(peak[Idx(l[c])], dc[c]);
       if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c] &&
           (op[c] != 0 || op[c + 1] != 0)) {
-        note(l[c], l[c + 1], std::min(d[c], d[c + 1]));
+        note(l[c], l[c + 1], std::min(d[c], d[c + 1]), id[c], id[c + 1]);
       }
       if (below != nullptr && below[c] != 0 && below[c] != l[c] &&
           (op[c] != 0 || opbelow[c] != 0)) {
-        note(l[c], below[c], std::min(d[c], dbelow[c]));
+        note(l[c], below[c], std::min(d[c], dbelow[c]), id[c], idbelow[c]);
       }
     }
   }
@@ -417,20 +470,25 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     return x;
   };
   for (;;) {
-    std::map<std::pair<int, int>, float> current;
+    std::map<std::pair<int, int>, std::pair<float, double>> current;
     for (const auto& [key, s] : saddle) {
       int a = find(key.first), b = find(key.second);
       if (a == b) continue;
       if (a > b) std::swap(a, b);
-      float& v = current[{a, b}];
-      v = std::max(v, s);
+      auto& v = current[{a, b}];
+      v.first = std::max(v.first, s);
+      v.second = std::max(v.second, local[key]);
     }
+    // Every rule that is on must hold; the most open first.
     double best = 0.0;
     std::pair<int, int> best_pair{0, 0};
-    for (const auto& [key, s] : current) {
+    for (const auto& [key, v] : current) {
       const float hi = std::max(peak[Idx(key.first)], peak[Idx(key.second)]);
-      const double q = hi > 0.0f ? static_cast<double>(s / hi) : 0.0;
-      if (q >= ratio && q > best) best = q, best_pair = key;
+      const double q = hi > 0.0f ? static_cast<double>(v.first / hi) : 0.0;
+      if (peak_ratio > 0.0 && q < peak_ratio) continue;
+      if (local_ratio > 0.0 && v.second < local_ratio) continue;
+      const double order = peak_ratio > 0.0 ? q : v.second;
+      if (order > best) best = order, best_pair = key;
     }
     if (best_pair.first == 0) break;
     parent[Idx(best_pair.second)] = best_pair.first;
@@ -480,15 +538,18 @@ Status CheckOptions(const SegmentOptions& o) {
   if ((o.seed_max_level_m - o.seed_min_level_m) / o.seed_level_step_m > 1000.0) {
     return bad("seed levels: at most 1000 levels");
   }
-  if (o.min_room_area_m2 < 0.0 || o.seed_min_area_m2 < 0.0 || o.clutter_area_m2 < 0.0) {
+  if (o.min_room_area_m2 < 0.0 || o.seed_min_area_m2 < 0.0 || o.clutter_area_m2 < 0.0 ||
+      o.seedless_room_min_area_m2 < 0.0) {
     return bad("areas must be >= 0");
   }
   if (o.simplify_tolerance_m < 0.0) return bad("simplify_tolerance_m must be >= 0");
   if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
       o.opening_max_width_m < 0.0 || o.opening_merge_ratio < 0.0 ||
+      o.opening_local_ratio < 0.0 || o.opening_side_depth_m < 0.0 ||
+      o.wall_stub_min_length_m < 0.0 ||
       o.opening_wall_max_thickness_m < 0.0) {
-    return bad("wall_min_length_m, wall_line_gap_m, door_max_width_m and the opening_* options "
-               "must be >= 0");
+    return bad("wall_min_length_m, wall_stub_min_length_m, wall_line_gap_m, door_max_width_m "
+               "and the opening_* options must be >= 0");
   }
   return Status::Ok();
 }
@@ -520,6 +581,10 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"opening_max_width_m", &SegmentOptions::opening_max_width_m},
       {"opening_wall_max_thickness_m", &SegmentOptions::opening_wall_max_thickness_m},
       {"opening_merge_ratio", &SegmentOptions::opening_merge_ratio},
+      {"opening_local_ratio", &SegmentOptions::opening_local_ratio},
+      {"wall_stub_min_length_m", &SegmentOptions::wall_stub_min_length_m},
+      {"opening_side_depth_m", &SegmentOptions::opening_side_depth_m},
+      {"seedless_room_min_area_m2", &SegmentOptions::seedless_room_min_area_m2},
       {"seed_min_level_m", &SegmentOptions::seed_min_level_m},
       {"seed_level_step_m", &SegmentOptions::seed_level_step_m},
       {"seed_max_level_m", &SegmentOptions::seed_max_level_m},
@@ -590,6 +655,11 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
   try {
     WallEvidence walls;
     seg.free_cleaned = CleanFreeSpace(grid.cells, options, res, &walls);
+    if (!walls.opening_lines.empty()) {
+      // Openings are measured in the space the robot moves in: cleaned, doorways closed.
+      MeasureOpenings(seg.free_cleaned & ~walls.doorways,
+                      CellsFromMetres(options.opening_side_depth_m, res), &walls);
+    }
     seg.wall_angle_rad = walls.angle_rad;
     seg.labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
     // Work inside the bounding box of free space (plus a border) only.
@@ -613,6 +683,11 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       }
       int seed_count = 0;
       cv::Mat labels = FindSeeds(dt_closed, options, res, &seed_count);
+      if (options.seedless_room_min_area_m2 > 0.0) {
+        AddSeedlessRooms(dt_closed > 0.0f,
+                         static_cast<int>(options.seedless_room_min_area_m2 / (res * res)),
+                         &labels, &seed_count);
+      }
       Flood(free_roi, dt_closed, &labels);
       // Free areas no seed reached (too thin for any level) become segments of their own; the
       // merge below keeps only those big enough.
@@ -627,8 +702,10 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         }
       }
       const int label_count = seed_count + std::max(0, n_extra - 1);
-      MergeAcrossOpenings(&labels, dt, dt_closed, openings, label_count,
-                          options.opening_merge_ratio);
+      MergeAcrossOpenings(&labels, dt, dt_closed, openings, walls.opening_ids(box),
+                          walls.opening_lines, label_count, options.opening_merge_ratio,
+                          options.opening_local_ratio,
+                          static_cast<float>(options.door_max_width_m / res));
       MergeOpenBorders(&labels, dt_closed, label_count, options.merge_open_border_ratio,
                        static_cast<float>(0.5 * options.merge_min_opening_m / res),
                        options.merge_no_constriction_ratio);

@@ -43,6 +43,11 @@ struct SegmentOptions {
                                       // with no straight run this long along the dominant wall
                                       // directions becomes free (declutter.h); 0 = off
   double wall_line_gap_m = 0.45;      // collinear pieces this close form one run (dashed walls)
+  double wall_stub_min_length_m = 0.3;  // a straight piece this long, joined to a wall and
+                                      // seen free on both sides (a wall between two doors),
+                                      // bounds doorways and openings like a wall run
+                                      // (declutter.h; 0 = off). Physical, fixed (issue 16,
+                                      // third part)
   double door_max_width_m = 1.2;      // a gap up to this wide between two collinear wall runs
                                       // is a door: closed while seeds are found (0 = off). At
                                       // most the narrowest corridor (1.2 m), so room walls
@@ -59,11 +64,20 @@ struct SegmentOptions {
                                       // again when its clearance is >= this x the LARGER one's
                                       // peak clearance: it constricts neither (a corridor
                                       // crossed by an aligned wall). Leave-one-out pick
+  double opening_local_ratio = 0.75;  // ...and only when the opening line is open over >=
+                                      // this share of the free width just either side of it
+                                      // (declutter.h, OpeningLine::Constriction; 0 = off); an
+                                      // opening no wider than a door never merges. Fixed
+  double opening_side_depth_m = 1.0;  // ...measured up to this far either side of the opening
   double seed_min_level_m = 0.35;     // lowest distance-transform level tried for seeds
   double seed_level_step_m = 0.05;    // step between levels
   double seed_max_level_m = 3.0;      // highest level tried
   double seed_min_area_m2 = 0.6;      // a child at a level counts when at least this big...
   double seed_min_persistence_m = 0.3;  // ...and rises this far above the level it split at
+  double seedless_room_min_area_m2 = 0.5;  // a space enclosed by walls, doors and openings
+                                      // that no seed reached (narrower than the lowest level:
+                                      // a closet) is a segment of its own from this area on,
+                                      // instead of flooded from a neighbour (0 = off). Fixed
   double merge_open_border_ratio = 0.45;  // neighbours merge when their border's clearance is
                                          // >= this x the smaller one's peak clearance (0 = off)
   double merge_min_opening_m = 2.4;   // ...and the opening is wider than any door (a double
@@ -72,8 +86,8 @@ struct SegmentOptions {
                                       // border is >= this x the narrower one's peak clearance:
                                       // no constriction, one space (a corridor cut at a side
                                       // opening); 0 = off
-  double min_room_area_m2 = 1.0;      // smaller segments merge into a neighbour (1 m2: a WC;
-                                      // leave-one-out pick)
+  double min_room_area_m2 = 0.5;      // smaller segments merge into a neighbour (0.5 m2: a
+                                      // closet; fixed in the third part, was 1 m2, a WC)
   double corridor_elongation = 4.0;   // length / width at or above this = corridor
   double corridor_max_width_m = 3.5;  // corridors are at most this wide
   double simplify_tolerance_m = 0.10;  // approxPolyDP tolerance for polygons

@@ -1,8 +1,11 @@
 // Decluttering by dominant wall directions: the dominant angle of an axis-aligned map, runs of
 // rotated walls,
 // wall runs versus furniture, doorways only between collinear runs (never across a corridor),
-// openings only from a thin wall's free end to the next wall within the opening width, and
-// clutter islands filled unless they hold a wall or touch the border.
+// openings only from a thin wall's free end to the next wall within the opening width, short
+// wall pieces joined to a wall and seen from both sides bounding doors (furniture against a
+// wall and free-standing pieces not), openings measured against the space beside them, and
+// clutter islands filled unless they hold a wall or
+// touch the border.
 #include "zones/declutter.h"
 
 #include <doctest/doctest.h>
@@ -81,6 +84,82 @@ TEST_CASE("openings continue a thin wall from its free end to the next wall, now
   // Without the opening width nothing is continued.
   const WallEvidence none = FindWalls(occ, 0.0, 20, 9, 24);
   CHECK(cv::countNonZero(none.openings) == 0);
+}
+
+TEST_CASE("a short wall piece joined to a wall and seen from both rooms bounds a door") {
+  // A 6 x 4 m room (1 cell = 5 cm) crossed at row 50 by a wall: a 0.8 m piece from the left
+  // wall, a 0.9 m door, a 0.6 m piece standing free, a 0.9 m door, then a long wall to the right
+  // wall. The pieces are shorter than a wall run (1 m, 20 cells).
+  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
+  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
+  cv::line(occ, {10, 50}, {26, 50}, cv::Scalar(255));   // joined to the left wall
+  cv::line(occ, {45, 50}, {56, 50}, cv::Scalar(255));   // between the two doors
+  cv::line(occ, {75, 50}, {130, 50}, cv::Scalar(255));  // a wall run
+  cv::Mat free = cv::Mat::zeros(occ.size(), CV_8U);
+  free(cv::Rect(12, 12, 117, 77)).setTo(255);
+  free.setTo(0, occ);
+  auto walls = [&](int stub_px, const cv::Mat& f) {
+    return FindWalls(occ, 0.0, /*min_length_px=*/20, /*gap_px=*/9, /*door_px=*/24,
+                     /*opening_px=*/0, /*thickness_px=*/6, stub_px, f);
+  };
+  const WallEvidence w = walls(/*stub_px=*/6, free);
+  CHECK(w.doorways.at<std::uint8_t>(50, 35) == 255);  // both doors are closed
+  CHECK(w.doorways.at<std::uint8_t>(50, 65) == 255);
+  CHECK(w.walls.at<std::uint8_t>(50, 20) == 0);  // a stub is no wall run for decluttering
+  // Without stubs only the wall run is a run: neither gap is a door.
+  const WallEvidence off = walls(0, free);
+  CHECK(off.doorways.at<std::uint8_t>(50, 35) == 0);
+  CHECK(off.doorways.at<std::uint8_t>(50, 65) == 0);
+  // The same piece with unknown cells below it (furniture against the wall, its inside or
+  // shadow unseen) is no stub; the middle piece then joins nothing but the run on its right.
+  cv::Mat shadow = free.clone();
+  shadow(cv::Rect(12, 51, 15, 10)).setTo(0);
+  const WallEvidence clutter = walls(6, shadow);
+  CHECK(clutter.doorways.at<std::uint8_t>(50, 35) == 0);
+  CHECK(clutter.doorways.at<std::uint8_t>(50, 65) == 255);
+  // A piece standing free with no wall within a door's width of it is no stub either.
+  cv::Mat lone = cv::Mat::zeros(occ.size(), CV_8U);
+  cv::rectangle(lone, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
+  cv::line(lone, {60, 50}, {72, 50}, cv::Scalar(255));
+  cv::line(lone, {60, 70}, {72, 70}, cv::Scalar(255));
+  const WallEvidence alone = FindWalls(lone, 0.0, 20, 9, 24, 0, 6, 6, free);
+  CHECK(cv::countNonZero(alone.doorways(cv::Rect(30, 40, 80, 40))) == 0);
+}
+
+TEST_CASE("an opening across a corridor is open; a partition's opening constricts the room") {
+  // MeasureOpenings on hand-made lines (1 cell = 5 cm). A corridor 1.6 m wide crossed by an
+  // opening from wall to wall: the space beside the line is as wide as the line is open.
+  cv::Mat corridor = cv::Mat::zeros(100, 140, CV_8U);
+  corridor(cv::Rect(10, 40, 120, 32)).setTo(255);
+  WallEvidence across;
+  OpeningLine line;
+  line.from = {70.0f, 40.0f};
+  line.to = {70.0f, 71.0f};
+  line.thickness_px = 3.0f;
+  across.opening_lines = {line};
+  MeasureOpenings(corridor, /*side_depth_px=*/20, &across);
+  CHECK(across.opening_lines[0].Constriction() > 0.9);
+  // A 4 m deep room with a 1.5 m partition from its top wall: the opening below it is 2.5 m of
+  // the 4 m beside it.
+  cv::Mat room = cv::Mat::zeros(100, 140, CV_8U);
+  room(cv::Rect(10, 10, 120, 80)).setTo(255);
+  room(cv::Rect(69, 10, 3, 30)).setTo(0);
+  WallEvidence partition;
+  line.from = {70.0f, 40.0f};
+  line.to = {70.0f, 89.0f};
+  partition.opening_lines = {line};
+  MeasureOpenings(room, 20, &partition);
+  const double c = partition.opening_lines[0].Constriction();
+  CHECK(c > 0.55);
+  CHECK(c < 0.7);
+  // A line with no free space on one side (a wall continued along the map's edge) separates
+  // nothing: 0.
+  cv::Mat edge = cv::Mat::zeros(100, 140, CV_8U);
+  edge(cv::Rect(72, 10, 58, 80)).setTo(255);
+  WallEvidence along;
+  along.opening_lines = {line};
+  MeasureOpenings(edge, 20, &along);
+  CHECK(along.opening_lines[0].Constriction() == 0.0);
 }
 
 TEST_CASE("walls rotated off the axes are found in the rotated frame") {

@@ -281,23 +281,88 @@ TEST_CASE("rooms joined by open-plan openings of 1.5 to 3 m split into the rooms
 }
 
 TEST_CASE("an opening that constricts neither side joins the two spaces") {
-  // A 6 x 4 m room with a 1.5 m partial wall from the middle of one long side: its free end is
-  // continued to the far wall (an opening of 2.5 m), but the opening is 0.83 of either half's
-  // width, no constriction: one room (a corridor crossed by an aligned wall, likewise).
-  Floor f(8.0, 6.0);
-  f.Room(1.0, 1.0, 7.0, 5.0, 1);
-  f.Fill(3.95, 1.0, 4.05, 2.5, kCellOccupied);
+  // A 6 x 3.5 m room with a 0.6 m partial wall from the middle of one long side (a stub: shorter
+  // than a wall run, joined to the wall): its free end is continued to the far wall (an opening
+  // of 2.9 m), open over 0.83 of the 3.5 m beside it and as wide as either half: no
+  // constriction, one room (a corridor crossed by an aligned wall, likewise).
+  Floor f(8.0, 5.5);
+  f.Room(1.0, 1.0, 7.0, 4.5, 1);
+  f.Fill(3.95, 1.0, 4.05, 1.6, kCellOccupied);
   auto seg = SegmentRooms(f.grid);
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 1);
   int l = 0;
   CHECK(BestShare(*seg, f.truth, 1, &l) > 0.95);  // less the partial wall
-  // With the merge ratio above 0.83 the opening stays a border: the partial wall did make one.
+  // With the local ratio above 0.83 the opening stays a border: the partial wall did make one.
   SegmentOptions strict;
-  strict.opening_merge_ratio = 0.9;
+  strict.opening_local_ratio = 0.9;
   auto split = SegmentRooms(f.grid, strict);
   REQUIRE(split.ok());
   CHECK(split->segments.size() == 2);
+  // A partial wall over 2 m of the 3.5 m (an opening of 1.5 m, 0.43 of the space beside it) is
+  // a partition with the default local ratio (0.75): two rooms.
+  Floor g(8.0, 5.5);
+  g.Room(1.0, 1.0, 7.0, 4.5, 1);
+  g.Fill(3.95, 1.0, 4.05, 3.0, kCellOccupied);
+  auto parts = SegmentRooms(g.grid);
+  REQUIRE(parts.ok());
+  CHECK(parts->segments.size() == 2);
+}
+
+TEST_CASE("an apartment with a sliding partition, a balcony slider and a WC splits") {
+  // A 6 x 4.5 m living room; right of it a 3.5 x 4.5 m kitchen behind a partition that is
+  // open over 2.5 m (a sliding door: 2.0 m of wall from the top, open to the bottom wall);
+  // below it a 1.5 m deep balcony behind a 2.4 m slider in the outer wall (wall on both
+  // sides); above it a 1.5 x 1.2 m WC behind a 0.7 m door. The openings are 2.5 / 4.5 = 0.56
+  // and 2.4 / 6.0 = 0.4 of the space beside them: borders.
+  Floor f(13.0, 10.5);
+  f.Room(1.0, 3.0, 7.0, 7.5, 1);    // living room
+  f.Room(7.1, 3.0, 10.6, 7.5, 2);   // kitchen
+  f.Room(1.0, 7.6, 7.0, 9.1, 3);    // balcony
+  f.Room(1.0, 1.0, 2.5, 2.2, 4);    // WC (1.5 x 1.2 m)
+  f.Fill(7.0, 5.0, 7.1, 7.5, kCellFree);    // the sliding door: 2.5 m open at the bottom
+  f.Fill(2.8, 7.5, 5.2, 7.6, kCellFree);    // the balcony slider, 2.4 m
+  f.Fill(1.5, 2.2, 2.2, 3.0, kCellFree);    // WC door, 0.7 m
+  auto seg = SegmentRooms(f.grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  std::set<int> used;
+  for (int i = 1; i <= 4; ++i) {
+    int l = 0;
+    CHECK_MESSAGE(BestShare(*seg, f.truth, i, &l) > 0.85, "room " << i);
+    used.insert(l);
+  }
+  CHECK(used.size() == 4);  // each its own segment
+  CHECK(seg->segments.size() <= 5);
+}
+
+TEST_CASE("a wardrobe behind a door in a wall of short pieces is a room of its own") {
+  // A 4 x 3 m room with a 1.6 x 0.7 m wardrobe against its top wall, behind a 0.8 m door: the
+  // wardrobe's front wall is two 0.5 m pieces, shorter than a wall run (1 m), and the wardrobe
+  // is too narrow for any seed level (0.35 m clearance). Stubs close its door (a doorway
+  // between the two pieces) and the space they enclose is a seedless room.
+  Floor f(6.0, 5.0);
+  f.Room(1.0, 1.0, 5.0, 4.0, 1);
+  f.Fill(1.9, 1.0, 3.7, 1.8, kCellOccupied);
+  f.Room(2.0, 1.0, 3.6, 1.7, 2);
+  f.Fill(2.4, 1.7, 3.2, 1.8, kCellFree);
+  SegmentOptions o;
+  o.wall_stub_min_length_m = 0.3;
+  o.seedless_room_min_area_m2 = 0.5;
+  o.min_room_area_m2 = 0.5;
+  auto seg = SegmentRooms(f.grid, o);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  int l1 = 0, l2 = 0;
+  CHECK(BestShare(*seg, f.truth, 1, &l1) > 0.9);  // less the wardrobe's walls
+  CHECK(BestShare(*seg, f.truth, 2, &l2) > 0.85);
+  CHECK(l1 != l2);
+  // Without stubs the door stays open and the wardrobe is flooded from the room.
+  SegmentOptions no_stubs = o;
+  no_stubs.wall_stub_min_length_m = 0.0;
+  auto merged = SegmentRooms(f.grid, no_stubs);
+  REQUIRE(merged.ok());
+  BestShare(*merged, f.truth, 1, &l1);
+  BestShare(*merged, f.truth, 2, &l2);
+  CHECK(l1 == l2);
 }
 
 TEST_CASE("an L-shaped room and a room with furniture against its walls stay whole") {
@@ -356,9 +421,11 @@ TEST_CASE("regression floor: map15 with the default options") {
   auto score = ScoreSegmentation(seg->labels, *gt);
   REQUIRE(score.ok());
   CHECK(score->gt_rooms == 20);
-  CHECK(score->precision >= 0.93);
+  // Third part of issue 16 (stubs, seedless rooms, local opening measure): measured 87.3 /
+  // 85.1 / 74.3 %, down from 96.1 / 95.2 / 83.5 (docs/segmentation.md: a trade on this map).
+  CHECK(score->precision >= 0.85);
   CHECK(score->recall >= 0.82);
-  CHECK(score->mean_iou >= 0.76);
+  CHECK(score->mean_iou >= 0.72);
   CHECK(score->predicted_segments >= 16);
   CHECK(score->predicted_segments <= 32);
 }
