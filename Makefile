@@ -2,11 +2,11 @@
 #   make demo   builds only the programs it runs (not the tests) and runs the main job: the
 #               paper's experiment in a device-sized memory cgroup
 #   make test   installs what is missing, then runs every test: host (ASan + UBSan) and
-#               aarch64 (cross-built, under qemu-aarch64)
+#               aarch64 (cross-built, under qemu-aarch64), the Debian packages and the installed library
 JOBS ?= $(shell nproc)
 CTEST_FLAGS ?= -j $(JOBS)
 
-.PHONY: all deps deps-host test test-host test-aarch64 release demo bench fuzz fuzz-ci format tidy clean
+.PHONY: all deps deps-host test test-host test-aarch64 test-package package release demo bench fuzz fuzz-ci format tidy clean
 
 all: release
 
@@ -19,6 +19,7 @@ deps-host:
 test: deps
 	$(MAKE) test-host
 	$(MAKE) test-aarch64
+	$(MAKE) test-package
 	$(MAKE) fuzz-ci
 
 test-host:
@@ -36,6 +37,22 @@ test-aarch64:
 	qemu-aarch64 -L $${ZM_ARM64_SYSROOT:-/opt/zonemap/sysroot-arm64} build/aarch64-scalar/tests/simd/zm_simd_test
 	# The cross-built zonemapd on a small simulated scenario, under qemu-aarch64.
 	bash scripts/qemu-run.sh
+
+# The Debian packages (amd64 from the `package` preset, arm64 from aarch64-release), checked,
+# installed into scratch roots with dpkg --root, run, and consumed by a separate project built
+# against the installed package on both architectures (scripts/package-test.sh, docs/api.md).
+# Needs the aarch64-release build of test-aarch64.
+test-package:
+	JOBS=$(JOBS) bash scripts/package-test.sh
+
+# Just the packages: build/package/packages/*.deb (amd64) and build/aarch64-release/packages/*.deb.
+package: deps
+	cmake --preset package
+	cmake --build --preset package -j $(JOBS)
+	cd build/package && cpack -G DEB
+	cmake --preset aarch64-release
+	cmake --build --preset aarch64-release -j $(JOBS)
+	cd build/aarch64-release && cpack -G DEB
 
 release: deps-host
 	cmake --preset host-release

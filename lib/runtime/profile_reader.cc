@@ -235,11 +235,14 @@ std::vector<std::string> ProfileSearchDirs() {
   if (const char* env = std::getenv("ZM_PROFILES_DIR"); env != nullptr && *env != '\0') {
     dirs.emplace_back(env);
   }
+  // An installed program's own profiles come before the build's source tree: a package built on
+  // a machine that still has its checkout must not read that checkout's files.
+  const std::string exe = ExecutableDir();
+  if (!exe.empty()) dirs.push_back(exe + "/../share/zonemap/profiles");
   if (std::string_view(ZM_PROFILES_DIR).size() > 0) dirs.emplace_back(ZM_PROFILES_DIR);
-  if (const std::string exe = ExecutableDir(); !exe.empty()) {
+  if (!exe.empty()) {
     dirs.push_back(exe + "/../../profiles");
     dirs.push_back(exe + "/../../../profiles");
-    dirs.push_back(exe + "/../share/zonemap/profiles");
   }
   return dirs;
 }

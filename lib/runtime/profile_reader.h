@@ -91,9 +91,10 @@ class ProfileDocument {
   std::unique_ptr<TableReader> root_;
 };
 
-// Directories searched for bare profile names, in order: $ZM_PROFILES_DIR, the build's source
-// tree (compile-time ZM_PROFILES_DIR), then <executable dir>/../../profiles,
-// <executable dir>/../../../profiles and <executable dir>/../share/zonemap/profiles (installed).
+// Directories searched for bare profile names, in order: $ZM_PROFILES_DIR, <executable
+// dir>/../share/zonemap/profiles (an installed program's own), the build's source tree
+// (compile-time ZM_PROFILES_DIR), then <executable dir>/../../profiles and
+// <executable dir>/../../../profiles.
 [[nodiscard]] std::vector<std::string> ProfileSearchDirs();
 
 // "1.9GB", "512MiB", "4096", "2G": bytes. K/M/G and KiB/MiB/GiB are binary (1024^n), KB/MB/GB

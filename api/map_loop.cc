@@ -1,0 +1,220 @@
+// MapLoop: the public complete path as a thin facade over what zonemapd runs: LoadProfile +
+// ApplyOverrides, MapDb::Open, TickLoop::Create/Tick/last_record/totals. The only new piece is
+// a FrameSource fed by the caller (Process), which copies one frame into the loop's reserved
+// Frame without allocating.
+#include "zonemap/map_loop.h"
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "convert.h"
+#include "mapdb/map_db.h"
+#include "runtime/frame_source.h"
+#include "runtime/profile.h"
+#include "runtime/tick_loop.h"
+
+namespace zonemap {
+
+using internal::FromPose3;
+using internal::ToPose3;
+using internal::ToPublic;
+
+namespace {
+
+// Hands the loop the one frame Process() was given. Next() after it: end of input (Process
+// drives exactly one tick per frame).
+class PushFrameSource final : public zm::FrameSource {
+ public:
+  explicit PushFrameSource(std::uint32_t max_features) : max_features_(max_features) {}
+  void Set(const FrameInput* frame, const zm::Pose3* odom) {
+    frame_ = frame;
+    odom_ = odom;
+  }
+  zm::Result<bool> Next(zm::Frame* out) override {
+    if (frame_ == nullptr) return false;
+    out->index = next_index_++;
+    out->stamp_s = frame_->stamp_s;
+    out->odom = *odom_;
+    out->descriptors.clear();  // capacity reserved by the loop for max_features: no allocation
+    out->keypoints.clear();
+    for (const Feature& f : frame_->features) {
+      zm::Descriptor256 d;
+      for (std::size_t i = 0; i < d.size(); ++i) d[i] = f.descriptor[i];
+      out->descriptors.push_back(d);
+      out->keypoints.push_back(f.u);
+      out->keypoints.push_back(f.v);
+    }
+    frame_ = nullptr;
+    return true;
+  }
+  [[nodiscard]] std::uint32_t max_features() const override { return max_features_; }
+
+ private:
+  std::uint32_t max_features_;
+  const FrameInput* frame_ = nullptr;
+  const zm::Pose3* odom_ = nullptr;
+  std::uint64_t next_index_ = 0;
+};
+
+TickOutput ToOutput(const zm::TickRecord& r) {
+  TickOutput o;
+  o.tick = r.tick;
+  o.stamp_s = r.stamp_s;
+  o.pose = FromPose3(r.pose);
+  o.correction = FromPose3(r.correction);
+  o.zone = ZoneId{r.zone.value};
+  o.startup = r.startup;
+  o.loop_closure = r.loop_closure;
+  o.matched = KeyframeId{r.matched_keyframe};
+  o.inliers = r.inliers;
+  o.resident_keyframes = r.resident_keyframes;
+  o.keyframes_loaded = r.keyframes_loaded;
+  o.keyframes_unloaded = r.keyframes_unloaded;
+  o.over_budget = r.over_budget;
+  o.stalled = r.stalled;
+  o.tick_ms = r.tick_ms;
+  return o;
+}
+
+}  // namespace
+
+struct MapLoop::Impl {
+  zm::Profile profile;
+  std::unique_ptr<zm::MapDb> db;
+  std::unique_ptr<zm::FrameSource> replay;
+  std::unique_ptr<PushFrameSource> push;
+  std::unique_ptr<zm::TickLoop> loop;
+  double last_stamp_s = -std::numeric_limits<double>::infinity();
+  std::uint64_t rejected = 0;
+};
+
+MapLoop::MapLoop(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+MapLoop::~MapLoop() = default;
+
+Result<std::unique_ptr<MapLoop>> MapLoop::Open(const MapLoopOptions& options) {
+  auto impl = std::make_unique<Impl>();
+  Impl& m = *impl;
+  if (options.db_path.empty()) {
+    return Status(StatusCode::kInvalidArgument, "MapLoopOptions::db_path is empty");
+  }
+  if (options.max_features == 0) {
+    return Status(StatusCode::kInvalidArgument, "MapLoopOptions::max_features must be > 0");
+  }
+  {
+    auto p = zm::LoadProfile(options.profile);
+    if (!p.ok()) return ToPublic(p.status());
+    m.profile = std::move(p).value();
+  }
+  zm::ProfileOverrides ov;
+  if (!options.policy.empty()) ov.policy = options.policy;
+  if (!options.memory_thr.empty()) ov.memory_thr = options.memory_thr;
+  if (zm::Status s = zm::ApplyOverrides(ov, m.profile); !s.ok()) return ToPublic(s);
+  {
+    auto db = zm::MapDb::Open(options.db_path);
+    if (!db.ok()) return ToPublic(db.status());
+    m.db = std::move(db).value();
+  }
+  zm::FrameSource* source = nullptr;
+  if (!options.frames_path.empty()) {
+    auto r = zm::OpenReplaySource(options.frames_path);
+    if (!r.ok()) return ToPublic(r.status());
+    m.replay = std::move(r).value();
+    source = m.replay.get();
+  } else {
+    m.push = std::make_unique<PushFrameSource>(options.max_features);
+    source = m.push.get();
+  }
+  {
+    auto loop = zm::TickLoop::Create(m.profile, *m.db, *source);
+    if (!loop.ok()) return ToPublic(loop.status());
+    m.loop = std::move(loop).value();
+  }
+  return std::unique_ptr<MapLoop>(new MapLoop(std::move(impl)));
+}
+
+Result<TickOutput> MapLoop::Process(const FrameInput& frame) {
+  Impl& m = *impl_;
+  if (!m.push) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "Process() on a replay loop (MapLoopOptions::frames_path): call Step()");
+  }
+  auto reject = [&](std::string why) {
+    ++m.rejected;
+    return Status(StatusCode::kInvalidArgument, std::move(why));
+  };
+  if (!std::isfinite(frame.stamp_s)) return reject("frame stamp is not finite");
+  if (!(frame.stamp_s > m.last_stamp_s)) {
+    return reject("frame stamp " + std::to_string(frame.stamp_s) +
+                  " does not increase (previous " + std::to_string(m.last_stamp_s) + ")");
+  }
+  if (frame.features.size() > m.push->max_features()) {
+    return reject("frame has " + std::to_string(frame.features.size()) +
+                  " features; max_features is " + std::to_string(m.push->max_features()));
+  }
+  for (const Feature& f : frame.features) {
+    if (!std::isfinite(f.u) || !std::isfinite(f.v)) return reject("a keypoint is not finite");
+  }
+  auto odom = ToPose3(frame.odom, "frame odometry pose");
+  if (!odom.ok()) {
+    ++m.rejected;
+    return ToPublic(odom.status());
+  }
+  m.last_stamp_s = frame.stamp_s;
+  m.push->Set(&frame, &*odom);
+  auto more = m.loop->Tick();
+  m.push->Set(nullptr, nullptr);
+  if (!more.ok()) return ToPublic(more.status());
+  if (!*more) return Status(StatusCode::kInternal, "the tick loop did not take the frame");
+  return ToOutput(m.loop->last_record());
+}
+
+Result<std::optional<TickOutput>> MapLoop::Step() {
+  Impl& m = *impl_;
+  if (!m.replay) {
+    return Status(StatusCode::kFailedPrecondition,
+                  "Step() needs a frames file (MapLoopOptions::frames_path); use Process()");
+  }
+  auto more = m.loop->Tick();
+  if (!more.ok()) return ToPublic(more.status());
+  if (!*more) return std::optional<TickOutput>();
+  return std::optional<TickOutput>(ToOutput(m.loop->last_record()));
+}
+
+std::string_view MapLoop::policy() const { return impl_->loop->policy().name(); }
+std::uint32_t MapLoop::k_max() const { return impl_->loop->k_max(); }
+bool MapLoop::bounded() const { return impl_->loop->bounded(); }
+std::uint64_t MapLoop::slot_bytes() const { return impl_->loop->slot_bytes(); }
+std::uint32_t MapLoop::resident_count() const {
+  return impl_->loop->working_set().resident_count();
+}
+std::string_view MapLoop::zone_name(ZoneId zone) const {
+  const zm::ZoneSet& zones = impl_->loop->zone_set();
+  if (zone.value < 0 || static_cast<std::size_t>(zone.value) >= zones.size()) return {};
+  return zones.zone(zm::ZoneId{zone.value}).name;
+}
+std::string_view MapLoop::profile_path() const { return impl_->profile.source; }
+
+LoopStats MapLoop::stats() const {
+  const zm::LoopTotals& t = impl_->loop->totals();
+  LoopStats s;
+  s.ticks = t.ticks;
+  s.loop_closures = t.loop_closures;
+  s.keyframes_loaded = t.keyframes_loaded;
+  s.keyframes_unloaded = t.keyframes_unloaded;
+  s.zone_loads = t.zone_loads;
+  s.db_transactions = t.db_transactions;
+  s.db_bytes_read = t.db_bytes_read;
+  s.peak_resident_keyframes = t.peak_resident_keyframes;
+  s.over_budget_ticks = t.over_budget_ticks;
+  s.stalled_ticks = t.stalled_ticks;
+  s.rejected_frames = impl_->rejected;
+  s.tick_ms_mean = t.tick_ms.mean();
+  s.tick_ms_p50 = t.tick_ms.Quantile(0.50);
+  s.tick_ms_p99 = t.tick_ms.Quantile(0.99);
+  s.tick_ms_max = t.tick_ms.max();
+  return s;
+}
+
+}  // namespace zonemap

@@ -1,0 +1,49 @@
+// Start-up pieces shared by the tick loop and the public API's host path (include/zonemap/
+// ZoneManager, which has no database, arena or frame source): the MapIndex the policies decide
+// on, the policy's options for one budget, and RTAB-Map's small-displacement rule. One
+// implementation each (docs/style.md §14), so a host driving zonemap with its own keyframes gets
+// exactly the policy zonemapd runs.
+//
+// BuildPolicyIndex and PolicyOptionsFor allocate (start-up only); IsSmallDisplacement is a
+// per-tick function and allocates nothing.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "common/status.h"
+#include "geometry/pose.h"
+#include "mapdb/map_db.h"
+#include "memory/map_index.h"
+#include "memory/policy.h"
+#include "runtime/budget.h"
+#include "runtime/tick_loop.h"
+#include "zones/zone_set.h"
+
+namespace zm {
+
+// The policies' index over a map's metadata: keyframes, links, zone memberships, and the zone
+// adjacency (zones touching, sharing a keyframe or joined by a link; the predictive policy
+// prefetches along it). `zones` gives the zone count and geometry.
+[[nodiscard]] Result<MapIndex> BuildPolicyIndex(std::span<const KeyframeMeta> keyframes,
+                                                std::span<const LinkRecord> links,
+                                                const ZoneSet& zones,
+                                                std::span<const ZoneMember> members);
+
+// The policy's options for a map under `budget`: config.policy with K_max, the oracle's future,
+// and for basic its MemoryThr (memory management is on when a count or byte limit is set, as
+// RTAB-Map's MemoryThr > 0) and its start-up working memory: Mem/InitWMWithAllNodes=false
+// starts from the map's last working memory, which a map built without memory management
+// records as every node (basic-baseline.md §3.4). A caller without a map database (the public
+// API's ZoneManager) has no recorded one, so this gives every node; TickLoop::Create uses the
+// database's LastWorkingMemory() first when it has one.
+[[nodiscard]] PolicyOptions PolicyOptionsFor(const LoopConfig& config, const Budget& budget,
+                                             std::span<const KeyframeMeta> keyframes,
+                                             std::vector<ZoneId> oracle_future);
+
+// RGBD/LinearUpdate and RGBD/AngularUpdate: `now` moved less than both thresholds of `options`
+// from `last_kept`, the last pose that was not a small displacement.
+[[nodiscard]] bool IsSmallDisplacement(const Pose3& last_kept, const Pose3& now,
+                                       const LoopOptions& options);
+
+}  // namespace zm
