@@ -23,6 +23,48 @@ cv::Mat LineKernel(int length, bool horizontal) {
   return cv::Mat::ones(horizontal ? 1 : n, horizontal ? n : 1, CV_8U);
 }
 
+// Whether a run ends freely (the end of a thin wall), for runs along the rows: in the run's
+// last column, `occupied` spans at most `max_thickness` cells across the run. The end of a run
+// at a corner or a T (the perpendicular wall spans the column) or the face of a thick block
+// (every column of it is a run) is no free end.
+class FreeEnds {
+ public:
+  FreeEnds(const cv::Mat& occupied, int max_thickness)
+      : across_(cv::Mat::zeros(occupied.size(), CV_32S)), max_thickness_(max_thickness) {
+    // Across-run extent of occupied cells: the length of each column's vertical occupied run.
+    for (int c = 0; c < occupied.cols; ++c) {
+      for (int r = 0; r < occupied.rows;) {
+        if (occupied.at<std::uint8_t>(r, c) == 0) {
+          ++r;
+          continue;
+        }
+        const int a = r;
+        while (r < occupied.rows && occupied.at<std::uint8_t>(r, c) != 0) ++r;
+        for (int k = a; k < r; ++k) across_.at<int>(k, c) = r - a;
+      }
+    }
+  }
+  // `c` is a run's last cell in row `r`, `inward` the step back into the run; the run's band is
+  // a cell wider than the wall each side, and resampling a rotated grid can move an end by a
+  // cell.
+  [[nodiscard]] bool At(int r, int c, int inward) const {
+    for (int back = 0; back < 3; ++back) {
+      const int cc = c + back * inward;
+      if (cc < 0 || cc >= across_.cols) break;
+      int t = 0;
+      for (int rr = std::max(0, r - 1); rr <= std::min(across_.rows - 1, r + 1); ++rr) {
+        t = std::max(t, across_.at<int>(rr, cc));
+      }
+      if (t > 0) return t <= max_thickness_;
+    }
+    return false;
+  }
+
+ private:
+  cv::Mat across_;
+  int max_thickness_;
+};
+
 // Continues the runs of `runs` (rows of 255) along the rows: from each free end of a run, across
 // at most `max_len` cells to the first cell of `walls`; the cells crossed are set in `*out`.
 // A free end is the end of a thin wall: in the run's last column, `occupied` spans at most
@@ -32,35 +74,10 @@ cv::Mat LineKernel(int length, bool horizontal) {
 // clutter standing in an opening must not leave a hole in it. A free end that meets no wall
 // within `max_len` (an open hall) is not continued.
 void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& walls,
-                           int max_len, int max_thickness, cv::Mat* out) {
+                           int max_len, int max_thickness, int facing_len, cv::Mat* out) {
   const int rows = runs.rows, cols = runs.cols;
-  // Across-run extent of occupied cells: the length of each column's vertical occupied run.
-  cv::Mat across = cv::Mat::zeros(runs.size(), CV_32S);
-  for (int c = 0; c < cols; ++c) {
-    for (int r = 0; r < rows;) {
-      if (occupied.at<std::uint8_t>(r, c) == 0) {
-        ++r;
-        continue;
-      }
-      const int a = r;
-      while (r < rows && occupied.at<std::uint8_t>(r, c) != 0) ++r;
-      for (int k = a; k < r; ++k) across.at<int>(k, c) = r - a;
-    }
-  }
-  // `c` is a run's last cell, `inward` the step back into the run; the run's band is a cell
-  // wider than the wall each side, and resampling a rotated grid can move an end by a cell.
-  auto free_end = [&](int r, int c, int inward) {
-    for (int back = 0; back < 3; ++back) {
-      const int cc = c + back * inward;
-      if (cc < 0 || cc >= cols) break;
-      int t = 0;
-      for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr) {
-        t = std::max(t, across.at<int>(rr, cc));
-      }
-      if (t > 0) return t <= max_thickness;
-    }
-    return false;
-  };
+  const FreeEnds ends(occupied, max_thickness);
+  auto free_end = [&](int r, int c, int inward) { return ends.At(r, c, inward); };
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* run = runs.ptr<std::uint8_t>(r);
     const std::uint8_t* wall = walls.ptr<std::uint8_t>(r);
@@ -68,8 +85,12 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const c
     auto walk = [&](int start, int step) {
       int k = start;
       int n = 0;
-      while (k >= 0 && k < cols && wall[k] == 0 && n <= max_len) k += step, ++n;
-      if (n == 0 || n > max_len || k < 0 || k >= cols) return;
+      const int reach = std::max(max_len, facing_len);
+      while (k >= 0 && k < cols && wall[k] == 0 && n <= reach) k += step, ++n;
+      if (n == 0 || n > reach || k < 0 || k >= cols) return;
+      // Beyond an opening's width only to the free end of a collinear run facing this one: the
+      // two halves of one wall with a wide sliding door between them.
+      if (n > max_len && (run[k] == 0 || !free_end(r, k, step))) return;
       for (int j = start; j != k; j += step) o[j] = 255;
     };
     for (int c = 0; c < cols;) {
@@ -127,10 +148,183 @@ void KeepFreeOnBothSides(const cv::Mat& occupied, const cv::Mat& free, int thick
   }
 }
 
+// Unknown cells (neither free nor occupied) 8-connected to the grid's border through unknown
+// cells: the outside of the building (and, in a rotated copy, the canvas around it). Walls do not
+// connect: an unknown closet or shaft behind a wall is inside.
+cv::Mat OutsideMask(const cv::Mat& free, const cv::Mat& occupied) {
+  cv::Mat ids;
+  const cv::Mat unknown = (free == 0) & (occupied == 0);
+  const int n = cv::connectedComponents(unknown, ids, 8, CV_32S);
+  std::vector<std::uint8_t> border(static_cast<std::size_t>(n), 0);
+  for (int r = 0; r < ids.rows; ++r) {
+    const int* id = ids.ptr<int>(r);
+    const bool edge_row = r == 0 || r == ids.rows - 1;
+    for (int c = 0; c < ids.cols; ++c) {
+      if (id[c] > 0 && (edge_row || c == 0 || c == ids.cols - 1)) {
+        border[static_cast<std::size_t>(id[c])] = 255;
+      }
+    }
+  }
+  cv::Mat out(free.size(), CV_8U);
+  for (int r = 0; r < ids.rows; ++r) {
+    const int* id = ids.ptr<int>(r);
+    std::uint8_t* o = out.ptr<std::uint8_t>(r);
+    for (int c = 0; c < ids.cols; ++c) o[c] = border[static_cast<std::size_t>(id[c])];
+  }
+  return out;
+}
+
+// Keeps the pieces of `*pieces` (rows of 255, one piece per 8-connected component) that are
+// facade: across at least three columns, free space on one side and the outside on the other,
+// each beyond at most `thickness` occupied cells, and free on both sides across fewer columns.
+// The building's exterior wall, seen from a room; not a partition (free both sides) nor furniture
+// (its unknown inside is enclosed).
+void KeepFacade(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside,
+                int thickness, cv::Mat* pieces) {
+  cv::Mat ids, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(*pieces, ids, stats, centroids, 8, CV_32S);
+  const int rows = pieces->rows;
+  // 1 = free, 2 = outside, 0 = anything else (interior unknown, a thick block, the grid edge).
+  auto beyond = [&](int r, int c, int step) {
+    for (int k = 0; k <= thickness + 1 && r >= 0 && r < rows; ++k, r += step) {
+      if (free.at<std::uint8_t>(r, c) != 0) return 1;
+      if (outside.at<std::uint8_t>(r, c) != 0) return 2;
+      if (occupied.at<std::uint8_t>(r, c) == 0) return 0;  // unknown inside the building
+    }
+    return 0;
+  };
+  std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0);
+  for (int i = 1; i < n; ++i) {
+    const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    int facade = 0, columns = 0, partition = 0;
+    for (int c = x; c < x + w; ++c) {
+      int top = -1, bottom = -1;
+      for (int r = y; r < y + h; ++r) {
+        if (ids.at<int>(r, c) != i) continue;
+        if (top < 0) top = r;
+        bottom = r;
+      }
+      if (top < 0) continue;
+      ++columns;
+      const int above = beyond(top - 1, c, -1), below = beyond(bottom + 1, c, +1);
+      if (above + below == 3) ++facade;
+      if (above == 1 && below == 1) ++partition;
+    }
+    // Three columns, not a share: a short piece between the building's corner and a balcony's
+    // side wall has walls beyond most of it (and may poke a cell or two into the balcony). Not a
+    // piece seen mostly free on both sides (a partition).
+    keep[static_cast<std::size_t>(i)] = (facade >= 3 && partition < facade) ? 255 : 0;
+  }
+  for (int r = 0; r < rows; ++r) {
+    const int* id = ids.ptr<int>(r);
+    std::uint8_t* o = pieces->ptr<std::uint8_t>(r);
+    for (int c = 0; c < pieces->cols; ++c) o[c] = keep[static_cast<std::size_t>(id[c])];
+  }
+}
+
+// The facade continued across the mouths of the building's protrusions (a balcony, a loggia, a
+// bay), in rows: gaps of more than `min_gap` and at most `max_gap` cells between two collinear
+// facade pieces at least `piece` long, where the gap holds no occupied cell and none of the
+// outside (a window or a door in the exterior wall opens onto the outside: no mouth; a notch in
+// the outline runs through the outside: no mouth either).
+cv::Mat FacadeGapsAlongRows(const cv::Mat& occupied, const cv::Mat& free,
+                            const cv::Mat& outside, int piece, int min_gap, int max_gap,
+                            int thickness) {
+  cv::Mat pieces;
+  cv::dilate(occupied, pieces, LineKernel(3, false));
+  cv::morphologyEx(pieces, pieces, cv::MORPH_OPEN, LineKernel(piece, true));
+  KeepFacade(occupied, free, outside, thickness, &pieces);
+  cv::Mat closed;
+  cv::morphologyEx(pieces, closed, cv::MORPH_CLOSE, LineKernel(max_gap + 1, true));
+  cv::Mat gaps = closed & ~pieces & ~occupied;
+  cv::Mat ids, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(gaps, ids, stats, centroids, 8, CV_32S);
+  std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 255);
+  for (int r = 0; r < ids.rows; ++r) {
+    const int* id = ids.ptr<int>(r);
+    const std::uint8_t* out = outside.ptr<std::uint8_t>(r);
+    for (int c = 0; c < ids.cols; ++c) {
+      if (id[c] > 0 && out[c] != 0) keep[static_cast<std::size_t>(id[c])] = 0;
+    }
+  }
+  for (int i = 1; i < n; ++i) {
+    if (stats.at<int>(i, cv::CC_STAT_WIDTH) <= min_gap) keep[static_cast<std::size_t>(i)] = 0;
+  }
+  for (int r = 0; r < ids.rows; ++r) {
+    const int* id = ids.ptr<int>(r);
+    std::uint8_t* g = gaps.ptr<std::uint8_t>(r);
+    for (int c = 0; c < ids.cols; ++c) g[c] = id[c] > 0 ? keep[static_cast<std::size_t>(id[c])] : 0;
+  }
+  return gaps;
+}
+
+// The mouth between the aligned free ends of two parallel runs along the rows (a closet or a
+// wardrobe whose whole front is a door, a recess, a corridor's end): runs whose free ends point
+// the same way, within `tol` columns of each other and more than `min_gap` and at most `max_gap`
+// rows apart, each the other's nearest such end, with nothing occupied and none of `outside`
+// on the column between the two walls. Set in `*out` as a band of three columns across the
+// rows between them (so it crosses the rows, perpendicular to the runs).
+void AlignedEndMouthsAlongRows(const cv::Mat& runs, const cv::Mat& occupied,
+                               const cv::Mat& outside, int min_gap, int max_gap,
+                               int max_thickness, int tol, cv::Mat* out) {
+  struct End {
+    int row, col, dir;  // dir: +1 the run lies left of the end (a right end), -1 right of it
+  };
+  const FreeEnds free_ends(occupied, max_thickness);
+  cv::Mat ids, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(runs, ids, stats, centroids, 8, CV_32S);
+  std::vector<End> ends;
+  for (int i = 1; i < n; ++i) {
+    const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    const int mid = y + h / 2;
+    if (free_ends.At(mid, x, +1)) ends.push_back({mid, x, -1});
+    if (free_ends.At(mid, x + w - 1, -1)) ends.push_back({mid, x + w - 1, +1});
+  }
+  // The end's nearest partner above and below (same direction, aligned within `tol`).
+  auto partner = [&](std::size_t i, int side) {
+    std::size_t best = ends.size();
+    int best_d = max_gap + 1;
+    for (std::size_t j = 0; j < ends.size(); ++j) {
+      if (j == i || ends[j].dir != ends[i].dir) continue;
+      if (std::abs(ends[j].col - ends[i].col) > tol) continue;
+      const int d = (ends[j].row - ends[i].row) * side;
+      if (d > min_gap && d < best_d) best = j, best_d = d;
+    }
+    return best;
+  };
+  for (std::size_t i = 0; i < ends.size(); ++i) {
+    const std::size_t j = partner(i, +1);
+    if (j == ends.size() || partner(j, -1) != i) continue;
+    const End& a = ends[i];
+    const End& b = ends[j];
+    // The mouth runs at the outer of the two end columns, where both walls have ended.
+    const int c = a.dir > 0 ? std::max(a.col, b.col) : std::min(a.col, b.col);
+    // Skip the two walls' own cells at either end, then nothing may stand in the mouth.
+    int lo = a.row, hi = b.row;
+    while (lo < hi && occupied.at<std::uint8_t>(lo, c) != 0) ++lo;
+    while (hi > lo && occupied.at<std::uint8_t>(hi, c) != 0) --hi;
+    if (hi - lo + 1 <= min_gap) continue;
+    bool clear = true;
+    for (int r = lo; r <= hi && clear; ++r) {
+      clear = occupied.at<std::uint8_t>(r, c) == 0 && outside.at<std::uint8_t>(r, c) == 0;
+    }
+    if (!clear) continue;
+    for (int r = lo; r <= hi; ++r) {
+      for (int cc = std::max(0, c - 1); cc <= std::min(out->cols - 1, c + 1); ++cc) {
+        if (occupied.at<std::uint8_t>(r, cc) == 0) out->at<std::uint8_t>(r, cc) = 255;
+      }
+    }
+  }
+}
+
 // Wall runs, doorways and openings along the image x and y axes (see FindWalls), in
 // `occupied`'s geometry.
-WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, int min_length, int gap,
-                       int door, int opening, int thickness, int stub) {
+WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallCells& cells) {
+  const int min_length = cells.min_length, gap = cells.gap, door = cells.door;
+  const int opening = cells.opening, thickness = cells.thickness, stub = cells.stub;
+  const int facade = cells.facade, mouth = cells.mouth, facing = cells.facing;
   WallEvidence out;
   out.walls = cv::Mat::zeros(occupied.size(), CV_8U);
   out.doorways = cv::Mat::zeros(occupied.size(), CV_8U);
@@ -206,19 +400,48 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, int min_len
     }
   }
   out.opening_ids = cv::Mat::zeros(occupied.size(), CV_32S);
-  if (opening > 0) {
-    // A run may end on a wall of either direction (a partition running into the outer wall),
-    // or in a doorway: a wall that ends beside a door is continued across the door only, never
-    // on through the corridor the door opens onto.
-    const cv::Mat any_wall = ((runs[0] | runs[1]) & occupied) | out.doorways;
-    cv::Mat row_out = cv::Mat::zeros(occupied.size(), CV_8U);
-    ContinueRunsAlongRows(runs[0], occupied, any_wall, opening, thickness, &row_out);
-    cv::Mat t_runs, t_occ, t_wall, t_out;
+  if (opening > 0 || facade > 0 || mouth > 0) {
+    cv::Mat t_runs, t_occ;
     cv::transpose(runs[1], t_runs);
     cv::transpose(occupied, t_occ);
+    cv::Mat outside, t_outside;
+    if ((facade > 0 || mouth > 0) && !free.empty()) {
+      outside = OutsideMask(free, occupied);
+      cv::transpose(outside, t_outside);
+    }
+    cv::Mat row_out = cv::Mat::zeros(occupied.size(), CV_8U);
+    cv::Mat t_out = cv::Mat::zeros(t_runs.size(), CV_8U);
+    cv::Mat mouths = cv::Mat::zeros(occupied.size(), CV_8U);
+    if (mouth > 0 && !free.empty()) {
+      // Mouths between aligned wall ends cross the runs' direction: those of the row runs are
+      // column bands (into the transposed openings), those of the column runs row bands.
+      cv::Mat cols_out = cv::Mat::zeros(occupied.size(), CV_8U);
+      AlignedEndMouthsAlongRows(runs[0], occupied, outside, gap, mouth, thickness, 2, &cols_out);
+      cv::Mat rows_out_t = cv::Mat::zeros(t_runs.size(), CV_8U);
+      AlignedEndMouthsAlongRows(t_runs, t_occ, t_outside, gap, mouth, thickness, 2, &rows_out_t);
+      t_out |= cols_out.t();
+      row_out |= rows_out_t.t();
+      mouths = cols_out | rows_out_t.t();
+    }
+    // A run may end on a wall of either direction (a partition running into the outer wall),
+    // in a doorway or in a mouth: a wall that ends beside a door is continued across the door
+    // only, never on through the corridor the door opens onto, and a wall whose end a mouth
+    // joins to its neighbour (a wardrobe's side) is not continued past the mouth.
+    const cv::Mat any_wall = ((runs[0] | runs[1]) & occupied) | out.doorways | mouths;
+    ContinueRunsAlongRows(runs[0], occupied, any_wall, opening, thickness, facing, &row_out);
+    cv::Mat t_wall;
     cv::transpose(any_wall, t_wall);
-    t_out = cv::Mat::zeros(t_runs.size(), CV_8U);
-    ContinueRunsAlongRows(t_runs, t_occ, t_wall, opening, thickness, &t_out);
+    ContinueRunsAlongRows(t_runs, t_occ, t_wall, opening, thickness, facing, &t_out);
+    if (facade > 0 && !free.empty()) {
+      // The facade across a protrusion's mouth is an opening too: a candidate border that the
+      // segmentation keeps only where it constricts (a balcony behind a full-width slider), not
+      // where it does not (a bay window of the room itself).
+      const int piece = std::max(3, stub > 0 ? stub : min_length);
+      row_out |= FacadeGapsAlongRows(occupied, free, outside, piece, gap, facade, thickness);
+      cv::Mat t_free;
+      cv::transpose(free, t_free);
+      t_out |= FacadeGapsAlongRows(t_occ, t_free, t_outside, piece, gap, facade, thickness);
+    }
     out.openings = row_out | t_out.t();
     // Each band of continued rows (a wall is a few cells thick) is one opening: its line runs
     // along the band's middle from end to end.
@@ -321,15 +544,13 @@ double DominantWallAngle(const cv::Mat& occupied) {
   return deg / kDegPerRad;
 }
 
-WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length_px,
-                       int gap_px, int door_px, int opening_px, int thickness_px, int stub_px,
+WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, const WallCells& cells,
                        const cv::Mat& free) {
   const double deg = angle_rad * kDegPerRad;
   WallEvidence out;
   if (std::abs(deg) < 1.0) {
     // Within a degree of the axes a run of 1 m (20 cells) drifts by less than half a cell.
-    out = AxisWalls(occupied, free, min_length_px, gap_px, door_px, opening_px, thickness_px,
-                    stub_px);
+    out = AxisWalls(occupied, free, cells);
   } else {
     // Rotate so that walls at `angle_rad` lie along x, on a canvas holding the whole grid.
     const cv::Point2d centre(occupied.cols / 2.0, occupied.rows / 2.0);
@@ -347,8 +568,7 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, int min_length
       cv::warpAffine(free, rotated_free, rot, cv::Size(w, h), cv::INTER_NEAREST,
                      cv::BORDER_CONSTANT, cv::Scalar(0));
     }
-    const WallEvidence r = AxisWalls(rotated, rotated_free, min_length_px, gap_px, door_px,
-                                      opening_px, thickness_px, stub_px);
+    const WallEvidence r = AxisWalls(rotated, rotated_free, cells);
     for (const auto& [from, to] : {std::pair{&r.walls, &out.walls},
                                    std::pair{&r.doorways, &out.doorways},
                                    std::pair{&r.openings, &out.openings}}) {

@@ -68,24 +68,48 @@ struct WallEvidence {
   double angle_rad = 0.0;
 };
 
+// What FindWalls looks for, in cells (SegmentOptions holds them in metres). 0 turns a step off.
+struct WallCells {
+  int min_length = 0;  // a wall run: a straight occupied run at least this long...
+  int gap = 0;         // ...collinear pieces up to this far apart joined (dashed walls)
+  int door = 0;        // doorways: gaps up to this wide between two collinear runs
+  int opening = 0;     // openings: a run continued from a free end to the next wall this near
+  int thickness = 0;   // ...a free end is where the wall is at most this thick across the run
+  int stub = 0;        // stubs: shorter joined pieces this long bound doorways and openings
+  int facade = 0;      // facade openings up to this wide (needs `free`)
+  int mouth = 0;       // mouths between aligned wall ends up to this wide (needs `free`)
+  int facing = 0;      // openings reach this far to the free end of a collinear run facing it
+};
+
 // Wall evidence along `angle_rad` and `angle_rad` + pi/2: occupied cells on a straight run of
-// at least `min_length_px` (collinear pieces up to `gap_px` apart joined), and the doorways:
-// gaps of at most `door_px` between two collinear runs, i.e. the wall continued across a door
-// (0 = none). Runs are only continued along their own direction, never across a corridor.
-// Openings: each run continued from a free end (where the wall is at most `thickness_px` thick
+// at least `min_length` (collinear pieces up to `gap` apart joined), and the doorways: gaps of
+// at most `door` between two collinear runs, i.e. the wall continued across a door. Runs are
+// only continued along their own direction, never across a corridor.
+// Openings: each run continued from a free end (where the wall is at most `thickness` thick
 // across the run: not a corner, a T or the face of a block) along its own direction across at
-// most `opening_px` cells to the first cell of a wall run of either direction (0 = none; a run
-// that meets no wall within that length is not continued).
-// Stubs (`stub_px` > 0, below `min_length_px`): a straight piece at least `stub_px` long (no
-// gap closing) that is joined to a wall run (one 8-connected occupied component, a cell of
-// slack; pieces and runs collinear across at most `door_px` count as joined) and, when `free`
-// (CV_8UC1, 255 = free, same size) is given, has free space on both sides across at least half
-// its length (beyond at most `thickness_px` occupied cells), counts as a run for doorways and
-// openings (a wall between two doors), though not for `walls` (decluttering).
+// most `opening` cells to the first cell of a wall run of either direction (a run that meets no
+// wall within that length is not continued), or across at most `facing` cells when that first
+// wall cell is the free end of a collinear run facing it (one wall with a wide sliding door).
+// Stubs (`stub` > 0, below `min_length`): a straight piece at least `stub` long (no gap
+// closing) that is joined to a wall run (one 8-connected occupied component, a cell of slack;
+// pieces and runs collinear across at most `door` count as joined) and, when `free` (CV_8UC1,
+// 255 = free, same size) is given, has free space on both sides across at least half its length
+// (beyond at most `thickness` occupied cells), counts as a run for doorways and openings (a wall
+// between two doors), though not for `walls` (decluttering).
+// Facade openings (`facade` > 0, needs `free`): the building's exterior wall continued across
+// the mouth of a protrusion (a balcony or loggia behind a full-width slider, a bay): a gap of
+// more than `gap` and at most `facade` cells between two collinear pieces of the facade
+// (straight occupied pieces of at least `stub`, or `min_length` without stubs, with free space
+// on one side and the outside, unknown cells connected to the grid's border, on the other),
+// holding no occupied cell and none of the outside (a window or a notch is no mouth).
+// Mouths (`mouth` > 0, needs `free`): the line between the aligned free ends of two parallel
+// runs (a closet or wardrobe whose whole front is a door, a recess, a corridor's end), more
+// than `gap` and at most `mouth` cells long, with nothing occupied and none of the outside on
+// it.
+// Facade openings and mouths are openings like the others: candidates that segmentation.h keeps
+// or merges back.
 [[nodiscard]] WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad,
-                                     int min_length_px, int gap_px, int door_px,
-                                     int opening_px = 0, int thickness_px = 0, int stub_px = 0,
-                                     const cv::Mat& free = cv::Mat());
+                                     const WallCells& cells, const cv::Mat& free = cv::Mat());
 
 // Measures every opening of `evidence` in `free` (CV_8UC1, 255 = free, same size). On each side,
 // at every offset from just beyond its band to `side_depth_px`, opposite a quarter, the middle

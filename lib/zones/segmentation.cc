@@ -67,13 +67,16 @@ cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res
   cv::Mat free_mask = cells == kCellFree;
   if (o.wall_min_length_m > 0.0) {
     // Furniture, people and unseen patches inside rooms hold no long straight wall: free.
-    *walls = FindWalls(occupied, DominantWallAngle(occupied),
-                       CellsFromMetres(o.wall_min_length_m, res),
-                       CellsFromMetres(o.wall_line_gap_m, res),
-                       CellsFromMetres(o.door_max_width_m, res),
-                       CellsFromMetres(o.opening_max_width_m, res),
-                       CellsFromMetres(o.opening_wall_max_thickness_m, res),
-                       CellsFromMetres(o.wall_stub_min_length_m, res), free_mask);
+    const WallCells wall_cells{.min_length = CellsFromMetres(o.wall_min_length_m, res),
+                               .gap = CellsFromMetres(o.wall_line_gap_m, res),
+                               .door = CellsFromMetres(o.door_max_width_m, res),
+                               .opening = CellsFromMetres(o.opening_max_width_m, res),
+                               .thickness = CellsFromMetres(o.opening_wall_max_thickness_m, res),
+                               .stub = CellsFromMetres(o.wall_stub_min_length_m, res),
+                               .facade = CellsFromMetres(o.facade_opening_max_width_m, res),
+                               .mouth = CellsFromMetres(o.mouth_opening_max_width_m, res),
+                               .facing = CellsFromMetres(o.facing_opening_max_width_m, res)};
+    *walls = FindWalls(occupied, DominantWallAngle(occupied), wall_cells, free_mask);
     free_mask = FillClutterIslands(free_mask, walls->walls);
     occupied &= ~free_mask;
   } else {
@@ -409,12 +412,12 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
 //   (`dt_open`) is at least this x the larger of the two segments' peak clearance with openings
 //   closed (`dt_closed`);
 // - local (`local_ratio`): the opening's Constriction() (its span against the free width just
-//   either side of it, declutter.h) is at least this, for one of the openings on the border;
-//   an opening no wider than a door (`door_px`) counts 0.
+//   either side of it, declutter.h) is at least this, for the opening that holds most of the
+//   border; an opening no wider than a door (`door_px`) counts 0.
 // A corridor cut where an aligned wall crosses it is as wide there as beside the cut; a
 // partition between two rooms with wall on at least one side of the opening is narrower than
-// the room beside it. Most open first; a merged segment keeps the larger peak. Labels stay in
-// 1..label_count (some unused).
+// the room beside it. Most open first; a merged segment's peak is the larger of the two and of
+// the opening's clearance. Labels stay in 1..label_count (some unused).
 void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat& dt_closed,
                          const cv::Mat& openings, const cv::Mat& opening_ids,
                          std::span<const OpeningLine> lines, int label_count, double peak_ratio,
@@ -422,7 +425,10 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
   if ((peak_ratio <= 0.0 && local_ratio <= 0.0) || label_count < 2) return;
   std::vector<float> peak(Idx(label_count) + 1, 0.0f);
   std::map<std::pair<int, int>, float> saddle;
-  std::map<std::pair<int, int>, double> local;  // largest Constriction() on the border
+  // Border cells per opening id, per pair: the opening holding most of the border decides
+  // (another opening's end touching the border at a corner must not: a wall continued past a
+  // wardrobe's front would otherwise open it).
+  std::map<std::pair<int, int>, std::map<int, int>> votes;
   // An opening no wider than a door (a wall end continued to the next wall across at most
   // door_px) is a door: it never merges, however open it is against the space beside it (a
   // door is as wide as the gap it is in).
@@ -437,8 +443,9 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     if (a > b) std::swap(a, b);
     float& s = saddle[{a, b}];
     s = std::max(s, d);
-    double& c = local[{a, b}];
-    c = std::max({c, constriction(id_a), constriction(id_b)});
+    std::map<int, int>& v = votes[{a, b}];
+    if (id_a > 0) ++v[id_a];
+    if (id_b > 0) ++v[id_b];
   };
   for (int r = 0; r < labels->rows; ++r) {
     const int* l = labels->ptr<int>(r);
@@ -462,6 +469,14 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
         note(l[c], below[c], std::min(d[c], dbelow[c]), id[c], idbelow[c]);
       }
     }
+  }
+  std::map<std::pair<int, int>, double> local;  // Constriction() of the border's main opening
+  for (const auto& [key, v] : votes) {
+    int main_id = 0, most = 0;
+    for (const auto& [id, n] : v) {
+      if (n > most) main_id = id, most = n;
+    }
+    local[key] = constriction(main_id);
   }
   std::vector<int> parent(Idx(label_count) + 1);
   std::iota(parent.begin(), parent.end(), 0);
@@ -492,7 +507,12 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     }
     if (best_pair.first == 0) break;
     parent[Idx(best_pair.second)] = best_pair.first;
-    peak[Idx(best_pair.first)] = std::max(peak[Idx(best_pair.first)], peak[Idx(best_pair.second)]);
+    // The merged space is at least as open as the opening it merged across: two strips cut
+    // from one room by a wall's continuation are, together, the room again, and a wardrobe
+    // off it is measured against the room, not against a strip.
+    peak[Idx(best_pair.first)] = std::max({peak[Idx(best_pair.first)],
+                                           peak[Idx(best_pair.second)],
+                                           current[best_pair].first});
   }
   for (int r = 0; r < labels->rows; ++r) {
     int* l = labels->ptr<int>(r);
@@ -545,6 +565,8 @@ Status CheckOptions(const SegmentOptions& o) {
   if (o.simplify_tolerance_m < 0.0) return bad("simplify_tolerance_m must be >= 0");
   if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
       o.opening_max_width_m < 0.0 || o.opening_merge_ratio < 0.0 ||
+      o.facade_opening_max_width_m < 0.0 || o.mouth_opening_max_width_m < 0.0 ||
+      o.facing_opening_max_width_m < 0.0 ||
       o.opening_local_ratio < 0.0 || o.opening_side_depth_m < 0.0 ||
       o.wall_stub_min_length_m < 0.0 ||
       o.opening_wall_max_thickness_m < 0.0) {
@@ -579,6 +601,9 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"wall_line_gap_m", &SegmentOptions::wall_line_gap_m},
       {"door_max_width_m", &SegmentOptions::door_max_width_m},
       {"opening_max_width_m", &SegmentOptions::opening_max_width_m},
+      {"facade_opening_max_width_m", &SegmentOptions::facade_opening_max_width_m},
+      {"mouth_opening_max_width_m", &SegmentOptions::mouth_opening_max_width_m},
+      {"facing_opening_max_width_m", &SegmentOptions::facing_opening_max_width_m},
       {"opening_wall_max_thickness_m", &SegmentOptions::opening_wall_max_thickness_m},
       {"opening_merge_ratio", &SegmentOptions::opening_merge_ratio},
       {"opening_local_ratio", &SegmentOptions::opening_local_ratio},

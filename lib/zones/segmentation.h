@@ -5,14 +5,17 @@
 // narrower than `wall_gap_close_m`, drop free specks and laser rays thinner than `ray_width_m`,
 // turn small clutter islands inside free space into free space); the layout: doorways (gaps
 // between collinear walls up to a door's width) and openings (thin walls continued from a free
-// end to the next wall, up to `opening_max_width_m`), declutter.h; distance transform of free
+// end to the next wall, up to `opening_max_width_m`, or to a collinear wall end facing it up to
+// `facing_opening_max_width_m`; the facade across a protrusion's mouth; the mouth between two
+// aligned wall ends), declutter.h; distance transform of free
 // space with both closed; room seeds from a hierarchy of thresholds of that transform: a
 // component at one level is replaced by its children at a higher level only when at least two
 // of them are room-sized (so each doorway is cut at its own level, not at one global
 // threshold); seeds grow back over free space by a priority flood on the distance transform (a
 // watershed, so borders settle on the narrowest place: a door, a closed doorway or opening);
 // neighbours split only by an opening that constricts neither (`opening_merge_ratio` of the
-// larger one's peak clearance) merge again (a corridor crossed by an aligned wall); neighbours
+// larger one's peak clearance, and the border's main opening open over `opening_local_ratio`
+// of the space beside it) merge again (a corridor crossed by an aligned wall); neighbours
 // whose shared border is an opening wider than any door (`merge_min_opening_m`) and not a
 // constriction relative to them (`merge_open_border_ratio`) merge (one open room cut in two by
 // clutter); segments smaller than `min_room_area_m2` merge into the neighbour sharing the
@@ -57,6 +60,18 @@ struct SegmentOptions {
                                       // this far away (declutter.h); seeds are found with these
                                       // openings closed (0 = off). Physical: a sliding partition
                                       // or open-plan opening between two rooms is up to 3 m
+  double facade_opening_max_width_m = 3.0;  // layout: the exterior wall continued across a
+                                      // protrusion's mouth up to this wide (a balcony behind a
+                                      // full-width slider, a bay; declutter.h; 0 = off), an
+                                      // opening like the others. Physical, the opening width
+  double facing_opening_max_width_m = 4.0;  // layout: a free wall end is continued beyond the
+                                      // opening width, up to this far, only to the free end of
+                                      // a collinear wall facing it (one wall with a wide sliding
+                                      // door; declutter.h; 0 = off)
+  double mouth_opening_max_width_m = 3.0;  // layout: the line between the aligned free ends of
+                                      // two parallel walls up to this far apart (a closet or
+                                      // wardrobe whose front is one door; declutter.h; 0 = off),
+                                      // an opening like the others
   double opening_wall_max_thickness_m = 0.3;  // ...from the free end of a wall at most this
                                       // thick (interior partitions are 0.1-0.25 m): the face of
                                       // a block or a corner is no free end

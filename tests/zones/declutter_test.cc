@@ -3,9 +3,10 @@
 // wall runs versus furniture, doorways only between collinear runs (never across a corridor),
 // openings only from a thin wall's free end to the next wall within the opening width, short
 // wall pieces joined to a wall and seen from both sides bounding doors (furniture against a
-// wall and free-standing pieces not), openings measured against the space beside them, and
-// clutter islands filled unless they hold a wall or
-// touch the border.
+// wall and free-standing pieces not), the facade continued across a balcony's mouth (not a
+// window's or a notch's), the mouth between two aligned wall ends, a wall end reaching a
+// collinear one facing it beyond an opening's width, openings measured against the space beside
+// them, and clutter islands filled unless they hold a wall or touch the border.
 #include "zones/declutter.h"
 
 #include <doctest/doctest.h>
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 namespace zm {
 namespace {
@@ -48,8 +50,7 @@ TEST_CASE("walls are long straight runs; doorways join collinear runs only") {
   cv::line(occ, {109, 40}, {190, 40}, cv::Scalar(255));
   cv::line(occ, {10, 80}, {190, 80}, cv::Scalar(255));
   cv::rectangle(occ, cv::Rect(140, 55, 8, 6), cv::Scalar(255), cv::FILLED);
-  const WallEvidence w = FindWalls(occ, 0.0, /*min_length_px=*/20, /*gap_px=*/9,
-                                   /*door_px=*/24);
+  const WallEvidence w = FindWalls(occ, 0.0, {.min_length = 20, .gap = 9, .door = 24});
   CHECK(w.walls.at<std::uint8_t>(40, 50) == 255);
   CHECK(w.walls.at<std::uint8_t>(80, 100) == 255);
   CHECK(w.walls.at<std::uint8_t>(57, 143) == 0);  // furniture is no wall
@@ -58,7 +59,7 @@ TEST_CASE("walls are long straight runs; doorways join collinear runs only") {
     CHECK(w.doorways.at<std::uint8_t>(r, 100) == 0);
   }
   // A gap wider than a door stays open.
-  const WallEvidence narrow = FindWalls(occ, 0.0, 20, 9, /*door_px=*/12);
+  const WallEvidence narrow = FindWalls(occ, 0.0, {.min_length = 20, .gap = 9, .door = 12});
   CHECK(narrow.doorways.at<std::uint8_t>(40, 100) == 0);
 }
 
@@ -71,8 +72,8 @@ TEST_CASE("openings continue a thin wall from its free end to the next wall, now
   cv::rectangle(occ, cv::Rect(69, 10, 2, 50), cv::Scalar(255), cv::FILLED);
   cv::rectangle(occ, cv::Rect(90, 78, 30, 12), cv::Scalar(255), cv::FILLED);
   cv::rectangle(occ, cv::Rect(10, 70, 50, 2), cv::Scalar(255), cv::FILLED);
-  const WallEvidence w = FindWalls(occ, 0.0, /*min_length_px=*/20, /*gap_px=*/9,
-                                   /*door_px=*/24, /*opening_px=*/60, /*thickness_px=*/6);
+  const WallEvidence w = FindWalls(
+      occ, 0.0, {.min_length = 20, .gap = 9, .door = 24, .opening = 60, .thickness = 6});
   // The partition's free end is continued down to the bottom wall: a 2.5 m opening.
   for (int r = 62; r < 88; ++r) CHECK(w.openings.at<std::uint8_t>(r, 70) == 255);
   // Its top end meets the top wall (a T): nothing is continued above it or beside it.
@@ -82,7 +83,7 @@ TEST_CASE("openings continue a thin wall from its free end to the next wall, now
   // The solid block's top face is no free end of its columns: no openings above it.
   CHECK(w.openings.at<std::uint8_t>(60, 100) == 0);
   // Without the opening width nothing is continued.
-  const WallEvidence none = FindWalls(occ, 0.0, 20, 9, 24);
+  const WallEvidence none = FindWalls(occ, 0.0, {.min_length = 20, .gap = 9, .door = 24});
   CHECK(cv::countNonZero(none.openings) == 0);
 }
 
@@ -99,8 +100,9 @@ TEST_CASE("a short wall piece joined to a wall and seen from both rooms bounds a
   free(cv::Rect(12, 12, 117, 77)).setTo(255);
   free.setTo(0, occ);
   auto walls = [&](int stub_px, const cv::Mat& f) {
-    return FindWalls(occ, 0.0, /*min_length_px=*/20, /*gap_px=*/9, /*door_px=*/24,
-                     /*opening_px=*/0, /*thickness_px=*/6, stub_px, f);
+    return FindWalls(occ, 0.0,
+                     {.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = stub_px},
+                     f);
   };
   const WallEvidence w = walls(/*stub_px=*/6, free);
   CHECK(w.doorways.at<std::uint8_t>(50, 35) == 255);  // both doors are closed
@@ -122,8 +124,103 @@ TEST_CASE("a short wall piece joined to a wall and seen from both rooms bounds a
   cv::rectangle(lone, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
   cv::line(lone, {60, 50}, {72, 50}, cv::Scalar(255));
   cv::line(lone, {60, 70}, {72, 70}, cv::Scalar(255));
-  const WallEvidence alone = FindWalls(lone, 0.0, 20, 9, 24, 0, 6, 6, free);
+  const WallEvidence alone = FindWalls(
+      lone, 0.0, {.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6}, free);
   CHECK(cv::countNonZero(alone.doorways(cv::Rect(30, 40, 80, 40))) == 0);
+}
+
+// Free (255) inside the building's outline `inside`, minus the occupied cells; unknown elsewhere
+// (the outside).
+cv::Mat FreeInside(const cv::Mat& occ, const std::vector<cv::Rect>& inside) {
+  cv::Mat free = cv::Mat::zeros(occ.size(), CV_8U);
+  for (const cv::Rect& r : inside) free(r).setTo(255);
+  free.setTo(0, occ);
+  return free;
+}
+
+TEST_CASE("the facade is continued across a balcony's mouth, not across a window or a notch") {
+  // A 6 x 4 m flat (1 cell = 5 cm, walls 3 cells thick) with a 2 m x 1 m balcony protruding
+  // below its bottom wall behind a full-width slider: the bottom wall is two facade pieces, the
+  // balcony's mouth (columns 50-89) lies between them. Its top wall has a 1 m window onto the
+  // outside; its right wall a 2 m notch of the outside (an inset entrance).
+  cv::Mat occ = cv::Mat::zeros(140, 160, CV_8U);
+  auto wall = [&](int x, int y, int w, int h) {
+    cv::rectangle(occ, cv::Rect(x, y, w, h), cv::Scalar(255), cv::FILLED);
+  };
+  wall(10, 10, 121, 3);   // top, a window at columns 60-79
+  occ(cv::Rect(60, 10, 20, 3)).setTo(0);
+  wall(10, 10, 3, 83);    // left
+  wall(128, 10, 3, 30);   // right, above the notch
+  wall(128, 70, 3, 23);   // right, below the notch
+  wall(108, 37, 23, 3);   // the notch's top...
+  wall(108, 37, 3, 36);   // ...back...
+  wall(108, 70, 23, 3);   // ...and bottom
+  wall(10, 90, 40, 3);    // bottom, left of the balcony
+  wall(90, 90, 41, 3);    // bottom, right of it
+  wall(47, 90, 3, 23);    // the balcony's sides and front
+  wall(90, 90, 3, 23);
+  wall(47, 110, 46, 3);
+  cv::Mat free = FreeInside(occ, {cv::Rect(13, 13, 115, 77), cv::Rect(50, 90, 40, 20)});
+  free(cv::Rect(108, 40, 23, 30)).setTo(0);  // the notch is outside
+  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6,
+                        .facade = 60};
+  const WallEvidence w = FindWalls(occ, 0.0, cells, free);
+  for (int c = 52; c < 88; ++c) CHECK(w.openings.at<std::uint8_t>(91, c) == 255);
+  CHECK(cv::countNonZero(w.openings(cv::Rect(58, 5, 24, 12))) == 0);    // not the window
+  CHECK(cv::countNonZero(w.openings(cv::Rect(120, 40, 15, 30))) == 0);  // not the notch
+  REQUIRE(!w.opening_lines.empty());
+  // Off, or without the free space to tell the outside from a room, nothing is found.
+  WallCells off = cells;
+  off.facade = 0;
+  CHECK(cv::countNonZero(FindWalls(occ, 0.0, off, free).openings) == 0);
+  CHECK(cv::countNonZero(FindWalls(occ, 0.0, cells).openings) == 0);
+}
+
+TEST_CASE("the mouth between two aligned wall ends is an opening; something in it is not") {
+  // A 6 x 4 m room (1 cell = 5 cm) with a wardrobe against its top wall: two 0.75 m side
+  // walls (15 cells, 0.1 m thick) 1.6 m apart whose free ends are aligned at row 27, the front
+  // being one wide door. Further right two more walls from the top wall end 0.5 m apart in
+  // height: not aligned, no mouth.
+  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
+  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
+  auto wall = [&](int x, int y, int w, int h) {
+    cv::rectangle(occ, cv::Rect(x, y, w, h), cv::Scalar(255), cv::FILLED);
+  };
+  wall(30, 10, 2, 18);
+  wall(62, 10, 2, 18);
+  wall(90, 10, 2, 18);
+  wall(115, 10, 2, 28);
+  const cv::Mat free = FreeInside(occ, {cv::Rect(12, 12, 117, 77)});
+  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6,
+                        .mouth = 60};
+  const WallEvidence w = FindWalls(occ, 0.0, cells, free);
+  for (int c = 34; c < 60; ++c) CHECK(w.openings.at<std::uint8_t>(27, c) == 255);
+  CHECK(cv::countNonZero(w.openings(cv::Rect(93, 12, 21, 30))) == 0);
+  // A box standing in the mouth: nothing.
+  cv::Mat blocked = occ.clone();
+  cv::rectangle(blocked, cv::Rect(44, 24, 4, 6), cv::Scalar(255), cv::FILLED);
+  const WallEvidence b = FindWalls(blocked, 0.0, cells, FreeInside(blocked, {cv::Rect(12, 12, 117, 77)}));
+  CHECK(cv::countNonZero(b.openings(cv::Rect(33, 25, 28, 4))) == 0);
+}
+
+TEST_CASE("beyond an opening's width a wall end reaches only a collinear wall end facing it") {
+  // A 10 x 4 m room (1 cell = 5 cm) split by one wall with a 3.5 m sliding door: two thin pieces
+  // from the side walls along row 50, their free ends 70 cells apart. Below, a thin wall from
+  // the left wall ends 3.5 m short of the right wall: nothing faces it.
+  cv::Mat occ = cv::Mat::zeros(100, 220, CV_8U);
+  cv::rectangle(occ, cv::Rect(10, 10, 201, 81), cv::Scalar(255), 2);
+  cv::rectangle(occ, cv::Rect(10, 50, 60, 2), cv::Scalar(255), cv::FILLED);
+  cv::rectangle(occ, cv::Rect(140, 50, 71, 2), cv::Scalar(255), cv::FILLED);
+  cv::rectangle(occ, cv::Rect(10, 75, 130, 2), cv::Scalar(255), cv::FILLED);
+  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .opening = 60, .thickness = 6,
+                        .facing = 80};
+  const WallEvidence w = FindWalls(occ, 0.0, cells);
+  for (int c = 72; c < 138; ++c) CHECK(w.openings.at<std::uint8_t>(50, c) == 255);
+  CHECK(w.openings.at<std::uint8_t>(76, 175) == 0);
+  // With the facing reach off the 3.5 m gap is beyond an opening.
+  WallCells off = cells;
+  off.facing = 0;
+  CHECK(FindWalls(occ, 0.0, off).openings.at<std::uint8_t>(50, 105) == 0);
 }
 
 TEST_CASE("an opening across a corridor is open; a partition's opening constricts the room") {
@@ -165,7 +262,7 @@ TEST_CASE("an opening across a corridor is open; a partition's opening constrict
 TEST_CASE("walls rotated off the axes are found in the rotated frame") {
   const double deg = 25.0;
   const cv::Mat occ = RotatedRoom(deg, 200, 120);
-  const WallEvidence w = FindWalls(occ, deg * kDeg, 20, 9, 0);
+  const WallEvidence w = FindWalls(occ, deg * kDeg, {.min_length = 20, .gap = 9});
   CHECK(cv::countNonZero(w.walls) > 0.9 * cv::countNonZero(occ));
 }
 
