@@ -115,7 +115,9 @@ def render(items):
     free &= ~occupied & ~unknown
     viewpoints = []
     for x1, y1, x2, y2, kind in items:
-        if kind == "door" or kind not in FURNITURE | {"wall", "entrance", "stairs"}:
+        # Room labels and doors; not walls, furniture, entrances, stairs, nor "point" rows (a few
+        # R2V files mark wall junctions with them: a viewpoint there would stand in a wall).
+        if kind == "door" or kind not in FURNITURE | {"wall", "entrance", "stairs", "point"}:
             viewpoints.append(px((x1 + x2) / 2, (y1 + y2) / 2))
     return free, occupied, rooms, n, viewpoints
 
