@@ -57,6 +57,16 @@ THIRD_PART = {
     "seedless_room_min_area_m2": [0.5],   # choosable: [0.0, 0.5]
     "wall_stub_min_length_m": [0.3],      # choosable: [0.0, 0.3]
 }
+# Fixed on physical grounds in the fourth part (docs/segmentation.md, "Issue 16, fourth part"),
+# never chosen here: the facade continued across a protrusion's mouth up to the opening width
+# (a balcony behind a full-width slider), the mouth between two aligned wall ends up to the same
+# width (a wardrobe whose front is one door), and a wall end reaching a collinear wall end
+# facing it up to 4 m (one wall with a wide sliding door).
+FOURTH_PART = {
+    "facade_opening_max_width_m": [3.0],
+    "mouth_opening_max_width_m": [3.0],
+    "facing_opening_max_width_m": [4.0],
+}
 THIRD_PART_GRID = {
     "opening_local_ratio": [0.0, 0.75],
     "min_room_area_m2": [0.5, 1.0],
@@ -123,6 +133,7 @@ def main():
         CANDIDATES.update(THIRD_PART_GRID)
     else:
         CANDIDATES.update(THIRD_PART)
+    CANDIDATES.update(FOURTH_PART)
     cache_path = None
     if "--cache" in args:
         i = args.index("--cache")
