@@ -106,28 +106,40 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const c
   }
 }
 
-// Keeps the pieces of `*runs` (rows of 255, one piece per 8-connected component) that have free
-// space on both sides across at least half of their columns: beyond at most `thickness`
-// occupied cells above and below the piece. A partition between two doors is seen from both
-// rooms; the outline of furniture or clutter against a wall has unknown cells (its inside, its
-// shadow) or more obstacles on one side.
-void KeepFreeOnBothSides(const cv::Mat& occupied, const cv::Mat& free, int thickness,
-                         cv::Mat* runs) {
+// What lies beyond one side of a wall piece in one of its columns, past at most `thickness`
+// occupied cells.
+enum class Beyond { kOther, kFree, kOutside };
+
+// Per piece: how many of its columns have free space on both sides, and how many free space on
+// one side and the outside on the other.
+struct SideCounts {
+  int columns = 0;
+  int free_both = 0;
+  int facade = 0;
+};
+
+// Keeps the pieces of `*pieces` (rows of 255, one piece per 8-connected component) for which
+// `keep(SideCounts)` holds. `outside` may be empty (nothing is the outside); an unknown cell that
+// is not the outside (a piece of furniture's inside, its shadow) ends the look as kOther.
+template <typename Keep>
+void KeepPieces(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside,
+                int thickness, Keep keep, cv::Mat* pieces) {
   cv::Mat ids, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(*runs, ids, stats, centroids, 8, CV_32S);
-  const int rows = runs->rows;
-  auto free_beyond = [&](int r, int c, int step) {
+  const int n = cv::connectedComponentsWithStats(*pieces, ids, stats, centroids, 8, CV_32S);
+  const int rows = pieces->rows;
+  auto beyond = [&](int r, int c, int step) {
     for (int k = 0; k <= thickness + 1 && r >= 0 && r < rows; ++k, r += step) {
-      if (free.at<std::uint8_t>(r, c) != 0) return true;
-      if (occupied.at<std::uint8_t>(r, c) == 0) return false;  // unknown
+      if (free.at<std::uint8_t>(r, c) != 0) return Beyond::kFree;
+      if (!outside.empty() && outside.at<std::uint8_t>(r, c) != 0) return Beyond::kOutside;
+      if (occupied.at<std::uint8_t>(r, c) == 0) return Beyond::kOther;
     }
-    return false;
+    return Beyond::kOther;
   };
-  std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0);
+  std::vector<std::uint8_t> kept(static_cast<std::size_t>(n), 0);
   for (int i = 1; i < n; ++i) {
     const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
     const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
-    int both = 0, columns = 0;
+    SideCounts counts;
     for (int c = x; c < x + w; ++c) {
       int top = -1, bottom = -1;
       for (int r = y; r < y + h; ++r) {
@@ -136,16 +148,31 @@ void KeepFreeOnBothSides(const cv::Mat& occupied, const cv::Mat& free, int thick
         bottom = r;
       }
       if (top < 0) continue;
-      ++columns;
-      if (free_beyond(top - 1, c, -1) && free_beyond(bottom + 1, c, +1)) ++both;
+      ++counts.columns;
+      const Beyond above = beyond(top - 1, c, -1), below = beyond(bottom + 1, c, +1);
+      if (above == Beyond::kFree && below == Beyond::kFree) ++counts.free_both;
+      if ((above == Beyond::kFree && below == Beyond::kOutside) ||
+          (above == Beyond::kOutside && below == Beyond::kFree)) {
+        ++counts.facade;
+      }
     }
-    keep[static_cast<std::size_t>(i)] = 2 * both >= columns ? 255 : 0;
+    kept[static_cast<std::size_t>(i)] = keep(counts) ? 255 : 0;
   }
   for (int r = 0; r < rows; ++r) {
     const int* id = ids.ptr<int>(r);
-    std::uint8_t* o = runs->ptr<std::uint8_t>(r);
-    for (int c = 0; c < runs->cols; ++c) o[c] = keep[static_cast<std::size_t>(id[c])];
+    std::uint8_t* o = pieces->ptr<std::uint8_t>(r);
+    for (int c = 0; c < pieces->cols; ++c) o[c] = kept[static_cast<std::size_t>(id[c])];
   }
+}
+
+// Keeps the pieces of `*runs` that have free space on both sides across at least half of their
+// columns. A partition between two doors is seen from both rooms; the outline of furniture or
+// clutter against a wall has unknown cells (its inside, its shadow) or more obstacles on one
+// side.
+void KeepFreeOnBothSides(const cv::Mat& occupied, const cv::Mat& free, int thickness,
+                         cv::Mat* runs) {
+  KeepPieces(occupied, free, cv::Mat(), thickness,
+             [](const SideCounts& s) { return 2 * s.free_both >= s.columns; }, runs);
 }
 
 // Unknown cells (neither free nor occupied) 8-connected to the grid's border through unknown
@@ -174,53 +201,17 @@ cv::Mat OutsideMask(const cv::Mat& free, const cv::Mat& occupied) {
   return out;
 }
 
-// Keeps the pieces of `*pieces` (rows of 255, one piece per 8-connected component) that are
-// facade: across at least three columns, free space on one side and the outside on the other,
-// each beyond at most `thickness` occupied cells, and free on both sides across fewer columns.
-// The building's exterior wall, seen from a room; not a partition (free both sides) nor furniture
-// (its unknown inside is enclosed).
+// Keeps the pieces of `*pieces` that are facade: across at least three columns, free space on
+// one side and the outside on the other, and free on both sides across fewer columns. The
+// building's exterior wall, seen from a room; not a partition (free both sides) nor furniture
+// (its unknown inside is enclosed). Three columns, not a share: a short piece between the
+// building's corner and a balcony's side wall has walls beyond most of it (and may poke a cell or
+// two into the balcony).
 void KeepFacade(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside,
                 int thickness, cv::Mat* pieces) {
-  cv::Mat ids, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(*pieces, ids, stats, centroids, 8, CV_32S);
-  const int rows = pieces->rows;
-  // 1 = free, 2 = outside, 0 = anything else (interior unknown, a thick block, the grid edge).
-  auto beyond = [&](int r, int c, int step) {
-    for (int k = 0; k <= thickness + 1 && r >= 0 && r < rows; ++k, r += step) {
-      if (free.at<std::uint8_t>(r, c) != 0) return 1;
-      if (outside.at<std::uint8_t>(r, c) != 0) return 2;
-      if (occupied.at<std::uint8_t>(r, c) == 0) return 0;  // unknown inside the building
-    }
-    return 0;
-  };
-  std::vector<std::uint8_t> keep(static_cast<std::size_t>(n), 0);
-  for (int i = 1; i < n; ++i) {
-    const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
-    const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
-    int facade = 0, columns = 0, partition = 0;
-    for (int c = x; c < x + w; ++c) {
-      int top = -1, bottom = -1;
-      for (int r = y; r < y + h; ++r) {
-        if (ids.at<int>(r, c) != i) continue;
-        if (top < 0) top = r;
-        bottom = r;
-      }
-      if (top < 0) continue;
-      ++columns;
-      const int above = beyond(top - 1, c, -1), below = beyond(bottom + 1, c, +1);
-      if (above + below == 3) ++facade;
-      if (above == 1 && below == 1) ++partition;
-    }
-    // Three columns, not a share: a short piece between the building's corner and a balcony's
-    // side wall has walls beyond most of it (and may poke a cell or two into the balcony). Not a
-    // piece seen mostly free on both sides (a partition).
-    keep[static_cast<std::size_t>(i)] = (facade >= 3 && partition < facade) ? 255 : 0;
-  }
-  for (int r = 0; r < rows; ++r) {
-    const int* id = ids.ptr<int>(r);
-    std::uint8_t* o = pieces->ptr<std::uint8_t>(r);
-    for (int c = 0; c < pieces->cols; ++c) o[c] = keep[static_cast<std::size_t>(id[c])];
-  }
+  KeepPieces(occupied, free, outside, thickness,
+             [](const SideCounts& s) { return s.facade >= 3 && s.free_both < s.facade; },
+             pieces);
 }
 
 // The facade continued across the mouths of the building's protrusions (a balcony, a loggia, a
