@@ -365,6 +365,22 @@ TEST_CASE("a wardrobe behind a door in a wall of short pieces is a room of its o
   CHECK(l1 == l2);
 }
 
+// Room 2 of `f` is a segment of its own (holding `share` of it) beside room 1 with the default
+// options, and is flooded from room 1 with `rule_off` (the rule that finds it turned off).
+void CheckOwnRoomOnlyWithRule(const Floor& f, double share, const SegmentOptions& rule_off) {
+  auto seg = SegmentRooms(f.grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  int l1 = 0, l2 = 0;
+  CHECK(BestShare(*seg, f.truth, 1, &l1) > 0.9);
+  CHECK(BestShare(*seg, f.truth, 2, &l2) > share);
+  CHECK(l1 != l2);
+  auto merged = SegmentRooms(f.grid, rule_off);
+  REQUIRE(merged.ok());
+  BestShare(*merged, f.truth, 1, &l1);
+  BestShare(*merged, f.truth, 2, &l2);
+  CHECK(l1 == l2);
+}
+
 TEST_CASE("a balcony behind a full-width slider, protruding from the facade, is its own zone") {
   // A 6 x 4 m flat drawn as a plan (0.15 m walls, the outside unknown) with a 2.5 x 1 m balcony
   // protruding below it; the slider spans the balcony's whole width, so no wall piece stands
@@ -377,20 +393,10 @@ TEST_CASE("a balcony behind a full-width slider, protruding from the facade, is 
   f.Room(1.0, 1.0, 7.0, 5.0, 1);
   f.Room(2.5, 5.15, 5.0, 6.15, 2);
   f.Fill(2.5, 5.0, 5.0, 5.15, kCellFree);  // the slider, open
-  auto seg = SegmentRooms(f.grid);
-  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
-  int l1 = 0, l2 = 0;
-  CHECK(BestShare(*seg, f.truth, 1, &l1) > 0.9);
-  CHECK(BestShare(*seg, f.truth, 2, &l2) > 0.85);
-  CHECK(l1 != l2);
   // Without facade openings the balcony is flooded from the room.
   SegmentOptions off;
   off.facade_opening_max_width_m = 0.0;
-  auto merged = SegmentRooms(f.grid, off);
-  REQUIRE(merged.ok());
-  BestShare(*merged, f.truth, 1, &l1);
-  BestShare(*merged, f.truth, 2, &l2);
-  CHECK(l1 == l2);
+  CheckOwnRoomOnlyWithRule(f, /*share=*/0.85, off);
 }
 
 TEST_CASE("a wardrobe whose whole front is one door is a room of its own") {
@@ -402,19 +408,9 @@ TEST_CASE("a wardrobe whose whole front is one door is a room of its own") {
   f.Fill(2.0, 1.0, 2.1, 1.7, kCellOccupied);
   f.Fill(3.6, 1.0, 3.7, 1.7, kCellOccupied);
   cv::rectangle(f.truth, Floor::R(2.1, 1.0, 3.6, 1.7), cv::Scalar(2), cv::FILLED);
-  auto seg = SegmentRooms(f.grid);
-  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
-  int l1 = 0, l2 = 0;
-  CHECK(BestShare(*seg, f.truth, 1, &l1) > 0.9);
-  CHECK(BestShare(*seg, f.truth, 2, &l2) > 0.8);
-  CHECK(l1 != l2);
   SegmentOptions off;
   off.mouth_opening_max_width_m = 0.0;
-  auto merged = SegmentRooms(f.grid, off);
-  REQUIRE(merged.ok());
-  BestShare(*merged, f.truth, 1, &l1);
-  BestShare(*merged, f.truth, 2, &l2);
-  CHECK(l1 == l2);
+  CheckOwnRoomOnlyWithRule(f, /*share=*/0.8, off);
 }
 
 TEST_CASE("an L-shaped room and a room with furniture against its walls stay whole") {
