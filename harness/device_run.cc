@@ -399,8 +399,7 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
     so.config.device_scale = request.device_scale;
     if (device->ledger() != nullptr) so.config.ledger_path = dopt.ledger_path;
     so.executable = request.cotenant_executable;
-    DeviceModel* dev = device.get();
-    if (device->cgroup() != nullptr) so.enter_device = [dev] { return dev->EnterSelf(); };
+    if (device->cgroup() != nullptr) so.device = device.get();
     so.restart_delay_s = request.profile.cotenant.restart_delay_s;
     so.request_period_s = period_s;
     so.max_requests = request.cotenant_requests;
