@@ -25,6 +25,7 @@ CLI::App* GetOrAddSubcommand(CLI::App& app, const std::string& name,
 
 void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddArenaCommand(app, ctx);
+  AddBudgetCommand(app, ctx);
   AddImportCommand(app, ctx);
   AddEvalCommand(app, ctx);
   AddZonesSegmentCommand(app, ctx);

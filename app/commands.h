@@ -25,6 +25,7 @@ CLI::App* GetOrAddSubcommand(CLI::App& app, const std::string& name, const std::
 void AddAllCommands(CLI::App& app, CommandContext& ctx);
 
 void AddArenaCommand(CLI::App& app, CommandContext& ctx);
+void AddBudgetCommand(CLI::App& app, CommandContext& ctx);
 void AddImportCommand(CLI::App& app, CommandContext& ctx);
 void AddEvalCommand(CLI::App& app, CommandContext& ctx);
 void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx);

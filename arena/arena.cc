@@ -205,6 +205,7 @@ Arena& Arena::operator=(Arena&& other) noexcept {
     free_top_ = std::exchange(other.free_top_, 0);
     capacity_ = std::exchange(other.capacity_, 0);
     in_use_ = std::exchange(other.in_use_, 0);
+    withheld_ = std::exchange(other.withheld_, 0);
     high_water_ = std::exchange(other.high_water_, 0);
     slot_bytes_ = std::exchange(other.slot_bytes_, 0);
     refused_ = std::exchange(other.refused_, 0);
@@ -230,7 +231,7 @@ void Arena::Unmap() noexcept {
 }
 
 std::optional<SlotIndex> Arena::TryAcquire() noexcept {
-  if (free_top_ == 0) {
+  if (free_top_ <= withheld_) {  // full, or every free slot withheld
     ++refused_;
     return std::nullopt;
   }
@@ -285,6 +286,11 @@ std::span<const std::byte> Arena::Slot(SlotIndex slot) const noexcept {
   return {base_ + std::uint64_t{slot.value} * slot_bytes_, static_cast<std::size_t>(slot_bytes_)};
 }
 
+std::uint32_t Arena::Withhold(std::uint32_t slots) noexcept {
+  withheld_ = slots < free_top_ ? slots : free_top_;
+  return withheld_;
+}
+
 bool Arena::InUse(SlotIndex slot) const noexcept {
   return slot.value < capacity_ && in_use_flags_[slot.value] != 0;
 }
@@ -293,7 +299,8 @@ ArenaStats Arena::stats() const noexcept {
   ArenaStats s;
   s.capacity = capacity_;
   s.in_use = in_use_;
-  s.available = capacity_ - in_use_;
+  s.available = available();
+  s.withheld = withheld_;
   s.high_water = high_water_;
   s.refused = refused_;
   s.bad_releases = bad_releases_;

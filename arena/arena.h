@@ -9,6 +9,8 @@
 //
 // Invariants:
 //   - 0 <= in_use <= capacity; high_water >= in_use; slots never overlap.
+//   - in_use + withheld <= capacity: Withhold() holds back free slots only, and TryAcquire()
+//     refuses rather than hand one out.
 //   - Slot(i) is a view of exactly slot_bytes inside the reservation.
 //   - Release() of a slot that is not in use is a programmer error (asserted; ignored and
 //     counted in release builds, so a bug cannot corrupt the free stack).
@@ -58,7 +60,8 @@ struct ArenaConfig {
 struct ArenaStats {
   std::uint32_t capacity = 0;         // slots (K_max)
   std::uint32_t in_use = 0;           // slots acquired and not released
-  std::uint32_t available = 0;        // capacity - in_use
+  std::uint32_t available = 0;        // capacity - in_use - withheld: what TryAcquire can give
+  std::uint32_t withheld = 0;         // free slots held back (Withhold)
   std::uint32_t high_water = 0;       // largest in_use ever seen
   std::uint64_t refused = 0;          // TryAcquire() calls that found the arena full
   std::uint64_t bad_releases = 0;     // Release() of a slot not in use (programmer error)
@@ -115,6 +118,12 @@ class Arena {
   [[nodiscard]] std::optional<SlotIndex> TryAcquire() noexcept;
   // O(1). The slot's bytes must not be used afterwards. With release_to_os, one madvise call.
   void Release(SlotIndex slot) noexcept;
+  // Holds back `slots` of the free slots from TryAcquire (clamped to those free now; the count
+  // is set, not added; 0 gives them all back) and returns how many are held. A gate for a
+  // caller that must stop loads without touching a slot, e.g. the device ledger refusing the
+  // map process's grant (harness/device_run.cc). Slots released afterwards are not held back.
+  // O(1), touches no slot memory.
+  std::uint32_t Withhold(std::uint32_t slots) noexcept;
 
   // The slot's memory: exactly slot_bytes(), 64-byte aligned. slot must be < capacity().
   [[nodiscard]] std::span<std::byte> Slot(SlotIndex slot) noexcept;
@@ -123,7 +132,10 @@ class Arena {
 
   [[nodiscard]] std::uint32_t capacity() const noexcept { return capacity_; }
   [[nodiscard]] std::uint32_t in_use() const noexcept { return in_use_; }
-  [[nodiscard]] std::uint32_t available() const noexcept { return capacity_ - in_use_; }
+  [[nodiscard]] std::uint32_t available() const noexcept {
+    return capacity_ - in_use_ - withheld_;
+  }
+  [[nodiscard]] std::uint32_t withheld() const noexcept { return withheld_; }
   [[nodiscard]] std::uint64_t slot_bytes() const noexcept { return slot_bytes_; }
   [[nodiscard]] bool poisoning() const noexcept { return poison_; }
   [[nodiscard]] bool releases_to_os() const noexcept { return release_to_os_; }
@@ -142,6 +154,7 @@ class Arena {
   std::uint32_t free_top_ = 0;        // number of free entries on the stack
   std::uint32_t capacity_ = 0;
   std::uint32_t in_use_ = 0;
+  std::uint32_t withheld_ = 0;        // <= free_top_ (Withhold)
   std::uint32_t high_water_ = 0;
   std::uint64_t slot_bytes_ = 0;
   std::uint64_t refused_ = 0;

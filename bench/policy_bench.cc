@@ -9,7 +9,8 @@
 //   stride 50 = a zone change on every tick (the worst case for the zone policies).
 // K_max = 400 keyframes (8 zones) for every bounded policy and MemoryThr for basic.
 //
-//   build/host-release/bench/zm_policy_bench --benchmark_min_time=0.2s
+//   build/host-release/bench/zm_policy_bench --benchmark_min_time=0.2
+//   (Debian 12's Google Benchmark 1.7.1 takes seconds as a plain number; "0.2s" is 1.8's form.)
 #include <benchmark/benchmark.h>
 
 #include <algorithm>

@@ -48,6 +48,7 @@
 namespace zm {
 
 struct ExperimentProfile;
+class DeviceModel;  // harness/device_model.h
 
 inline constexpr std::string_view kCotenantNote =
     "stand-in for VLM decoding: weights mmap'ed from a file and streamed once per generated "
@@ -249,13 +250,12 @@ class CotenantProcess {
   // Starts `executable` (empty = FindCotenantExecutable()) with CotenantCommandLine(config,
   // serve). serve = requests come as command lines on its stdin ("start", "request ID T", "stop");
   // otherwise it paces itself (config.requests, options.request_period_s) and starts at once.
-  // enter_device, when given, runs in the child between fork and exec and must be
-  // async-signal-safe (e.g. DeviceModel::EnterSelf: one write); a nonzero errno makes the child
-  // write a failed_to_start line and exit 127 without running the program.
+  // device, when given, is entered by the child between fork and exec (SpawnInDevice): when it
+  // cannot enter, the program never runs and the error (a failed start) says why.
   [[nodiscard]] static Result<CotenantProcess> Spawn(const CotenantConfig& config,
                                                      std::string executable = {},
                                                      bool serve = false,
-                                                     const std::function<int()>& enter_device = {});
+                                                     const DeviceModel* device = nullptr);
   // SIGTERM: it stops between passes, writes its "end" line and exits 0.
   void RequestStop() noexcept;
   // Sends one command line (serve mode). False when the child no longer reads (it died).

@@ -212,7 +212,7 @@ void CotenantSupervisor::Loop() {
     double now = MonotonicSeconds();
     if (!child && now >= restart_at && (o.max_restarts == 0 || instance <= o.max_restarts)) {
       Result<CotenantProcess> spawned =
-          CotenantProcess::Spawn(o.config, o.executable, /*serve=*/true, o.enter_device);
+          CotenantProcess::Spawn(o.config, o.executable, /*serve=*/true, o.device);
       Record({{"event", "spawn"},
               {"instance", instance},
               {"pid", spawned.ok() ? spawned->pid() : -1}});

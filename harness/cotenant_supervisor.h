@@ -36,13 +36,13 @@ namespace zm {
 struct CotenantSupervisorOptions {
   CotenantConfig config;   // what every instance runs (config.requests is not used)
   std::string executable;  // empty = FindCotenantExecutable()
-  // Puts each new child in the device. Preferred: enter_device, run in the child between fork
-  // and exec, so not one page of it is charged outside (async-signal-safe, returns 0 or an errno:
-  // e.g. [&device] { return device->EnterSelf(); } with harness/device_model.h). Or place_child,
-  // called with the pid once it is running but before it maps anything (it waits for "start"),
-  // e.g. PlaceInCgroupProcs(".../cgroup.procs") or DeviceModel::AddProcess: what the program's
-  // start-up touched stays charged where it was. Either failing is a failed start.
-  std::function<int()> enter_device;
+  // Puts each new child in the device. Preferred: device (outliving the supervisor's run),
+  // entered by the child between fork and exec (SpawnInDevice, harness/device_model.h), so not
+  // one page of it is charged outside. Or place_child, called with the pid once it is running
+  // but before it maps anything (it waits for "start"), e.g. PlaceInCgroupProcs(
+  // ".../cgroup.procs") or DeviceModel::AddProcess: what the program's start-up touched stays
+  // charged where it was. Either failing is a failed start.
+  const DeviceModel* device = nullptr;
   std::function<Status(pid_t)> place_child;
   double restart_delay_s = 3.0;    // [cotenant] restart_delay_s
   std::uint32_t max_restarts = 0;  // 0 = unlimited (Restart=always)

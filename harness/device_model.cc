@@ -91,12 +91,14 @@ class LedgerDevice final : public DeviceModel {
 };
 
 // What the child reports through the close-on-exec pipe when it fails before exec.
+constexpr int kStageEnter = 1;  // entering the device
+constexpr int kStageExec = 2;   // redirecting its standard streams, or exec
 struct ChildFailure {
-  int stage = 0;  // 1: entering the device, 2: exec
+  int stage = 0;  // kStageEnter or kStageExec
   int err = 0;
 };
 
-void ReportAndExit(int fd, int stage, int err) noexcept {
+[[noreturn]] void ReportAndExit(int fd, int stage, int err) noexcept {
   const ChildFailure f{stage, err};
   (void)!write(fd, &f, sizeof f);
   _exit(127);
@@ -110,6 +112,47 @@ bool ReadFailure(int fd, ChildFailure* f) {
     if (n < 0 && errno == EINTR) continue;
     return n == static_cast<ssize_t>(sizeof *f);
   }
+}
+
+// The one fork protocol of SpawnInDevice and ForkInDevice. fork(); the child enters `device`
+// first, then runs in_child(report_fd), which either never returns (exec, or
+// ReportAndExit(report_fd, kStageExec, errno) when that fails) or returns to go on as the
+// caller's child (0 returned in it). The parent reads the close-on-exec pipe: empty means the
+// child is inside (and exec'd, if it meant to); a report means it has exited 127 and is reaped
+// here, and the error names `what` and the stage. in_child must be async-signal-safe.
+template <typename InChild>
+Result<pid_t> ForkReporting(const DeviceModel& device, const std::string& what,
+                            InChild&& in_child) {
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0) return IoError(what + ": pipe: " + std::strerror(errno));
+  const pid_t pid = fork();
+  if (pid < 0) {
+    const int err = errno;
+    close(fds[0]);
+    close(fds[1]);
+    return IoError(what + ": fork: " + std::strerror(err));
+  }
+  if (pid == 0) {
+    close(fds[0]);
+    const int err = device.EnterSelf();
+    if (err != 0) ReportAndExit(fds[1], kStageEnter, err);
+    in_child(fds[1]);
+    close(fds[1]);  // empty: inside
+    return pid_t{0};
+  }
+  close(fds[1]);
+  ChildFailure f;
+  const bool failed = ReadFailure(fds[0], &f);
+  close(fds[0]);
+  if (!failed) return pid;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (f.stage == kStageEnter) {
+    return IoError(what + ": the child could not enter the device (" + device.Describe() +
+                   "): " + std::strerror(f.err));
+  }
+  return IoError(what + ": cannot execute it: " + std::strerror(f.err));
 }
 
 }  // namespace
@@ -153,72 +196,20 @@ Result<pid_t> SpawnInDevice(const SpawnRequest& request, const DeviceModel& devi
   argv.reserve(request.argv.size() + 1);
   for (const std::string& a : request.argv) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
-  int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0)
-    return IoError(std::string("spawn: pipe: ") + std::strerror(errno));
-  const pid_t pid = fork();
-  if (pid < 0) {
-    const int err = errno;
-    close(fds[0]);
-    close(fds[1]);
-    return IoError("spawn " + request.argv[0] + ": fork: " + std::strerror(err));
-  }
-  if (pid == 0) {
-    close(fds[0]);
-    if (request.stdout_fd >= 0 && dup2(request.stdout_fd, STDOUT_FILENO) < 0) {
-      ReportAndExit(fds[1], 2, errno);
+  return ForkReporting(device, "spawn " + request.argv[0], [&](int report_fd) noexcept {
+    const std::pair<int, int> redirects[] = {{request.stdin_fd, STDIN_FILENO},
+                                             {request.stdout_fd, STDOUT_FILENO},
+                                             {request.stderr_fd, STDERR_FILENO}};
+    for (const auto& [from, to] : redirects) {
+      if (from >= 0 && dup2(from, to) < 0) ReportAndExit(report_fd, kStageExec, errno);
     }
-    if (request.stderr_fd >= 0 && dup2(request.stderr_fd, STDERR_FILENO) < 0) {
-      ReportAndExit(fds[1], 2, errno);
-    }
-    const int err = device.EnterSelf();
-    if (err != 0) ReportAndExit(fds[1], 1, err);
     execvp(argv[0], argv.data());
-    ReportAndExit(fds[1], 2, errno);
-  }
-  close(fds[1]);
-  ChildFailure f;
-  const bool failed = ReadFailure(fds[0], &f);
-  close(fds[0]);
-  if (!failed) return pid;
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (f.stage == 1) {
-    return IoError("spawn " + request.argv[0] + ": the child could not enter the device (" +
-                   device.Describe() + "): " + std::strerror(f.err));
-  }
-  return IoError("spawn " + request.argv[0] + ": cannot execute it: " + std::strerror(f.err));
+    ReportAndExit(report_fd, kStageExec, errno);
+  });
 }
 
 Result<pid_t> ForkInDevice(const DeviceModel& device) {
-  int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0)
-    return IoError(std::string("fork: pipe: ") + std::strerror(errno));
-  const pid_t pid = fork();
-  if (pid < 0) {
-    const int err = errno;
-    close(fds[0]);
-    close(fds[1]);
-    return IoError(std::string("fork: ") + std::strerror(err));
-  }
-  if (pid == 0) {
-    close(fds[0]);
-    const int err = device.EnterSelf();
-    if (err != 0) ReportAndExit(fds[1], 1, err);
-    close(fds[1]);  // empty: inside
-    return pid_t{0};
-  }
-  close(fds[1]);
-  ChildFailure f;
-  const bool failed = ReadFailure(fds[0], &f);
-  close(fds[0]);
-  if (!failed) return pid;
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  return IoError("fork: the child could not enter the device (" + device.Describe() +
-                 "): " + std::strerror(f.err));
+  return ForkReporting(device, "fork in the device", [](int) noexcept {});
 }
 
 ChildExit DescribeWaitStatus(int wait_status) noexcept {

@@ -95,12 +95,14 @@ struct DeviceModelOptions {
 
 struct SpawnRequest {
   std::vector<std::string> argv;  // argv[0] is looked up in PATH
+  int stdin_fd = -1;              // becomes the child's stdin when >= 0
   int stdout_fd = -1;             // becomes the child's stdout when >= 0
   int stderr_fd = -1;             // becomes the child's stderr when >= 0
 };
 
-// fork(), move the child into `device`, exec. The child never runs a single instruction of the
-// program outside the device: if it cannot enter, it exits (127) and the error names why.
+// fork(), move the child into `device`, redirect its standard streams, exec. The child never
+// runs a single instruction of the program outside the device: if it cannot enter (or exec), it
+// exits (127), is reaped, and the error names why.
 [[nodiscard]] Result<pid_t> SpawnInDevice(const SpawnRequest& request, const DeviceModel& device);
 
 // fork() with the child moved into `device` before fork returns in it: 0 in the child, the

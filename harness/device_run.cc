@@ -94,7 +94,6 @@ bool ReadAll(int fd, void* p, std::size_t n) {
   }
   ProcessSampler self;
   if (auto s = ProcessSampler::Open(getpid()); s.ok()) self = std::move(s).value();
-  std::vector<SlotIndex> withheld;  // ledger: free slots held back while a grant is refused
   std::uint64_t ledger_refusals = 0;
 
   RunRequest run;
@@ -120,26 +119,19 @@ bool ReadAll(int fd, void* p, std::size_t n) {
     close(go_fd);
     return origin;
   };
-  // The ledger's grant of the map process, and what a refusal does: the free slots are held back
-  // so no keyframe loads until a later grant succeeds (reserved here: no allocation in a tick).
+  // The ledger's grant of the map process, and what a refusal does: the arena's free slots are
+  // withheld (TickLoop::WithholdSlots) so no keyframe loads until a later grant succeeds.
   run.on_tick = [&, extra = std::array<char, 512>{}](
-                    const TickLoop& l, const TickClock& clock) mutable -> std::string_view {
+                    TickLoop& l, const TickClock& clock) mutable -> std::string_view {
     if (tenant) {
-      // The arena is the loop's; between ticks nothing else touches it (one thread).
-      Arena& arena = const_cast<Arena&>(l.arena());
-      if (withheld.capacity() < arena.capacity()) withheld.reserve(arena.capacity());
-      const std::uint64_t slots = l.bounded() ? arena.capacity() : arena.in_use() - withheld.size();
+      const Arena& arena = l.arena();
+      const std::uint64_t slots = l.bounded() ? arena.capacity() : arena.in_use();
       const std::uint64_t want = l.config().map.overhead_bytes + slots * l.slot_bytes();
       if (want == tenant->bytes() || tenant->TryUpdate(want)) {
-        for (SlotIndex s : withheld) arena.Release(s);
-        withheld.clear();
+        (void)l.WithholdSlots(0);
       } else {
         ++ledger_refusals;
-        while (arena.available() > 0) {
-          const auto s = arena.TryAcquire();
-          if (!s) break;
-          withheld.push_back(*s);
-        }
+        (void)l.WithholdSlots(arena.capacity());  // every free slot
       }
     }
     if (request.map_tick_hook) request.map_tick_hook(l);
@@ -399,8 +391,7 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
     so.config.device_scale = request.device_scale;
     if (device->ledger() != nullptr) so.config.ledger_path = dopt.ledger_path;
     so.executable = request.cotenant_executable;
-    DeviceModel* dev = device.get();
-    if (device->cgroup() != nullptr) so.enter_device = [dev] { return dev->EnterSelf(); };
+    if (device->cgroup() != nullptr) so.device = device.get();
     so.restart_delay_s = request.profile.cotenant.restart_delay_s;
     so.request_period_s = period_s;
     so.max_requests = request.cotenant_requests;

@@ -59,10 +59,11 @@ Result<ExperimentProfile> ParseExperimentProfile(std::string_view toml_text,
   return Read(doc);
 }
 
-Status ApplyModelOverride(std::string_view model_name, ExperimentProfile& profile) {
+Status ApplyModelOverride(std::string_view model_name, ExperimentProfile& profile,
+                          ModelShare share) {
   ZM_ASSIGN_OR_RETURN(const CotenantModel model, FindCotenantModel(model_name));
   Profile& p = profile.core;
-  if (p.map.map_share_bytes == 0) {
+  if (share == ModelShare::kFrozen && p.map.map_share_bytes == 0) {
     ZM_ASSIGN_OR_RETURN(p.map.map_share_bytes, MapShareBytes(p));
   }
   p.model.name = std::string(model.name);

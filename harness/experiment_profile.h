@@ -25,9 +25,16 @@ struct ExperimentProfile {
 [[nodiscard]] Result<ExperimentProfile> ParseExperimentProfile(std::string_view toml_text,
                                                                const std::string& source);
 
+// What becomes of a derived map share when [model] changes.
+enum class ModelShare {
+  kFrozen,     // kept as derived for the profile's model (--cotenant: the paper's fixed MemoryThr)
+  kRederived,  // derived anew for the new model (`zonemap budget --model`: a profile written for it)
+};
+
 // --cotenant MODEL: the paper's model by name (cotenant.h's table) becomes [model]. The map share
 // was planned for the profile's model, and the paper keeps MemoryThr fixed while models change,
-// so the derived share is frozen first.
-[[nodiscard]] Status ApplyModelOverride(std::string_view model_name, ExperimentProfile& profile);
+// so by default the derived share is frozen first.
+[[nodiscard]] Status ApplyModelOverride(std::string_view model_name, ExperimentProfile& profile,
+                                        ModelShare share = ModelShare::kFrozen);
 
 }  // namespace zm

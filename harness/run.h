@@ -40,10 +40,11 @@ struct RunRequest {
   // returns the clock origin (CLOCK_MONOTONIC s) at which the first frame arrives, e.g. after a
   // handshake with the process running the experiment. Empty: now.
   std::function<Result<double>(const TickLoop&)> on_ready;
-  // Called after every tick (device bookkeeping); may be empty. Whatever it returns (a
-  // `"key":value,...` fragment, or empty) is appended to that tick's telemetry line. Must not
-  // allocate (a warm tick allocates nothing).
-  std::function<std::string_view(const TickLoop&, const TickClock&)> on_tick;
+  // Called after every tick (device bookkeeping; it may steer the loop between ticks, e.g.
+  // TickLoop::WithholdSlots); may be empty. Whatever it returns (a `"key":value,...` fragment,
+  // or empty) is appended to that tick's telemetry line. Must not allocate (a warm tick
+  // allocates nothing).
+  std::function<std::string_view(TickLoop&, const TickClock&)> on_tick;
 };
 
 // Runs the replay. estimate.tum is streamed (flushed with the telemetry), so a process killed

@@ -29,11 +29,13 @@ Modes:
   scripts/sweep.py demo [--profile P] [--scenario DIR]
       the arithmetic that picks `make demo`'s map (README, "The demo's arithmetic")
 
-The K_max arithmetic here mirrors lib/runtime/budget.cc's DeriveBudget (the one derivation of
-K_max in C++; Python cannot call it): measured runs print the program's own K_max beside this
-one and the sweep stops if they differ. The model table mirrors harness/cotenant.cc's kModels.
+K_max and the map share are the program's: `zonemap budget --stdin` answers with
+lib/runtime/budget.h's DeriveBudget (the one derivation of K_max), so every mode needs a built
+zonemap ($ZONEMAP, default build/host-release/app/zonemap). The arithmetic left here is Basic's
+demand and the co-tenant's KV cache. The model table mirrors harness/cotenant.cc's kModels.
 """
 import argparse
+import atexit
 import csv
 import json
 import math
@@ -84,15 +86,14 @@ def load_profile(name):
     d, m, mp, ct = p["device"], p["model"], p["map"], p.get("cotenant", {})
     return {
         "name": os.path.splitext(os.path.basename(path))[0],
+        "path": os.path.abspath(path),
         "memory": parse_bytes(d["memory_bytes"]),
         "os_reserve": parse_bytes(d.get("os_reserve_bytes", 0)),
         "model": m.get("name", ""),
         "weights": parse_bytes(m.get("weights_bytes", 0)),
         "kv_cache": parse_bytes(m.get("kv_cache_bytes", 0)),
-        "share": parse_bytes(mp.get("map_share_bytes", 0)),
         "headroom": parse_bytes(mp.get("headroom_bytes", 0)),
         "overhead": parse_bytes(mp.get("overhead_bytes", 0)),
-        "memory_thr": int(mp.get("memory_thr_keyframes", 0)),
         "request_tokens": int(ct.get("prompt_tokens", 256)) + int(ct.get("answer_tokens", 64)),
         "context_tokens": int(ct.get("context_tokens", 4096)),
         "kv_allocation": ct.get("kv_allocation", "per_request"),
@@ -103,7 +104,7 @@ def scale_profile(prof, scale):
     """--device-scale S (harness/device_scale.h): every byte of the memory split times S (nearest
     byte), keyframe counts unchanged. The model's weights and KV scale with it (scale_models)."""
     p = dict(prof)
-    for k in ("memory", "os_reserve", "weights", "kv_cache", "share", "headroom", "overhead"):
+    for k in ("memory", "os_reserve", "weights", "kv_cache", "headroom", "overhead"):
         p[k] = int(round(p[k] * scale)) if p[k] else 0
     p["scale"] = scale
     return p
@@ -128,33 +129,58 @@ def model_bytes(prof, model):
     return int(round(MODELS[model][0] * sc)), int(round(cotenant_kv(prof, model) * sc))
 
 
-def map_share(prof, weights, kv_cache):
-    """MapShareBytes: the explicit share, or memory - OS reserve - model - headroom."""
-    if prof["share"]:
-        return prof["share"]
-    taken = prof["os_reserve"] + weights + kv_cache + prof["headroom"]
-    return prof["memory"] - taken if taken < prof["memory"] else None
+_BUDGET_PROCS = {}  # (profile, scale, override) -> a running `zonemap budget --stdin`
+_BUDGETS = {}       # (profile, scale, override, keyframes, slot) -> its answer
 
 
-def k_max(prof, slot, n, share):
-    """DeriveBudget's K_max for a bounded policy (None: no room for one slot)."""
-    k = n
-    if prof["memory_thr"]:
-        k = min(k, prof["memory_thr"])
-    if share is None or share <= prof["overhead"]:
-        return None
-    fit = (share - prof["overhead"]) // slot
-    return min(k, fit) if fit > 0 else None
+def budget(prof, slot, n, model=None, cotenant=None):
+    """The program's budget (DeriveBudget, semantic policy) for a map of n keyframes of at most
+    `slot` bytes under prof at its device scale: the dict `zonemap budget` prints (k_max,
+    map_share_bytes, ...), None when it refuses (no room for one slot). model: a profile written
+    for that model (its share derived anew); cotenant: as `zonemap run --cotenant` (the share
+    frozen). One process per profile variant answers all of its maps."""
+    key = (prof["path"], prof.get("scale", 1.0), model, cotenant)
+    proc = _BUDGET_PROCS.get(key)
+    cmd = [zonemap_exe(), "budget", "--stdin", "--profile", prof["path"], "--policy", "semantic",
+           "--device-scale", f"{prof.get('scale', 1.0):.17g}"]
+    cmd += ["--model", model] if model else []
+    cmd += ["--cotenant", cotenant] if cotenant else []
+    if proc is None:
+        try:
+            proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        except OSError as e:
+            raise SystemExit(f"sweep: cannot run {cmd[0]} ({e}): build it, or set ZONEMAP")
+        _BUDGET_PROCS[key] = proc
+    if key + (n, slot) not in _BUDGETS:
+        proc.stdin.write(f"{n} {slot}\n")
+        proc.stdin.flush()
+        line = proc.stdout.readline()
+        if not line:
+            raise SystemExit(f"sweep: `{' '.join(cmd)}` stopped answering (exit {proc.wait()})")
+        _BUDGETS[key + (n, slot)] = json.loads(line)
+    b = _BUDGETS[key + (n, slot)]
+    return None if "error" in b else b
+
+
+@atexit.register
+def _close_budgets():
+    for proc in _BUDGET_PROCS.values():
+        proc.stdin.close()  # end of input: it exits
+        proc.wait()
+
+
+def k_max(prof, slot, n, model=None):
+    """K_max for a bounded policy (None: no room for one slot); see budget()."""
+    b = budget(prof, slot, n, model=model)
+    return b["k_max"] if b else None
 
 
 def grid_point(prof, n, slot, model):
     w, kv = model_bytes(prof, model)
     base = prof["os_reserve"] + prof["overhead"] + w + kv
     basic = base + n * slot
-    own_share = map_share(prof, w, prof["kv_cache"])
-    k_own = k_max(prof, slot, n, own_share)
-    prof_share = map_share(prof, prof["weights"], prof["kv_cache"])  # frozen with the profile's model
-    k_frozen = k_max(prof, slot, n, prof_share)
+    k_own = k_max(prof, slot, n, model=model)
+    k_frozen = k_max(prof, slot, n)  # MemoryThr as derived for the profile's model
     return {
         "keyframes": n, "slot_bytes": slot, "model": model, "weights_bytes": w, "kv_bytes": kv,
         "basic_demand_bytes": basic,
@@ -297,8 +323,8 @@ def demo_arithmetic(prof, slot=2_156_976, median=2_098_464):
     m = prof["model"]
     w, kv = model_bytes(prof, m)
     limit = prof["memory"] - prof["os_reserve"]
-    share = map_share(prof, prof["weights"], prof["kv_cache"])
-    k = k_max(prof, slot, 10**9, share)
+    b = budget(prof, slot, 10**9) or {}
+    share, k = b.get("map_share_bytes"), b.get("k_max")
     n_lo = (limit - prof["overhead"] - w - kv) // slot + 1   # smallest map Basic + model overflows
     n_hi = (limit - prof["overhead"]) // slot                # largest map Basic alone fits
     return {"limit": limit, "share": share, "k_max": k, "weights": w, "kv": kv,
@@ -445,11 +471,11 @@ def measure(prof, args):
                     "basic_demand_bytes" if policy == "basic" else "semantic_demand_bytes"]
                 / sprof["memory"],
             })
-            mine = k_max(sprof, s.get("slot_bytes") or slot, n,
-                         map_share(sprof, sprof["weights"], sprof["kv_cache"]))
-            if policy == "semantic" and s.get("k_max") and mine and abs(mine - s["k_max"]) > 2:
-                raise SystemExit(f"sweep: K_max here {mine} != the program's {s['k_max']} "
-                                 f"({rdir}): this script's DeriveBudget mirror is out of date")
+            planned = budget(sprof, s.get("slot_bytes") or slot, n, cotenant=model) or {}
+            if policy == "semantic" and s.get("k_max") and planned.get("k_max") != s["k_max"]:
+                raise SystemExit(f"sweep: K_max planned {planned.get('k_max')} != the run's "
+                                 f"{s['k_max']} ({rdir}): the sweep's budget flags differ from "
+                                 "the run's")
     return measured
 
 

@@ -1,5 +1,4 @@
-// Shared start-up pieces: see map_setup.h. The tick loop's Create() does the same steps inline
-// (tick_loop.cc); these are the same rules for callers that build their own map index.
+// Shared start-up pieces: see map_setup.h. The tick loop and the public API both call them.
 #include "runtime/map_setup.h"
 
 #include <utility>
@@ -26,19 +25,29 @@ Result<MapIndex> BuildPolicyIndex(std::span<const KeyframeMeta> keyframes,
   return MapIndex::Build(input);
 }
 
+bool StartsFromLastWorkingMemory(const PolicyOptions& policy) {
+  return policy.policy == "basic" && !policy.basic.init_wm_with_all_nodes &&
+         policy.basic.initial_wm.empty();
+}
+
 PolicyOptions PolicyOptionsFor(const LoopConfig& config, const Budget& budget,
                                std::span<const KeyframeMeta> keyframes,
-                               std::vector<ZoneId> oracle_future) {
+                               std::vector<ZoneId> oracle_future, RecordedWorkingMemory* recorded) {
   PolicyOptions popt = config.policy;
   popt.k_max = budget.k_max;
   popt.oracle.future = std::move(oracle_future);
   if (popt.policy == "basic") {
+    // Memory management is on when MemoryThr is set (RTAB-Map: MemoryThr > 0).
     const bool any_limit = config.map.memory_thr_keyframes != 0 || budget.map_share_bytes != 0;
     popt.basic.memory_thr = any_limit ? budget.k_max : 0;
     popt.k_max = popt.basic.memory_thr;
-    if (!popt.basic.init_wm_with_all_nodes && popt.basic.initial_wm.empty()) {
-      popt.basic.initial_wm.reserve(keyframes.size());
-      for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+    if (StartsFromLastWorkingMemory(config.policy)) {
+      if (recorded != nullptr && !recorded->every_node) {
+        popt.basic.initial_wm = std::move(recorded->ids);
+      } else {
+        popt.basic.initial_wm.reserve(keyframes.size());
+        for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
+      }
     }
   }
   return popt;

@@ -1,8 +1,8 @@
-// Start-up pieces shared by the tick loop and the public API's host path (include/zonemap/
-// ZoneManager, which has no database, arena or frame source): the MapIndex the policies decide
-// on, the policy's options for one budget, and RTAB-Map's small-displacement rule. One
-// implementation each (docs/style.md §14), so a host driving zonemap with its own keyframes gets
-// exactly the policy zonemapd runs.
+// Start-up pieces shared by the tick loop (TickLoop::Create and Tick call them) and the public
+// API's host path (include/zonemap/ZoneManager, which has no database, arena or frame source):
+// the MapIndex the policies decide on, the policy's options for one budget, and RTAB-Map's
+// small-displacement rule. One implementation each (docs/style.md §14), so a host driving
+// zonemap with its own keyframes gets exactly the policy zonemapd runs.
 //
 // BuildPolicyIndex and PolicyOptionsFor allocate (start-up only); IsSmallDisplacement is a
 // per-tick function and allocates nothing.
@@ -30,16 +30,23 @@ namespace zm {
                                                 const ZoneSet& zones,
                                                 std::span<const ZoneMember> members);
 
+// Whether `policy` starts from the map's last working memory: basic with
+// Mem/InitWMWithAllNodes=false and no working memory given. Only then does a caller with a map
+// database read MapReader::LastWorkingMemory() for PolicyOptionsFor (an RTAB-Map import that
+// predates the record is refused there, so nobody else may ask).
+[[nodiscard]] bool StartsFromLastWorkingMemory(const PolicyOptions& policy);
+
 // The policy's options for a map under `budget`: config.policy with K_max, the oracle's future,
 // and for basic its MemoryThr (memory management is on when a count or byte limit is set, as
-// RTAB-Map's MemoryThr > 0) and its start-up working memory: Mem/InitWMWithAllNodes=false
-// starts from the map's last working memory, which a map built without memory management
-// records as every node (basic-baseline.md §3.4). A caller without a map database (the public
-// API's ZoneManager) has no recorded one, so this gives every node; TickLoop::Create uses the
-// database's LastWorkingMemory() first when it has one.
+// RTAB-Map's MemoryThr > 0) and, when StartsFromLastWorkingMemory, its start-up working memory:
+// the map's last one, `recorded` (what an imported RTAB-Map database recorded: Node.time_enter
+// >= the last Info.time_enter), or every node when the map recorded none or says every node (a
+// map built without memory management; basic-baseline.md §3.4). A caller without a map database
+// (the public API's ZoneManager) passes none; TickLoop::Create passes the database's.
 [[nodiscard]] PolicyOptions PolicyOptionsFor(const LoopConfig& config, const Budget& budget,
                                              std::span<const KeyframeMeta> keyframes,
-                                             std::vector<ZoneId> oracle_future);
+                                             std::vector<ZoneId> oracle_future,
+                                             RecordedWorkingMemory* recorded = nullptr);
 
 // RGBD/LinearUpdate and RGBD/AngularUpdate: `now` moved less than both thresholds of `options`
 // from `last_kept`, the last pose that was not a small displacement.

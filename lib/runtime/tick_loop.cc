@@ -6,7 +6,7 @@
 #include <cmath>
 #include <utility>
 
-#include "zones/adjacency.h"
+#include "runtime/map_setup.h"
 
 namespace zm {
 namespace {
@@ -46,20 +46,7 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
         "the map database has no zones: run `zonemap zones annotate DB ZONES.geojson` first");
   }
   ZM_ASSIGN_OR_RETURN(ZoneSet zone_set, ZoneSetFromRecords(zone_records, members));
-  const ZoneGraph graph = BuildAdjacency(zone_set, members, links);
-
-  MapIndexInput input;
-  input.keyframes = keyframes;
-  input.links = links;
-  input.members = members;
-  input.zone_count = static_cast<std::int32_t>(zone_records.size());
-  std::vector<std::vector<ZoneId>> adjacency(zone_records.size());
-  for (std::size_t z = 0; z < zone_records.size(); ++z) {
-    const auto nb = graph.Neighbours(ZoneId{static_cast<std::int32_t>(z)});
-    adjacency[z].assign(nb.begin(), nb.end());
-  }
-  input.zone_adjacency = adjacency;
-  ZM_ASSIGN_OR_RETURN(MapIndex index, MapIndex::Build(input));
+  ZM_ASSIGN_OR_RETURN(MapIndex index, BuildPolicyIndex(keyframes, links, zone_set, members));
 
   // The one derivation of K_max and the arena (budget.h).
   BudgetInputs budget_in;
@@ -90,28 +77,13 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   loop->zone_index_ = ZoneIndex(loop->zone_set_, config.zones);
   loop->route_ = std::move(plan_inputs.route);
 
-  PolicyOptions popt = config.policy;
-  popt.k_max = budget.k_max;
-  popt.oracle.future = std::move(plan_inputs.oracle_future);
-  if (popt.policy == "basic") {
-    // Memory management is on when MemoryThr is set (RTAB-Map: MemoryThr > 0).
-    const bool any_limit = config.map.memory_thr_keyframes != 0 || budget.map_share_bytes != 0;
-    popt.basic.memory_thr = any_limit ? budget.k_max : 0;
-    popt.k_max = popt.basic.memory_thr;
-    if (!popt.basic.init_wm_with_all_nodes && popt.basic.initial_wm.empty()) {
-      // Mem/InitWMWithAllNodes=false starts from the map's last working memory: the one an
-      // imported RTAB-Map database recorded (Node.time_enter >= the last Info.time_enter), or,
-      // for a map built without memory management (the simulator's), every node
-      // (basic-baseline.md §3.4). An RTAB-Map import that predates the record is refused.
-      ZM_ASSIGN_OR_RETURN(RecordedWorkingMemory last, map.LastWorkingMemory());
-      if (!last.every_node) {
-        popt.basic.initial_wm = std::move(last.ids);
-      } else {
-        popt.basic.initial_wm.reserve(keyframes.size());
-        for (const KeyframeMeta& k : keyframes) popt.basic.initial_wm.push_back(k.id);
-      }
-    }
+  // basic may start from the working memory the map database recorded (map_setup.h).
+  RecordedWorkingMemory recorded;
+  if (StartsFromLastWorkingMemory(config.policy)) {
+    ZM_ASSIGN_OR_RETURN(recorded, map.LastWorkingMemory());
   }
+  PolicyOptions popt = PolicyOptionsFor(config, budget, keyframes,
+                                        std::move(plan_inputs.oracle_future), &recorded);
   // basic reads the long-term-memory nodes its graph searches admit from the map database.
   loop->ltm_graph_ = std::make_unique<SourceLtmGraph>(loop->map_index_, map);
   ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt, loop->ltm_graph_.get()));
@@ -192,13 +164,8 @@ Result<bool> TickLoop::Tick() {
   t0 = Clock::now();
   const Pose3 correction = t_map_odom_;
   const Pose3 predicted = correction * frame_.odom;
-  bool small = false;
-  if (have_kept_pose_) {
-    const Pose3 delta = last_kept_pose_.inverse() * predicted;
-    const double angle = Eigen::AngleAxisd(delta.linear()).angle();
-    small = delta.translation().norm() < config_.loop.small_displacement_m &&
-            angle < config_.loop.small_displacement_rad;
-  }
+  const bool small =
+      have_kept_pose_ && IsSmallDisplacement(last_kept_pose_, predicted, config_.loop);
   if (!small) {
     last_kept_pose_ = predicted;
     have_kept_pose_ = true;

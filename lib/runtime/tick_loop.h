@@ -257,6 +257,11 @@ class TickLoop {
   // bounded policies): more is clamped to it, never grown. 0 is refused; unbounded ignores it.
   // Keyframes unloaded count in totals(). No allocation.
   [[nodiscard]] BudgetChange SetBudget(std::uint64_t k_max);
+  // Holds back up to `slots` of the arena's free slots from loads (Arena::Withhold: set, not
+  // added; 0 gives them back), between ticks: the harness's device ledger does so while it
+  // refuses the map process's grant, so nothing more loads until a grant succeeds. Residency is
+  // untouched (nothing is unloaded). Returns how many are held. No allocation.
+  std::uint32_t WithholdSlots(std::uint32_t slots) noexcept { return arena_.Withhold(slots); }
 
  private:
   TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index);

@@ -97,6 +97,54 @@ TEST_CASE("refuses when full and never grows") {
   CHECK(a.in_use() == 3);
 }
 
+TEST_CASE("withheld slots cannot be acquired, and resident + withheld never exceeds capacity") {
+  Arena a = MakeArena({.memory_thr_keyframes = 5, .budget_bytes = 0, .slot_bytes = 64});
+  const auto bounded = [&a] {
+    const ArenaStats st = a.stats();
+    return st.in_use + st.withheld <= st.capacity && st.available + st.in_use + st.withheld == st.capacity;
+  };
+  auto s0 = a.TryAcquire();
+  auto s1 = a.TryAcquire();
+  REQUIRE((s0 && s1));
+  CHECK(a.Withhold(2) == 2);  // of the 3 free slots
+  CHECK(a.withheld() == 2);
+  CHECK(a.available() == 1);
+  CHECK(bounded());
+  auto s2 = a.TryAcquire();  // the one not withheld
+  REQUIRE(s2.has_value());
+  CHECK_FALSE(a.TryAcquire().has_value());  // the withheld two stay out of reach
+  CHECK(a.stats().refused == 1);
+  CHECK(a.in_use() == 3);
+  CHECK(bounded());
+
+  // More than is free is clamped: the count is set, never above the free slots.
+  CHECK(a.Withhold(100) == 2);
+  CHECK(bounded());
+  // A slot released meanwhile is not withheld: it can be acquired again.
+  a.Release(*s0);
+  CHECK(a.available() == 1);
+  auto again = a.TryAcquire();
+  REQUIRE(again.has_value());
+  CHECK_FALSE(a.TryAcquire().has_value());
+  CHECK(bounded());
+
+  // Withholding every free slot, then giving them back: loads resume, up to capacity only.
+  a.Release(*s1);
+  CHECK(a.Withhold(a.capacity()) == 3);
+  CHECK(a.available() == 0);
+  CHECK_FALSE(a.TryAcquire().has_value());
+  CHECK(bounded());
+  CHECK(a.Withhold(0) == 0);
+  CHECK(a.available() == 3);
+  std::uint32_t got = 0;
+  while (a.TryAcquire()) ++got;
+  CHECK(got == 3);
+  CHECK(a.in_use() == a.capacity());
+  CHECK(bounded());
+  // Withholding touches no slot: nothing was acquired for it (the high-water is real use).
+  CHECK(a.stats().high_water == a.capacity());
+}
+
 TEST_CASE("slots are disjoint, aligned and exactly slot_bytes") {
   Arena a = MakeArena({.memory_thr_keyframes = 50, .budget_bytes = 0, .slot_bytes = 100});
   std::vector<std::span<std::byte>> spans;

@@ -4,6 +4,7 @@
 #include "harness/device_model.h"
 
 #include <doctest/doctest.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -165,6 +166,88 @@ TEST_CASE("spawning a program that does not exist names it, and nothing is left 
   REQUIRE_FALSE(pid.ok());
   CHECK(pid.status().message().find("/nonexistent/zm-program") != std::string::npos);
   CHECK(SpawnInDevice(SpawnRequest{}, **d).status().message().find("empty") != std::string::npos);
+  CHECK((*d)->Remove().ok());
+}
+
+// A device no child can enter (EnterSelf fails as a cgroup's procs file would for EACCES).
+class RefusingDevice final : public DeviceModel {
+ public:
+  DeviceKind kind() const noexcept override { return DeviceKind::kCgroup; }
+  std::uint64_t limit_bytes() const noexcept override { return 32 * kMiB; }
+  std::string Describe() const override { return "refusing test device"; }
+  Status AddProcess(pid_t) override { return Status::Ok(); }
+  int EnterSelf() const noexcept override { return EACCES; }
+  DeviceSample Sample() noexcept override { return {}; }
+  Status Remove() override { return Status::Ok(); }
+};
+
+// True when the calling process has no child left, running or unreaped.
+bool NoChildLeft() {
+  int status = 0;
+  return waitpid(-1, &status, WNOHANG) < 0 && errno == ECHILD;
+}
+
+TEST_CASE("a child that cannot enter the device never runs; spawn and fork name the device") {
+  const RefusingDevice dev;
+  std::array<int, 2> out{};
+  REQUIRE(pipe(out.data()) == 0);
+  SpawnRequest req;
+  req.argv = {"echo", "ran outside the device"};
+  req.stdout_fd = out[1];
+  auto spawned = SpawnInDevice(req, dev);
+  close(out[1]);
+  REQUIRE_FALSE(spawned.ok());
+  CHECK(spawned.status().message().find("spawn echo") != std::string::npos);
+  CHECK(spawned.status().message().find("could not enter the device (refusing test device)") !=
+        std::string::npos);
+  std::array<char, 64> buf{};
+  CHECK(read(out[0], buf.data(), buf.size()) == 0);  // it never ran: nothing written
+  close(out[0]);
+
+  auto forked = ForkInDevice(dev);  // the child exits 127 in there: only the parent goes on
+  REQUIRE_FALSE(forked.ok());
+  CHECK(forked.status().message().find("could not enter the device (refusing test device)") !=
+        std::string::npos);
+  CHECK(NoChildLeft());
+}
+
+TEST_CASE("a spawned program reads the stdin it was given and writes the stdout") {
+  DeviceModelOptions o;
+  o.kind = DeviceKind::kLedger;
+  o.limit_bytes = 32 * kMiB;
+  o.ledger_path = TestLedgerPath();
+  auto d = OpenDeviceModel(o);
+  REQUIRE(d.ok());
+  // Close-on-exec, so the child keeps only its stdin and stdout (and sees the end of its input).
+  std::array<int, 2> in{};
+  std::array<int, 2> out{};
+  REQUIRE(pipe2(in.data(), O_CLOEXEC) == 0);
+  REQUIRE(pipe2(out.data(), O_CLOEXEC) == 0);
+  SpawnRequest req;
+  req.argv = {"cat"};
+  req.stdin_fd = in[0];
+  req.stdout_fd = out[1];
+  auto pid = SpawnInDevice(req, **d);
+  close(in[0]);
+  close(out[1]);
+  if (!pid.ok()) {
+    close(in[1]);
+    close(out[0]);
+    MESSAGE("SKIPPED: cannot spawn here: " << pid.status().message());
+    CHECK((*d)->Remove().ok());
+    return;
+  }
+  REQUIRE(write(in[1], "zones\n", 6) == 6);
+  close(in[1]);
+  std::string text;
+  std::array<char, 64> buf{};
+  for (ssize_t n; (n = read(out[0], buf.data(), buf.size())) > 0;)
+    text.append(buf.data(), static_cast<std::size_t>(n));
+  close(out[0]);
+  const ChildExit e = DescribeWaitStatus(Reap(*pid));
+  CHECK(e.exited);
+  CHECK(e.code == 0);
+  CHECK(text == "zones\n");
   CHECK((*d)->Remove().ok());
 }
 

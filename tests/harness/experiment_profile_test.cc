@@ -85,5 +85,17 @@ TEST_CASE("--cotenant changes the model but keeps the planned map share") {
   CHECK(Contains(unknown.message(), "gpt-9"));
 }
 
+TEST_CASE("a profile re-derived for another model gives its map share to the model's weights") {
+  Result<ExperimentProfile> loaded = LoadExperimentProfile("orin-nano-8gb");
+  REQUIRE(loaded.ok());
+  ExperimentProfile p = *loaded;
+  const std::uint64_t share = *MapShareBytes(p.core);
+  const std::uint64_t weights = p.core.model.weights_bytes;
+  REQUIRE(ApplyModelOverride("gemma3-4b", p, ModelShare::kRederived).ok());
+  CHECK(p.core.model.name == "gemma3-4b");
+  CHECK(p.core.map.map_share_bytes == 0);  // still derived, not frozen
+  CHECK(*MapShareBytes(p.core) == share - (3'300'000'000ULL - weights));
+}
+
 }  // namespace
 }  // namespace zm

@@ -13,9 +13,9 @@
 #include <tuple>
 #include <variant>
 
-#include "mapdb/keyframe_payload.h"
 #include "memory/basic_policy.h"
 #include "memory/working_set.h"
+#include "support/test_building.h"
 
 namespace zm {
 namespace {
@@ -35,41 +35,18 @@ struct TestMap {
     dir = std::filesystem::temp_directory_path() / ("zm_ltm_graph_" + std::to_string(getpid()));
     std::filesystem::create_directories(dir);
     path = (dir / "map.db").string();
-    std::mt19937 rng(5);
-    std::vector<std::vector<std::byte>> payloads;
-    std::vector<KeyframeRecord> recs;
-    for (std::int64_t id = 1; id <= 96; ++id) {
-      const Descriptor256 d{};
-      const float pt[3] = {0, 0, 1}, kp[2] = {1, 1};
-      auto p =
-          EncodePayload(PayloadParts{KeyframeId{id}, {&d, 1}, pt, kp, DenseFormat::kNone, {}, 0});
-      REQUIRE(p.ok());
-      payloads.push_back(std::move(p).value());
-      KeyframeMeta m;
-      m.id = KeyframeId{id};
-      const auto i = static_cast<int>(id - 1);
-      m.pose = PoseFromXYYaw(25.0 * (i / 12) + 2.0 * (i % 4), 2.0 * ((i % 12) / 4), 0.0);
-      m.weight = id % 17 == 0 ? -1 : static_cast<std::int32_t>(rng() % 4);
-      m.payload_bytes = static_cast<std::uint32_t>(payloads.back().size());
-      keyframes.push_back(m);
-      if (id > 1)
-        links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkType::kNeighbor});
-    }
-    for (int i = 0; i < 20; ++i) {
-      const std::int64_t a = 1 + static_cast<std::int64_t>(rng() % 96);
-      const std::int64_t b = 1 + static_cast<std::int64_t>(rng() % 96);
-      if (a == b) continue;
-      const LinkType t = i % 3 == 0 ? LinkType::kLocalSpaceClosure : LinkType::kGlobalClosure;
-      links.push_back(LinkRecord{KeyframeId{a}, KeyframeId{b}, t});
-      if (i % 2 == 0) links.push_back(LinkRecord{KeyframeId{b}, KeyframeId{a}, t});
-    }
-    auto w = MapDbWriter::Create(path, /*overwrite=*/true);
-    REQUIRE_MESSAGE(w.ok(), w.status().ToString());
-    for (std::size_t i = 0; i < keyframes.size(); ++i) recs.push_back({keyframes[i], payloads[i]});
-    REQUIRE((*w)->InsertKeyframes(recs).ok());
-    REQUIRE((*w)->InsertLinks(links).ok());
-    REQUIRE((*w)->Finish().ok());
-    w->reset();
+    // tests/support/test_building.h: rooms 25 m apart, each a 4 x 3 grid of keyframes 2 m apart.
+    test::BuildingSpec spec{.rooms = 8, .keyframes_per_room = 12, .seed = 5};
+    spec.keyframe_pose = [](int room, int k) {
+      return PoseFromXYYaw(25.0 * room + 2.0 * (k % 4), 2.0 * (k / 4), 0.0);
+    };
+    spec.dense_payloads = false;
+    spec.random_weights = true;
+    spec.neighbour_links = true;
+    spec.random_closures = 20;
+    spec.zones = test::BuildingSpec::Zones::kNone;
+    spec.camera = false;
+    (void)test::WriteBuilding(path, spec);
     auto opened = MapDb::Open(path);
     REQUIRE_MESSAGE(opened.ok(), opened.status().ToString());
     db = std::move(opened).value();

@@ -12,17 +12,14 @@
 #include <string>
 #include <vector>
 
-#include "mapdb/keyframe_payload.h"
 #include "runtime/frames_file.h"
 #include "runtime/summary.h"
 #include "runtime/telemetry.h"
 #include "runtime/tick_loop.h"
+#include "support/test_building.h"
 
 namespace zm {
 namespace {
-
-constexpr CameraIntrinsics kCamera{
-    .fx = 320, .fy = 320, .cx = 320, .cy = 240, .width = 640, .height = 480};
 
 // Keyframes 1..6 on the x axis, 2 m apart (x = 0, 2, ..., 10), chained by neighbour links, one
 // zone holding them all; `last_wm` recorded when given (as import-rtabmap does), `source` as
@@ -40,47 +37,19 @@ struct TinyMap {
     std::filesystem::create_directories(dir);
     db = (dir / "map.db").string();
     frames = (dir / "frames.bin").string();
-    auto w = MapDbWriter::Create(db, true);
-    REQUIRE(w.ok());
-    std::vector<std::vector<std::byte>> payloads;
-    std::vector<KeyframeRecord> recs;
-    std::vector<LinkRecord> links;
-    std::vector<ZoneMember> members;
-    for (std::int64_t id = 1; id <= 6; ++id) {
-      const Descriptor256 d{};
-      const float pt[3] = {0, 0, 1}, kp[2] = {320, 240};
-      auto p =
-          EncodePayload(PayloadParts{KeyframeId{id}, {&d, 1}, pt, kp, DenseFormat::kNone, {}, 0});
-      REQUIRE(p.ok());
-      payloads.push_back(std::move(p).value());
-      KeyframeMeta m;
-      m.id = KeyframeId{id};
-      m.pose = PoseFromXYYaw(2.0 * static_cast<double>(id - 1), 0.0, 0.0);
-      m.payload_bytes = static_cast<std::uint32_t>(payloads.back().size());
-      recs.push_back({m, {}});
-      members.push_back({ZoneId{0}, m.id});
-      if (id > 1)
-        links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkType::kNeighbor});
-    }
-    for (std::size_t i = 0; i < recs.size(); ++i) recs[i].payload = payloads[i];
-    REQUIRE((*w)->InsertKeyframes(recs).ok());
-    REQUIRE((*w)->InsertLinks(links).ok());
-    ZoneRecord z;
-    z.id = ZoneId{0};
-    z.name = "corridor";
-    z.kind = "corridor";
-    z.polygon = {{-1.0, -1.0}, {12.0, -1.0}, {12.0, 1.0}, {-1.0, 1.0}};
-    REQUIRE((*w)->ReplaceZones(std::vector<ZoneRecord>{z}, members).ok());
-    REQUIRE((*w)->SetCamera(kCamera).ok());
-    REQUIRE((*w)->SetSource(source).ok());
-    if (last_wm != nullptr) {
-      std::vector<KeyframeId> ids;
-      for (auto id : *last_wm) ids.push_back(KeyframeId{id});
-      REQUIRE((*w)->SetLastWorkingMemory(ids, "test").ok());
-    }
-    REQUIRE((*w)->Finish().ok());
+    // tests/support/test_building.h: one "room" of 6 keyframes 2 m apart, one corridor zone.
+    test::BuildingSpec spec{.rooms = 1, .keyframes_per_room = 6};
+    spec.keyframe_pose = [](int, int k) { return PoseFromXYYaw(2.0 * k, 0.0, 0.0); };
+    spec.dense_payloads = false;
+    spec.keypoint = {320, 240};
+    spec.neighbour_links = true;
+    spec.zones = test::BuildingSpec::Zones::kOneCorridor;
+    spec.corridor_polygon = {{-1.0, -1.0}, {12.0, -1.0}, {12.0, 1.0}, {-1.0, 1.0}};
+    spec.source = source;
+    spec.last_working_memory = last_wm;
+    (void)test::WriteBuilding(db, spec);
 
-    auto fw = FrameWriter::Create(frames, kCamera, 1.0);
+    auto fw = FrameWriter::Create(frames, test::kTestCamera, 1.0);
     REQUIRE(fw.ok());
     Frame f;
     for (int i = 0; i < frame_count; ++i) {

@@ -17,20 +17,21 @@
 
 #include <cmath>
 #include <filesystem>
-#include <random>
 #include <set>
 
 #include "runtime/frame_source.h"
 #include "runtime/frames_file.h"
 #include "runtime/line_input.h"
 #include "support/counting_allocator.h"
+#include "support/test_building.h"
 
 namespace zm {
 namespace {
 
+// The building (tests/support/test_building.h): 8 rooms of 10 m, 20 keyframes each on the corridor.
 constexpr int kRooms = 8;
-constexpr double kRoomM = 10.0;
 constexpr int kKeyframesPerRoom = 20;
+const test::BuildingSpec kSpec{.rooms = kRooms, .keyframes_per_room = kKeyframesPerRoom, .seed = 7};
 
 struct Scenario {
   std::filesystem::path dir;
@@ -41,22 +42,6 @@ struct Scenario {
   }
 };
 
-std::vector<std::byte> Payload(std::int64_t id, std::mt19937& rng) {
-  constexpr std::uint32_t kFeatures = 40;
-  std::vector<Descriptor256> desc(kFeatures);
-  for (auto& d : desc)
-    for (auto& b : d) b = static_cast<std::uint8_t>(rng());
-  std::vector<float> pts(3 * kFeatures), kps(2 * kFeatures);
-  for (auto& f : pts) f = static_cast<float>(rng() % 1000) * 0.01f;
-  for (auto& f : kps) f = static_cast<float>(rng() % 640);
-  std::vector<std::byte> dense(2000 + rng() % 500);
-  for (auto& b : dense) b = static_cast<std::byte>(rng());
-  auto r = EncodePayload(
-      PayloadParts{KeyframeId{id}, desc, pts, kps, DenseFormat::kOpaque, dense, 0});
-  REQUIRE(r.ok());
-  return std::move(r).value();
-}
-
 // Builds map.db (rooms along x, zones annotated) and frames.bin (a back-and-forth patrol).
 void Build(Scenario* s, int patrol_frames) {
   s->dir = std::filesystem::temp_directory_path() /
@@ -64,56 +49,8 @@ void Build(Scenario* s, int patrol_frames) {
   std::filesystem::create_directories(s->dir);
   s->db = (s->dir / "map.db").string();
   s->frames = (s->dir / "frames.bin").string();
-  std::mt19937 rng(7);
-  auto w = MapDbWriter::Create(s->db, true);
-  REQUIRE(w.ok());
-  std::vector<std::vector<std::byte>> payloads;
-  std::vector<KeyframeRecord> recs;
-  std::vector<ZoneMember> members;
-  std::vector<ZoneRecord> zones;
-  std::int64_t id = 1;
-  for (int room = 0; room < kRooms; ++room) {
-    ZoneRecord z;
-    z.id = ZoneId{room};
-    z.name = "room" + std::to_string(room);
-    z.kind = "room";
-    const double x0 = room * kRoomM;
-    z.polygon = {{x0, 0.0}, {x0 + kRoomM, 0.0}, {x0 + kRoomM, kRoomM}, {x0, kRoomM}};
-    zones.push_back(z);
-    for (int k = 0; k < kKeyframesPerRoom; ++k, ++id) {
-      payloads.push_back(Payload(id, rng));
-      KeyframeMeta m;
-      m.id = KeyframeId{id};
-      m.pose = PoseFromXYYaw(x0 + 0.25 + 0.5 * k, 5.0, 0.0, 0.0);
-      m.payload_bytes = static_cast<std::uint32_t>(payloads.back().size());
-      members.push_back({z.id, m.id});
-      recs.push_back({m, {}});
-    }
-  }
-  for (std::size_t i = 0; i < recs.size(); ++i) recs[i].payload = payloads[i];
-  REQUIRE((*w)->InsertKeyframes(recs).ok());
-  REQUIRE((*w)->ReplaceZones(zones, members).ok());
-  REQUIRE((*w)->SetCamera({.fx = 320, .fy = 320, .cx = 320, .cy = 240, .width = 640, .height = 480}).ok());
-  REQUIRE((*w)->Finish().ok());
-
-  auto fw = FrameWriter::Create(s->frames, {.fx = 320, .fy = 320, .cx = 320, .cy = 240, .width = 640, .height = 480}, 2.0);
-  REQUIRE(fw.ok());
-  Frame f;
-  const double length = kRooms * kRoomM - 1.0;
-  for (int i = 0; i < patrol_frames; ++i) {
-    // Triangle wave over the corridor: every room is left and re-entered several times.
-    const double phase = std::fmod(i * 1.7, 2.0 * length);
-    const double x = 0.5 + (phase < length ? phase : 2.0 * length - phase);
-    f.index = static_cast<std::uint64_t>(i);
-    f.stamp_s = 0.5 * i;
-    f.odom = PoseFromXYYaw(x, 5.0, phase < length ? 0.0 : M_PI, 0.0);
-    f.descriptors.assign(30, Descriptor256{});
-    for (auto& d : f.descriptors)
-      for (auto& b : d) b = static_cast<std::uint8_t>(rng());
-    f.keypoints.assign(60, 100.0f);
-    REQUIRE(fw->Append(f).ok());
-  }
-  REQUIRE(fw->Finish().ok());
+  test::Building map = test::WriteBuilding(s->db, kSpec);
+  (void)test::WritePatrolFrames(s->frames, kSpec, patrol_frames, map.rng);
 }
 
 LoopConfig Config(const std::string& policy, std::uint64_t k_max) {

@@ -56,12 +56,20 @@ check("| qwen3-vl-2b: the paper | △ | 32.43 | 9,642 | ○ | 33.36 | 10,260 |" 
       "Table II: the paper's row beside ours")
 
 # Sweep arithmetic, worked by hand for orin-nano-8gb (8 GiB, 1.75 GiB OS, 1.9 GB weights,
-# 0.5 GiB headroom, 256 MiB overhead).
+# 0.5 GiB headroom, 256 MiB overhead). The budget is the program's (`zonemap budget --stdin`,
+# $ZONEMAP set by tests/scripts/CMakeLists.txt).
 prof = sweep.load_profile(os.path.join(SRC, "profiles/orin-nano-8gb.toml"))
-share = sweep.map_share(prof, prof["weights"], prof["kv_cache"])
+b = sweep.budget(prof, 2_200_000, 10**6)
+share = b["map_share_bytes"]
 check(share == 4_274_015_488, f"map share 4,274,015,488 B (got {share:,})")
 # tests/harness (docs/harness.md): 2.2 MB keyframes give K_max 1820 on this profile.
-check(sweep.k_max(prof, 2_200_000, 10**6, share) == 1820, "K_max 1820 at 2.2 MB, as DeriveBudget")
+check(b["k_max"] == 1820 and sweep.k_max(prof, 2_200_000, 10**6) == 1820,
+      "K_max 1820 at 2.2 MB, from DeriveBudget")
+check(sweep.k_max(prof, 2_200_000, 500) == 500, "a map smaller than the budget: K_max is the map")
+check(sweep.k_max(prof, 5_000_000_000, 10**6) is None, "no room for one slot: no K_max")
+check(sweep.k_max(prof, 2_200_000, 10**6, model="qwen3.5-0.8b") >
+      sweep.k_max(prof, 2_200_000, 10**6, model="qwen3-vl-4b"),
+      "a profile written for a smaller model derives a larger K_max")
 check(sweep.kv_bytes("qwen3-vl-2b", 640) == 73_400_320, "qwen3-vl-2b KV at 640 tokens 73.4 MB")
 check(sweep.kv_bytes("qwen3-vl-2b", 4096) == 469_762_048, "qwen3-vl-2b KV at n_ctx 469.8 MB")
 check(sweep.kv_bytes("gemma3-4b", 640) == 20_480 * 640 + 118_784 * 640, "gemma3 window KV")
