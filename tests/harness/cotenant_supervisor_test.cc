@@ -131,8 +131,12 @@ TEST_CASE("a frozen co-tenant: the watchdog reports the stall, the request still
                              ("zm-cotenant-stall-" + std::to_string(getpid()) + ".jsonl");
   std::filesystem::remove(events);
   CotenantSupervisorOptions o = Options();
-  o.config.options.answer_tokens = 200;  // long enough to be frozen mid-request
-  o.config.options.context_tokens = 512;
+  // Long enough to be frozen mid-request: the SIGSTOP below follows the request_start event
+  // through the supervisor's pipe and a 10 ms poll, and 200 tokens were once all decoded within
+  // that latency under qemu on a loaded 2-core machine (no stall seen). 2000 tokens take about
+  // ten times as long, the test a second more.
+  o.config.options.answer_tokens = 2000;
+  o.config.options.context_tokens = 2304;
   o.config.options.watchdog_s = 0.2;
   o.events_path = events;
   CotenantSupervisor sup;
