@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "memory/policy.h"
+
 namespace zm {
 
 std::string FormatBytes(std::uint64_t bytes) {
@@ -34,6 +36,20 @@ Result<std::uint64_t> MapShareBytes(const DeviceOptions& device, const ModelOpti
                            " (set map.map_share_bytes explicitly or shrink one of them)");
   }
   return device.memory_bytes - taken;
+}
+
+BudgetInputs BudgetInputsFor(const DeviceOptions& device, const ModelOptions& model,
+                             const MapOptions& map, std::string_view policy,
+                             std::uint64_t largest_keyframe_bytes, std::uint64_t keyframe_count) {
+  BudgetInputs in;
+  in.device = device;
+  in.model = model;
+  in.map = map;
+  in.largest_keyframe_bytes = largest_keyframe_bytes;
+  in.keyframe_count = keyframe_count;
+  in.bounded_policy = IsBoundedPolicy(policy);
+  in.unbounded_policy = policy == "unbounded";
+  return in;
 }
 
 Result<Budget> DeriveBudget(const BudgetInputs& in) {

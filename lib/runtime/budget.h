@@ -21,6 +21,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 
 #include "common/status.h"
 
@@ -76,6 +77,15 @@ struct Budget {
 // and no share is given. Errors when the device has nothing left for the map.
 [[nodiscard]] Result<std::uint64_t> MapShareBytes(const DeviceOptions& device,
                                                   const ModelOptions& model, const MapOptions& map);
+
+// The inputs for a map of `keyframe_count` keyframes whose largest resident keyframe is
+// `largest_keyframe_bytes`, under the policy named `policy` (which decides bounded and
+// unbounded). The one place a run's options become BudgetInputs: the tick loop and a profile's
+// DeriveBudget both call it.
+[[nodiscard]] BudgetInputs BudgetInputsFor(const DeviceOptions& device, const ModelOptions& model,
+                                           const MapOptions& map, std::string_view policy,
+                                           std::uint64_t largest_keyframe_bytes,
+                                           std::uint64_t keyframe_count);
 
 // K_max, slot size and arena size for one map under one policy. See the header comment.
 [[nodiscard]] Result<Budget> DeriveBudget(const BudgetInputs& inputs);

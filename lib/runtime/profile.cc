@@ -164,15 +164,9 @@ Result<std::uint64_t> MapShareBytes(const Profile& profile) {
 
 Result<Budget> DeriveBudget(const Profile& profile, std::uint64_t largest_keyframe_bytes,
                             std::uint64_t keyframe_count) {
-  BudgetInputs in;
-  in.device = profile.device;
-  in.model = profile.model;
-  in.map = profile.map;
-  in.largest_keyframe_bytes = largest_keyframe_bytes;
-  in.keyframe_count = keyframe_count;
-  in.bounded_policy = IsBoundedPolicy(profile.policy.policy);
-  in.unbounded_policy = profile.policy.policy == "unbounded";
-  Result<Budget> b = DeriveBudget(in);
+  Result<Budget> b =
+      DeriveBudget(BudgetInputsFor(profile.device, profile.model, profile.map,
+                                   profile.policy.policy, largest_keyframe_bytes, keyframe_count));
   if (!b.ok()) return b.status().Annotate(profile.source);
   return b;
 }

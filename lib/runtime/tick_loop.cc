@@ -49,15 +49,11 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   ZM_ASSIGN_OR_RETURN(MapIndex index, BuildPolicyIndex(keyframes, links, zone_set, members));
 
   // The one derivation of K_max and the arena (budget.h).
-  BudgetInputs budget_in;
-  budget_in.device = config.device;
-  budget_in.model = config.model;
-  budget_in.map = config.map;
-  budget_in.largest_keyframe_bytes = meta.largest_payload_bytes;
-  budget_in.keyframe_count = meta.keyframe_count;
-  budget_in.bounded_policy = IsBoundedPolicy(config.policy.policy);
-  budget_in.unbounded_policy = config.policy.policy == "unbounded";
-  ZM_ASSIGN_OR_RETURN(const Budget budget, DeriveBudget(budget_in));
+  ZM_ASSIGN_OR_RETURN(const Budget budget,
+                      DeriveBudget(BudgetInputsFor(config.device, config.model, config.map,
+                                                   config.policy.policy,
+                                                   meta.largest_payload_bytes,
+                                                   meta.keyframe_count)));
 
   // The bounded policies get an arena of exactly K_max slots: exceeding the budget is then
   // physically impossible. basic and unbounded model RTAB-Map's heap, which grows: their arena
