@@ -64,6 +64,24 @@ int AdaptiveIterations(double confidence, double inlier_ratio, int cap) {
   return std::max(1, static_cast<int>(need));
 }
 
+
+// The reprojection residual (pixels) of world point `x` against its normalised ray under the
+// pose (r, t), and its Jacobian for a left perturbation of the pose (translation first, then
+// rotation): the one linearisation that Refine's steps and Covariance's normal matrix share.
+Eigen::Vector2d Linearize(const Eigen::Matrix3d& r, const Eigen::Vector3d& t,
+                          const Eigen::Vector3d& x, const Eigen::Vector3d& ray, double fx,
+                          double fy, Eigen::Matrix<double, 2, 6>* j) {
+  const Eigen::Vector3d p = r * x + t;
+  const double iz = 1.0 / p.z();
+  const double xz = p.x() * iz;
+  const double yz = p.y() * iz;
+  Eigen::Matrix<double, 2, 3> jp;
+  jp << fx * iz, 0.0, -fx * xz * iz, 0.0, fy * iz, -fy * yz * iz;
+  j->leftCols<3>() = jp;
+  j->rightCols<3>() = -jp * Hat(p);
+  return {fx * (xz - ray.x()), fy * (yz - ray.y())};
+}
+
 }  // namespace
 
 const char* PnpOutcomeName(PnpOutcome outcome) {
@@ -150,16 +168,8 @@ void PnpRansac::Refine(Eigen::Matrix3d* r, Eigen::Vector3d* t) const {
     Vec6 g = Vec6::Zero();
     for (std::size_t i = 0; i < count_; ++i) {
       if (mask_[i] == 0) continue;
-      const Eigen::Vector3d p = *r * world_[i] + *t;
-      const double iz = 1.0 / p.z();
-      const double xz = p.x() * iz;
-      const double yz = p.y() * iz;
-      const Eigen::Vector2d res(fx_ * (xz - ray_[i].x()), fy_ * (yz - ray_[i].y()));
-      Eigen::Matrix<double, 2, 3> jp;
-      jp << fx_ * iz, 0.0, -fx_ * xz * iz, 0.0, fy_ * iz, -fy_ * yz * iz;
       Eigen::Matrix<double, 2, 6> j;
-      j.leftCols<3>() = jp;
-      j.rightCols<3>() = -jp * Hat(p);
+      const Eigen::Vector2d res = Linearize(*r, *t, world_[i], ray_[i], fx_, fy_, &j);
       h.noalias() += j.transpose() * j;
       g.noalias() += j.transpose() * res;
     }
@@ -201,19 +211,10 @@ void PnpRansac::Covariance(const Eigen::Matrix3d& r, const Eigen::Vector3d& t,
   std::uint32_t n = 0;
   for (std::size_t i = 0; i < count_; ++i) {
     if (mask_[i] == 0) continue;
-    const Eigen::Vector3d p = r * world_[i] + t;
-    const double iz = 1.0 / p.z();
-    const double xz = p.x() * iz;
-    const double yz = p.y() * iz;
-    const double du = fx_ * (xz - ray_[i].x());
-    const double dv = fy_ * (yz - ray_[i].y());
-    Eigen::Matrix<double, 2, 3> jp;
-    jp << fx_ * iz, 0.0, -fx_ * xz * iz, 0.0, fy_ * iz, -fy_ * yz * iz;
     Eigen::Matrix<double, 2, 6> j;
-    j.leftCols<3>() = jp;
-    j.rightCols<3>() = -jp * Hat(p);
+    const Eigen::Vector2d res = Linearize(r, t, world_[i], ray_[i], fx_, fy_, &j);
     h.noalias() += j.transpose() * j;
-    sse += du * du + dv * dv;
+    sse += res.squaredNorm();
     ++n;
   }
   sol->rms_px = n > 0 ? std::sqrt(sse / n) : 0.0;
