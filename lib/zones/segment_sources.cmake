@@ -3,5 +3,6 @@
 set(ZM_ZONES_SEGMENT_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/declutter.cc
   ${CMAKE_CURRENT_LIST_DIR}/grid_map.cc
+  ${CMAKE_CURRENT_LIST_DIR}/layout_merge.cc
   ${CMAKE_CURRENT_LIST_DIR}/segmentation.cc
 )

@@ -1,0 +1,460 @@
+#include "zones/layout_merge.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <unordered_map>
+#include <utility>
+
+#include <opencv2/imgproc.hpp>
+
+namespace zm {
+namespace {
+
+std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+
+constexpr int kRayMaxWallCells = 7;  // a wall up to 0.35 m thick at 0.05 m/cell
+constexpr int kEndSupportCells = 8;  // 0.4 m beyond each end of a border
+constexpr int kEndSupportHalfWidth = 2;
+
+struct Piece {
+  double area = 0;  // cells (counts kept as doubles: exact, and the features are ratios)
+  float peak = 0.0f;  // cells
+  double perimeter = 0;  // cell edges to anything not this piece
+  double open_perimeter = 0;  // cell edges to other pieces
+  double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
+  std::unordered_map<int, long> gt;  // ground-truth room -> cells (traces only)
+  std::unordered_map<int, long> rule;  // rule segment -> cells
+  bool alive = true;
+};
+
+struct Contact {
+  double edges = 0;  // 4-neighbour cell edges between the two
+  double rays = 0;   // rays across a wall, from either side
+  double rule_same_edges = 0;  // edges whose two cells lie in one rule segment
+  float clearance = 0.0f;  // cells
+  std::vector<int> cells;  // border cells of either side (row * cols + col)
+  double probability = 0.0;
+  bool traced = false;  // its current features are in the trace already
+};
+
+using PairKey = std::pair<int, int>;  // (smaller label, larger label)
+
+struct Frame {
+  double cos_a, sin_a;
+  double U(int r, int c) const { return c * cos_a + r * sin_a; }
+  double V(int r, int c) const { return -c * sin_a + r * cos_a; }
+  cv::Point Cell(double u, double v) const {  // inverse rotation, rounded
+    return {static_cast<int>(std::lround(u * cos_a - v * sin_a)),
+            static_cast<int>(std::lround(u * sin_a + v * cos_a))};
+  }
+};
+
+int Majority(const std::unordered_map<int, long>& histogram);
+
+double Elongation(double du, double dv) {
+  return (std::max(du, dv) + 1.0) / (std::min(du, dv) + 1.0);
+}
+
+double Rectangularity(double area, double du, double dv) {
+  return static_cast<double>(area) / std::max(1.0, (du + 1.0) * (dv + 1.0));
+}
+
+// Share of the kEndSupportCells steps beyond each end of the border, along its line, where some
+// cell within kEndSupportHalfWidth across the line is occupied: (min, max, straightness cells).
+std::array<double, 3> EndSupport(const std::vector<int>& cells, const cv::Mat& occupied,
+                                 const Frame& f) {
+  const int cols = occupied.cols;
+  std::vector<double> us, vs;
+  us.reserve(cells.size());
+  vs.reserve(cells.size());
+  for (int id : cells) {
+    us.push_back(f.U(id / cols, id % cols));
+    vs.push_back(f.V(id / cols, id % cols));
+  }
+  const auto [umin, umax] = std::minmax_element(us.begin(), us.end());
+  const auto [vmin, vmax] = std::minmax_element(vs.begin(), vs.end());
+  const bool along_u = (*vmax - *vmin) <= (*umax - *umin);
+  std::vector<double>& across = along_u ? vs : us;
+  const double lo_end = along_u ? *umin : *vmin;
+  const double hi_end = along_u ? *umax : *vmax;
+  const double straightness = (along_u ? *vmax - *vmin : *umax - *umin) + 1.0;
+  std::nth_element(across.begin(), across.begin() + static_cast<long>(across.size() / 2),
+                   across.end());
+  const double mid = across[across.size() / 2];
+  auto occupied_at = [&](double along, double off) {
+    const cv::Point p = along_u ? f.Cell(along, mid + off) : f.Cell(mid + off, along);
+    return p.x >= 0 && p.y >= 0 && p.x < occupied.cols && p.y < occupied.rows &&
+           occupied.at<std::uint8_t>(p.y, p.x) != 0;
+  };
+  double support[2] = {0.0, 0.0};
+  for (int side = 0; side < 2; ++side) {
+    int hits = 0;
+    for (int k = 1; k <= kEndSupportCells; ++k) {
+      const double along = side == 0 ? lo_end - k : hi_end + k;
+      for (int off = -kEndSupportHalfWidth; off <= kEndSupportHalfWidth; ++off) {
+        if (occupied_at(along, off)) {
+          ++hits;
+          break;
+        }
+      }
+    }
+    support[side] = static_cast<double>(hits) / kEndSupportCells;
+  }
+  return {std::min(support[0], support[1]), std::max(support[0], support[1]), straightness};
+}
+
+// Features of the whole map, the same for every pair.
+struct MapContext {
+  double free_m2 = 0.0;
+  double rule_segment_m2 = 0.0;
+};
+
+std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb,
+                                                const Contact& c, const cv::Mat& occupied,
+                                                const Frame& f, double res,
+                                                const MapContext& map) {
+  const bool a_small = pa.area <= pb.area;
+  const Piece& s = a_small ? pa : pb;
+  const Piece& l = a_small ? pb : pa;
+  const double open = c.edges * res;
+  const double wall = 0.5 * c.rays * res;
+  const double peak_s = static_cast<double>(s.peak) * res;
+  const double peak_l = static_cast<double>(l.peak) * res;
+  const double cc = static_cast<double>(c.clearance) * res;
+  const double perim_s = std::max(s.perimeter * res, 1e-3);
+  const double du_s = s.umax - s.umin, dv_s = s.vmax - s.vmin;
+  const double ext_max = std::max(du_s, dv_s) * res + res, ext_min = std::min(du_s, dv_s) * res + res;
+  const double rect_s = Rectangularity(s.area, du_s, dv_s);
+  const double rect_l = Rectangularity(l.area, l.umax - l.umin, l.vmax - l.vmin);
+  const double du_u = std::max(s.umax, l.umax) - std::min(s.umin, l.umin);
+  const double dv_u = std::max(s.vmax, l.vmax) - std::min(s.vmin, l.vmin);
+  const double rect_u = Rectangularity(s.area + l.area, du_u, dv_u);
+  const auto ends = EndSupport(c.cells, occupied, f);
+  const double values[kLayoutFeatureCount] = {
+      open, wall, open / std::max(open + wall, 1e-9),
+      s.area * res * res, l.area * res * res,
+      peak_s, peak_l, cc, cc / std::max(peak_s, 1e-3), cc / std::max(peak_l, 1e-3),
+      open / perim_s, wall / perim_s, s.open_perimeter * res / perim_s,
+      open / std::max(ext_max, 1e-3), open / std::max(ext_min, 1e-3),
+      rect_s, rect_l, rect_u, rect_u - std::max(rect_s, rect_l),
+      ends[0], ends[1], ends[2] * res,
+      Elongation(du_s, dv_s), Elongation(l.umax - l.umin, l.vmax - l.vmin),
+      Elongation(du_u, dv_u),
+      (Majority(s.rule) != 0 && Majority(s.rule) == Majority(l.rule)) ? 1.0 : 0.0,
+      c.rule_same_edges / std::max(c.edges, 1.0),
+      map.free_m2, map.rule_segment_m2};
+  std::array<float, kLayoutFeatureCount> x{};
+  for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
+  return x;
+}
+
+int Majority(const std::unordered_map<int, long>& histogram) {
+  int best = 0;
+  long most = 0;
+  for (const auto& [room, n] : histogram) {
+    if (n > most || (n == most && room < best)) {
+      best = room;
+      most = n;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+double LayoutMergeModel::Probability(const std::array<float, kLayoutFeatureCount>& x) const {
+  double raw = init;
+  for (const Tree& t : trees) {
+    int n = 0;
+    while (t.feature[Idx(n)] >= 0) {
+      n = static_cast<double>(x[Idx(t.feature[Idx(n)])]) <= t.threshold[Idx(n)] ? t.left[Idx(n)] : t.right[Idx(n)];
+    }
+    raw += rate * static_cast<double>(t.value[Idx(n)]);
+  }
+  return 1.0 / (1.0 + std::exp(-raw));
+}
+
+Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text) {
+  LayoutMergeModel m;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(json_text);
+    const auto names = j.at("features").get<std::vector<std::string>>();
+    if (names.size() != kLayoutFeatureNames.size()) {
+      return InvalidArgument("layout merge model: " + std::to_string(names.size()) +
+                             " features, expected " + std::to_string(kLayoutFeatureCount));
+    }
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      if (names[i] != kLayoutFeatureNames[i]) {
+        return InvalidArgument("layout merge model: feature " + std::to_string(i) + " is '" +
+                               names[i] + "', expected '" + kLayoutFeatureNames[i] + "'");
+      }
+    }
+    m.init = j.at("init").get<double>();
+    m.rate = j.at("learning_rate").get<double>();
+    for (const auto& jt : j.at("trees")) {
+      LayoutMergeModel::Tree t;
+      t.feature = jt.at("feature").get<std::vector<int>>();
+      t.threshold = jt.at("threshold").get<std::vector<double>>();
+      t.left = jt.at("left").get<std::vector<int>>();
+      t.right = jt.at("right").get<std::vector<int>>();
+      t.value = jt.at("value").get<std::vector<float>>();
+      const std::size_t n = t.feature.size();
+      if (n == 0 || t.threshold.size() != n || t.left.size() != n || t.right.size() != n ||
+          t.value.size() != n) {
+        return InvalidArgument("layout merge model: tree " + std::to_string(m.trees.size()) +
+                               " has arrays of different lengths");
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        if (t.feature[i] < 0) continue;
+        // Children come after their parent: no cycles, every walk ends at a leaf.
+        if (t.feature[i] >= kLayoutFeatureCount || t.left[i] <= static_cast<int>(i) ||
+            t.right[i] <= static_cast<int>(i) || t.left[i] >= static_cast<int>(n) ||
+            t.right[i] >= static_cast<int>(n)) {
+          return InvalidArgument("layout merge model: tree " + std::to_string(m.trees.size()) +
+                                 " node " + std::to_string(i) + " is malformed");
+        }
+      }
+      m.trees.push_back(std::move(t));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return InvalidArgument(std::string("layout merge model: ") + e.what());
+  }
+  return m;
+}
+
+Result<LayoutMergeModel> LoadLayoutMergeModel(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return IoError(path + ": cannot open the layout merge model");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto m = ParseLayoutMergeModel(ss.str());
+  if (!m.ok()) return InvalidArgument(path + ": " + m.status().message());
+  return m;
+}
+
+const LayoutMergeModel& DefaultLayoutMergeModel() {
+  static const LayoutMergeModel model = [] {
+    static constexpr const char* kJson =
+#include "zones/layout_merge_model.inc"
+        ;
+    auto m = ParseLayoutMergeModel(kJson);
+    // The compiled-in model is checked by a test; an empty model merges nothing.
+    return m.ok() ? std::move(m).value() : LayoutMergeModel{};
+  }();
+  return model;
+}
+
+Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeModel& model,
+                              double threshold, const LayoutMergeTrace& trace) {
+  cv::Mat& labels = *in.labels;
+  if (labels.type() != CV_32SC1 || in.occupied.size() != labels.size() ||
+      in.occupied.type() != CV_8UC1) {
+    return InvalidArgument("layout merge: labels must be CV_32SC1 and occupied CV_8UC1 of "
+                           "the same size");
+  }
+  if (trace.ground_truth != nullptr && trace.ground_truth->type() != CV_32SC1) {
+    return InvalidArgument("layout merge: ground truth must be CV_32SC1");
+  }
+  const bool has_rules = !in.rule_labels.empty();
+  if (has_rules && (in.rule_labels.type() != CV_32SC1 || in.rule_labels.size() != labels.size())) {
+    return InvalidArgument("layout merge: rule labels must be CV_32SC1 of the labels' size");
+  }
+  const int rows = labels.rows, cols = labels.cols, n = in.count;
+  const double res = in.resolution_m;
+  const Frame frame{std::cos(in.wall_angle_rad), std::sin(in.wall_angle_rad)};
+  cv::Mat dt;
+  cv::distanceTransform(labels > 0, dt, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+
+  std::vector<Piece> pieces(Idx(n) + 1);
+  std::map<PairKey, Contact> pairs;
+  auto at = [&](int r, int c) {
+    return (r < 0 || c < 0 || r >= rows || c >= cols) ? -1 : labels.at<int>(r, c);
+  };
+  auto occ = [&](int r, int c) {
+    return r >= 0 && c >= 0 && r < rows && c < cols && in.occupied.at<std::uint8_t>(r, c) != 0;
+  };
+  constexpr int kDr[4] = {0, 1, 0, -1}, kDc[4] = {1, 0, -1, 0};
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      const int a = labels.at<int>(r, c);
+      if (a <= 0 || a > n) continue;
+      Piece& p = pieces[Idx(a)];
+      const float d = dt.at<float>(r, c);
+      ++p.area;
+      p.peak = std::max(p.peak, d);
+      const double u = frame.U(r, c), v = frame.V(r, c);
+      p.umin = std::min(p.umin, u);
+      p.umax = std::max(p.umax, u);
+      p.vmin = std::min(p.vmin, v);
+      p.vmax = std::max(p.vmax, v);
+      if (trace.ground_truth != nullptr) {
+        const int gr = r + in.offset.y, gc = c + in.offset.x;
+        if (gr >= 0 && gc >= 0 && gr < trace.ground_truth->rows && gc < trace.ground_truth->cols) {
+          const int g = trace.ground_truth->at<int>(gr, gc);
+          if (g > 0) ++p.gt[g];
+        }
+      }
+      const int rule_here = has_rules ? in.rule_labels.at<int>(r, c) : 0;
+      if (rule_here > 0) ++p.rule[rule_here];
+      int across[4] = {0, 0, 0, 0};  // pieces reached by a ray from this cell (deduplicated)
+      int n_across = 0;
+      for (int k = 0; k < 4; ++k) {
+        const int b = at(r + kDr[k], c + kDc[k]);
+        if (b != a) ++p.perimeter;
+        if (b > 0 && b != a) {
+          ++p.open_perimeter;
+          Contact& ct = pairs[{std::min(a, b), std::max(a, b)}];
+          if (k < 2) {  // right and down: each edge once
+            ++ct.edges;
+            if (rule_here > 0 && in.rule_labels.at<int>(r + kDr[k], c + kDc[k]) == rule_here) {
+              ++ct.rule_same_edges;
+            }
+          }
+          if (ct.cells.empty() || ct.cells.back() != r * cols + c) ct.cells.push_back(r * cols + c);
+          ct.clearance = std::max(ct.clearance, d);
+        }
+        if (!occ(r + kDr[k], c + kDc[k])) continue;
+        // A ray across the wall: the first cell that is not occupied, within the thickest wall.
+        for (int s = 2; s <= kRayMaxWallCells + 1; ++s) {
+          const int rr = r + s * kDr[k], cc = c + s * kDc[k];
+          if (occ(rr, cc)) continue;
+          const int t = at(rr, cc);
+          if (t > 0 && t != a && std::find(across, across + n_across, t) == across + n_across) {
+            across[n_across++] = t;
+          }
+          break;
+        }
+      }
+      for (int i = 0; i < n_across; ++i) {
+        ++pairs[{std::min(a, across[i]), std::max(a, across[i])}].rays;
+      }
+    }
+  }
+  MapContext context;
+  {
+    double cells = 0.0;
+    std::unordered_map<int, long> rule_cells;
+    for (const Piece& p : pieces) {
+      cells += p.area;
+      for (const auto& [seg, k] : p.rule) rule_cells[seg] += k;
+    }
+    context.free_m2 = cells * res * res;
+    context.rule_segment_m2 =
+        rule_cells.empty() ? context.free_m2 : context.free_m2 / static_cast<double>(rule_cells.size());
+  }
+  // Rays alone (a wall with no opening) do not make neighbours: only pieces that touch merge.
+  for (auto it = pairs.begin(); it != pairs.end();) {
+    it = it->second.edges == 0.0 ? pairs.erase(it) : std::next(it);
+  }
+  auto features = [&](const PairKey& k, const Contact& c) {
+    return Features(pieces[Idx(k.first)], pieces[Idx(k.second)], c, in.occupied, frame, res,
+                    context);
+  };
+  for (auto& [k, c] : pairs) c.probability = model.Probability(features(k, c));
+
+  std::vector<int> parent(Idx(n) + 1);
+  for (int i = 0; i <= n; ++i) parent[Idx(i)] = i;
+  std::mt19937 rng(0);
+  for (int step = 0; !pairs.empty(); ++step) {
+    const PairKey* chosen = nullptr;
+    if (trace.csv != nullptr || trace.oracle) {
+      std::vector<const PairKey*> same;
+      for (auto& [k, c] : pairs) {
+        const bool one_room = Majority(pieces[Idx(k.first)].gt) != 0 &&
+                              Majority(pieces[Idx(k.first)].gt) ==
+                                  Majority(pieces[Idx(k.second)].gt);
+        if (one_room) same.push_back(&k);
+        if (trace.csv != nullptr && !c.traced) {
+          // Each state of a pair once: a pair the last merge did not touch is unchanged.
+          c.traced = true;
+          std::fprintf(trace.csv, "%d,%d", step, one_room ? 1 : 0);
+          for (float v : features(k, c)) std::fprintf(trace.csv, ",%.6g", static_cast<double>(v));
+          std::fprintf(trace.csv, "\n");
+        }
+      }
+      if (trace.oracle) {
+        if (same.empty()) break;
+        chosen = same[std::uniform_int_distribution<std::size_t>(0, same.size() - 1)(rng)];
+      }
+    }
+    if (!trace.oracle) {
+      double best = threshold;
+      for (const auto& [k, c] : pairs) {
+        if (c.probability >= best) {
+          best = c.probability;
+          chosen = &k;
+        }
+      }
+      if (chosen == nullptr) break;
+    }
+    const int a = chosen->first, b = chosen->second;  // b joins a
+    Piece& pa = pieces[Idx(a)];
+    Piece& pb = pieces[Idx(b)];
+    const double shared = pairs.at(*chosen).edges;
+    pa.area += pb.area;
+    pa.peak = std::max(pa.peak, pb.peak);
+    pa.perimeter += pb.perimeter - 2 * shared;
+    pa.open_perimeter += pb.open_perimeter - 2 * shared;
+    pa.umin = std::min(pa.umin, pb.umin);
+    pa.umax = std::max(pa.umax, pb.umax);
+    pa.vmin = std::min(pa.vmin, pb.vmin);
+    pa.vmax = std::max(pa.vmax, pb.vmax);
+    for (const auto& [room, cells] : pb.gt) pa.gt[room] += cells;
+    for (const auto& [seg, cells] : pb.rule) pa.rule[seg] += cells;
+    pb.alive = false;
+    parent[Idx(b)] = a;
+    pairs.erase(PairKey{a, b});
+    // Every border of b becomes a border of a.
+    std::vector<std::pair<int, Contact>> moved;
+    for (auto it = pairs.begin(); it != pairs.end();) {
+      if (it->first.first == b || it->first.second == b) {
+        moved.emplace_back(it->first.first == b ? it->first.second : it->first.first,
+                           std::move(it->second));
+        it = pairs.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    for (auto& [other, c] : moved) {
+      Contact& into = pairs[{std::min(a, other), std::max(a, other)}];
+      into.edges += c.edges;
+      into.rule_same_edges += c.rule_same_edges;
+      into.rays += c.rays;
+      into.clearance = std::max(into.clearance, c.clearance);
+      into.cells.insert(into.cells.end(), c.cells.begin(), c.cells.end());
+    }
+    for (auto& [k, c] : pairs) {
+      if (k.first == a || k.second == a) {
+        c.probability = model.Probability(features(k, c));
+        c.traced = false;
+      }
+    }
+  }
+  // Relabel: each piece to its root, roots numbered 1..m in label order.
+  std::vector<int> root_label(Idx(n) + 1, 0);
+  int m = 0;
+  auto root = [&](int x) {
+    while (parent[Idx(x)] != x) x = parent[Idx(x)];
+    return x;
+  };
+  std::vector<int> lut(Idx(n) + 1, 0);
+  for (int i = 1; i <= n; ++i) {
+    if (pieces[Idx(i)].area == 0) continue;
+    const int rt = root(i);
+    if (root_label[Idx(rt)] == 0) root_label[Idx(rt)] = ++m;
+    lut[Idx(i)] = root_label[Idx(rt)];
+  }
+  for (int r = 0; r < rows; ++r) {
+    int* l = labels.ptr<int>(r);
+    for (int c = 0; c < cols; ++c) {
+      if (l[c] > 0 && l[c] <= n) l[c] = lut[Idx(l[c])];
+    }
+  }
+  return m;
+}
+
+}  // namespace zm

@@ -1,0 +1,105 @@
+// Learned merging of layout pieces into rooms (issue 16, fifth part; docs/segmentation.md).
+//
+// The layout step cuts free space into pieces along every wall, doorway and wall line continued
+// across the building (declutter.h with long continuations). Most pieces are parts of a room;
+// which neighbours belong together is decided here, greedily: the pair of neighbouring pieces
+// the model gives the highest probability of being one room is merged, the pair's neighbours'
+// features are updated, and so on until no pair reaches the threshold. The model is a small
+// gradient-boosted tree ensemble over features of the two pieces and of their shared border
+// (how much of it is open, how much wall lies between them, clearance, shape); it was trained by
+// scripts/train_layout_merge.py on merge traces of R2V plans with known rooms, never on the
+// buildings it is scored on, and is compiled in (layout_merge_model.inc).
+//
+// Offline only (segmentation runs before a robot's mission); it allocates freely.
+#pragma once
+
+#include <array>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "common/status.h"
+
+namespace zm {
+
+// The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
+// in metres, areas in m2. The order is the model's input order.
+inline constexpr int kLayoutFeatureCount = 29;
+inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
+    "open_m",          // free border between them (4-neighbour cell edges x resolution)
+    "wall_m",          // wall between them: cells where a ray across an occupied run of at most
+                       // 0.35 m lands in the other piece, counted from both sides, halved
+    "open_fraction",   // open / (open + wall)
+    "area_s", "area_l",
+    "peak_s", "peak_l",  // largest clearance inside each (distance to anything not a piece)
+    "contact_clearance",  // largest clearance on the border
+    "contact_over_peak_s", "contact_over_peak_l",
+    "open_over_perimeter_s", "wall_over_perimeter_s",
+    "open_perimeter_share_s",  // share of S's perimeter that touches any other piece
+    "open_over_extent_max_s", "open_over_extent_min_s",  // extents along the wall directions
+    "rectangularity_s", "rectangularity_l", "rectangularity_union",
+    "rectangularity_gain",  // union's minus the larger of the two
+    "end_support_min", "end_support_max",  // share of the 0.4 m beyond each end of the border,
+                                           // along its line, that is wall (a door in a wall: 1)
+    "border_straightness_m",  // thickness of the border across its line
+    "elongation_s", "elongation_l", "elongation_union",  // long over short extent
+    "rule_same_segment",  // 1 when most of both pieces lie in one segment of the rule merges
+    "rule_open_share",    // share of the border's edges the rule merges do not keep as a border
+    "map_free_m2",        // the building's scale: all pieces' area (a flat, an office floor)
+    "map_rule_segment_m2",  // ...and its rule segments' mean area
+};
+
+// A binary gradient-boosted tree ensemble: p = sigmoid(init + rate * sum of leaf values).
+struct LayoutMergeModel {
+  struct Tree {
+    std::vector<int> feature;  // split feature per node, -1 at a leaf
+    std::vector<double> threshold;  // go left when x[feature] <= threshold (as scikit-learn)
+    std::vector<int> left, right;
+    std::vector<float> value;  // leaf value
+  };
+  double init = 0.0;
+  double rate = 0.1;
+  std::vector<Tree> trees;
+
+  [[nodiscard]] double Probability(const std::array<float, kLayoutFeatureCount>& x) const;
+};
+
+// Parses a model from its JSON text ({"features":[names], "init", "learning_rate",
+// "trees":[{"feature","threshold","left","right","value"}]}); the feature names must be
+// kLayoutFeatureNames in order. Errors name what is wrong.
+[[nodiscard]] Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text);
+[[nodiscard]] Result<LayoutMergeModel> LoadLayoutMergeModel(const std::string& path);
+// The compiled-in model (parsed once).
+[[nodiscard]] const LayoutMergeModel& DefaultLayoutMergeModel();
+
+// For training and evaluation: a ground truth to label each pair with (same room or not) and a
+// CSV to write every pair's features at every merge step; with `oracle`, the merges follow the
+// ground truth (a random pair of the same room each step) instead of the model.
+struct LayoutMergeTrace {
+  const cv::Mat* ground_truth = nullptr;  // CV_32SC1, 0 = no room; the grid's size
+  std::FILE* csv = nullptr;
+  bool oracle = false;
+};
+
+struct LayoutMergeInputs {
+  cv::Mat* labels = nullptr;   // CV_32SC1 pieces 1..count, 0 = none; merged in place
+  int count = 0;
+  cv::Mat occupied;            // CV_8UC1, nonzero = wall or obstacle; labels' size
+  double resolution_m = 0.05;
+  double wall_angle_rad = 0.0;  // the dominant wall direction (extents are taken along it)
+  cv::Point offset;            // where labels' (0, 0) lies in the ground truth
+  cv::Mat rule_labels;         // CV_32SC1, labels' size: the same free space segmented by the
+                               // rule merges (SegmentOptions with layout_merge_threshold 0); its
+                               // opinion is two features. Empty: both features 0
+};
+
+// Merges pieces greedily while the best pair's probability is >= threshold; returns the number
+// of labels afterwards (relabelled 1..n in order of first appearance of their smallest piece).
+[[nodiscard]] Result<int> MergeLayoutPieces(const LayoutMergeInputs& in,
+                                            const LayoutMergeModel& model, double threshold,
+                                            const LayoutMergeTrace& trace = {});
+
+}  // namespace zm

@@ -1,0 +1,158 @@
+#!/usr/bin/python3
+"""Trains the layout merge model of `zonemap zones segment` (lib/zones/layout_merge.h, issue 16).
+
+The features are computed by zonemap itself (`--merge-trace`), never here, so training and the
+product share one definition of each. Training data, in two passes over every training map:
+  1. oracle traces: pieces merged in the ground truth's order (`--merge-oracle`), every pair at
+     every step written with its label (one GT room or not);
+  2. the model fitted on those is run (`--merge-model`), and every pair at every step of its own
+     merges is written with its label (one round of DAgger: the model learns from the states its
+     own decisions lead to, not only the ones a perfect merge passes through).
+The model is scikit-learn's GradientBoostingClassifier (100 trees of depth 3, fixed seed) on
+both; it is written as JSON (--json) and as lib/zones/layout_merge_model.inc (--inc), which is
+compiled in.
+
+Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
+           [--exclude NAME ...] [--threshold 0.6] [--weight DIR=W ...]
+Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
+leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
+its maps, unless --weight gives it W times that.
+Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+from sklearn.ensemble import GradientBoostingClassifier
+
+FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "peak_l",
+            "contact_clearance", "contact_over_peak_s", "contact_over_peak_l",
+            "open_over_perimeter_s", "wall_over_perimeter_s", "open_perimeter_share_s",
+            "open_over_extent_max_s", "open_over_extent_min_s", "rectangularity_s",
+            "rectangularity_l", "rectangularity_union", "rectangularity_gain",
+            "end_support_min", "end_support_max", "border_straightness_m",
+            "elongation_s", "elongation_l", "elongation_union", "rule_same_segment",
+            "rule_open_share", "map_free_m2", "map_rule_segment_m2"]
+
+
+def maps(dirs, exclude):
+    for d in dirs:
+        for f in sorted(os.listdir(d)):
+            if f.endswith("_map.png") and f[: -len("_map.png")] not in exclude:
+                name = f[: -len("_map.png")]
+                yield os.path.join(d, f), os.path.join(d, name + "_gt.png"), d
+
+
+def trace(zonemap, map_png, gt_png, csv, extra):
+    cmd = [zonemap, "zones", "segment", map_png, "--out", os.devnull, "--score", gt_png,
+           "--merge-trace", csv] + extra
+    subprocess.run(cmd, check=True, capture_output=True)
+    if os.path.getsize(csv) == 0:  # a map of one piece: no pair
+        return np.zeros((0, len(FEATURES)), np.float32), np.zeros(0)
+    rows = np.loadtxt(csv, delimiter=",", ndmin=2)
+    return rows[:, 2:].astype(np.float32), rows[:, 1]
+
+
+def collect(zonemap, pairs, tmp, extra, dir_weight):
+    """Rows of every map, and weights that give each DIR the same total weight, shared equally
+    by its maps (a large office map has a hundred times the pair rows of an apartment and would
+    decide alone; a set of many apartments would drown a set of a few offices)."""
+    per_dir = {}
+    for _, _, d in pairs:
+        per_dir[d] = per_dir.get(d, 0) + 1
+    xs, ys, ws = [], [], []
+    for m, g, d in pairs:
+        x, y = trace(zonemap, m, g, os.path.join(tmp, "trace.csv"), extra)
+        xs.append(x)
+        ys.append(y)
+        ws.append(np.full(len(y), dir_weight.get(d, 1.0) / (max(1, len(y)) * per_dir[d])))
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws)
+
+
+def fit(x, y, w):
+    return GradientBoostingClassifier(n_estimators=100, max_depth=3, random_state=0).fit(
+        x, y, sample_weight=w * len(w) / w.sum())
+
+
+def export(clf, x_check):
+    prior = clf.init_.class_prior_[1]
+    model = {"features": FEATURES, "init": float(np.log(prior / (1.0 - prior))),
+             "learning_rate": float(clf.learning_rate), "trees": []}
+    for est in clf.estimators_[:, 0]:
+        t = est.tree_
+        leaf = t.children_left < 0
+        model["trees"].append({
+            "feature": [int(-1 if leaf[i] else t.feature[i]) for i in range(t.node_count)],
+            "threshold": [float(v) for v in t.threshold],
+            "left": [int(v) for v in t.children_left],
+            "right": [int(v) for v in t.children_right],
+            "value": [float(v) for v in t.value[:, 0, 0]]})
+    # The exported form must give scikit-learn's own answer (zonemap evaluates it the same way).
+    raw = np.full(len(x_check), model["init"])
+    for tree in model["trees"]:
+        for i, row in enumerate(x_check):
+            n = 0
+            while tree["feature"][n] >= 0:
+                n = tree["left"][n] if float(row[tree["feature"][n]]) <= tree["threshold"][n] \
+                    else tree["right"][n]
+            raw[i] += model["learning_rate"] * tree["value"][n]
+    assert np.allclose(raw, clf.decision_function(x_check), atol=1e-6), "export mismatch"
+    return model
+
+
+def main(argv):
+    args, exclude, out_json, out_inc, threshold, dir_weight = [], set(), None, None, 0.6, {}
+    i = 0
+    while i < len(argv):
+        if argv[i] == "--exclude":
+            exclude.add(argv[i + 1])
+            i += 2
+        elif argv[i] == "--json":
+            out_json = argv[i + 1]
+            i += 2
+        elif argv[i] == "--inc":
+            out_inc = argv[i + 1]
+            i += 2
+        elif argv[i] == "--weight":
+            d, w = argv[i + 1].rsplit("=", 1)
+            dir_weight[d] = float(w)
+            i += 2
+        elif argv[i] == "--threshold":
+            threshold = float(argv[i + 1])
+            i += 2
+        else:
+            args.append(argv[i])
+            i += 1
+    if len(args) < 2:
+        sys.exit(__doc__)
+    zonemap, dirs = args[0], args[1:]
+    pairs = list(maps(dirs, exclude))
+    with tempfile.TemporaryDirectory() as tmp:
+        x1, y1, w1 = collect(zonemap, pairs, tmp, ["--merge-oracle"], dir_weight)
+        first = export(fit(x1, y1, w1), x1[:200])
+        first_json = os.path.join(tmp, "first.json")
+        with open(first_json, "w") as f:
+            json.dump(first, f)
+        x2, y2, w2 = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
+                                                f"layout_merge_threshold={threshold}"], dir_weight)
+        x, y, w = np.concatenate([x1, x2]), np.concatenate([y1, y2]), np.concatenate([w1, w2])
+        model = export(fit(x, y, w), x[:200])
+    print(f"{len(pairs)} maps, {len(y1)} oracle + {len(y2)} model-driven pair rows, "
+          f"{100 * y.mean():.0f} % one room", file=sys.stderr)
+    text = json.dumps(model, separators=(",", ":"))
+    if out_json:
+        with open(out_json, "w") as f:
+            f.write(text + "\n")
+    if out_inc:
+        with open(out_inc, "w") as f:
+            f.write("// Generated by scripts/train_layout_merge.py: do not edit.\n")
+            # Raw string pieces stay under compilers' literal length limits.
+            for k in range(0, len(text), 4000):
+                f.write('R"json(' + text[k:k + 4000] + ')json"\n')
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

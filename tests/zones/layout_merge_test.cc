@@ -1,0 +1,175 @@
+// The learned layout merge: model parsing (one clear error per defect), the ensemble's
+// arithmetic, greedy merging of layout pieces by a model, the training trace's labels and the
+// oracle's merges, and the compiled-in model.
+#include "zones/layout_merge.h"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <set>
+#include <string>
+
+#include <opencv2/imgproc.hpp>
+
+namespace zm {
+namespace {
+
+std::string Names() {
+  std::string s = "[";
+  for (int i = 0; i < kLayoutFeatureCount; ++i) {
+    s += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[static_cast<std::size_t>(i)] +
+         "\"";
+  }
+  return s + "]";
+}
+
+// One stump on open_fraction: below `split` the pair is two rooms (p ~ 0), above it one (p ~ 1).
+std::string StumpModel(double split) {
+  return "{\"features\":" + Names() +
+         ",\"init\":0,\"learning_rate\":1,\"trees\":[{\"feature\":[2,-1,-1],\"threshold\":[" +
+         std::to_string(split) +
+         ",0,0],\"left\":[1,-1,-1],\"right\":[2,-1,-1],\"value\":[0,-10,10]}]}";
+}
+
+// Room A (columns 0-99) cut in two pieces by a line through free space (pieces 1 and 2), a wall
+// three cells thick at columns 100-102 with a 0.9 m door (rows 40-57), room B (piece 3) beyond.
+struct Scene {
+  cv::Mat labels = cv::Mat::zeros(100, 200, CV_32S);
+  cv::Mat occupied = cv::Mat::zeros(100, 200, CV_8U);
+  cv::Mat gt = cv::Mat::zeros(100, 200, CV_32S);
+  Scene() {
+    cv::rectangle(occupied, cv::Rect(0, 0, 200, 100), cv::Scalar(255), 1);
+    labels(cv::Rect(1, 1, 49, 98)).setTo(1);
+    labels(cv::Rect(50, 1, 50, 98)).setTo(2);
+    occupied(cv::Rect(100, 1, 3, 98)).setTo(255);
+    occupied(cv::Rect(100, 40, 3, 18)).setTo(0);
+    labels(cv::Rect(100, 40, 3, 18)).setTo(3);
+    labels(cv::Rect(103, 1, 96, 98)).setTo(3);
+    gt(cv::Rect(1, 1, 99, 98)).setTo(7);
+    gt(cv::Rect(100, 1, 99, 98)).setTo(9);
+    gt(cv::Rect(100, 40, 3, 18)).setTo(9);
+  }
+  LayoutMergeInputs Inputs() {
+    LayoutMergeInputs in;
+    in.labels = &labels;
+    in.count = 3;
+    in.occupied = occupied;
+    in.resolution_m = 0.05;
+    return in;
+  }
+};
+
+TEST_CASE("a layout merge model parses, and each defect gets one clear error") {
+  auto ok = ParseLayoutMergeModel(StumpModel(0.8));
+  REQUIRE(ok.ok());
+  CHECK(ok->trees.size() == 1);
+
+  std::string wrong_name = StumpModel(0.8);
+  wrong_name.replace(wrong_name.find("wall_m"), 6, "wall_x");
+  auto bad = ParseLayoutMergeModel(wrong_name);
+  REQUIRE_FALSE(bad.ok());
+  CHECK(bad.status().message().find("feature 1 is 'wall_x'") != std::string::npos);
+
+  auto short_names = ParseLayoutMergeModel("{\"features\":[\"open_m\"],\"init\":0,"
+                                           "\"learning_rate\":1,\"trees\":[]}");
+  REQUIRE_FALSE(short_names.ok());
+  CHECK(short_names.status().message().find("1 features, expected " +
+                                                  std::to_string(kLayoutFeatureCount)) != std::string::npos);
+
+  std::string cycle = StumpModel(0.8);
+  cycle.replace(cycle.find("\"left\":[1"), 9, "\"left\":[0");
+  auto cyclic = ParseLayoutMergeModel(cycle);
+  REQUIRE_FALSE(cyclic.ok());
+  CHECK(cyclic.status().message().find("node 0 is malformed") != std::string::npos);
+
+  auto lengths = ParseLayoutMergeModel("{\"features\":" + Names() +
+                                       ",\"init\":0,\"learning_rate\":1,\"trees\":[{\"feature\":"
+                                       "[-1],\"threshold\":[0],\"left\":[-1],\"right\":[],"
+                                       "\"value\":[1]}]}");
+  REQUIRE_FALSE(lengths.ok());
+  CHECK(lengths.status().message().find("different lengths") != std::string::npos);
+
+  CHECK_FALSE(ParseLayoutMergeModel("not json").ok());
+  CHECK_FALSE(LoadLayoutMergeModel("/nonexistent/model.json").ok());
+}
+
+TEST_CASE("the ensemble is sigmoid(init + rate x leaf values), left at x <= threshold") {
+  auto m = ParseLayoutMergeModel(StumpModel(0.5));
+  REQUIRE(m.ok());
+  std::array<float, kLayoutFeatureCount> x{};
+  x[2] = 0.5f;  // at the threshold: left
+  CHECK(m->Probability(x) == doctest::Approx(1.0 / (1.0 + std::exp(10.0))));
+  x[2] = 0.51f;
+  CHECK(m->Probability(x) == doctest::Approx(1.0 / (1.0 + std::exp(-10.0))));
+  const LayoutMergeModel empty;
+  CHECK(empty.Probability(x) == doctest::Approx(0.5));
+}
+
+TEST_CASE("pieces of one room merge across an open line, not through a door in a wall") {
+  Scene s;
+  auto model = ParseLayoutMergeModel(StumpModel(0.8));
+  REQUIRE(model.ok());
+  auto merged = MergeLayoutPieces(s.Inputs(), *model, 0.5);
+  REQUIRE(merged.ok());
+  CHECK(*merged == 2);
+  CHECK(s.labels.at<int>(50, 10) == s.labels.at<int>(50, 90));
+  CHECK(s.labels.at<int>(50, 10) != s.labels.at<int>(50, 150));
+  CHECK(s.labels.at<int>(50, 101) == s.labels.at<int>(50, 150));  // the door stays with B
+  CHECK(s.labels.at<int>(0, 0) == 0);
+
+  // A threshold no pair reaches merges nothing; pieces keep dense labels.
+  Scene t;
+  auto none = MergeLayoutPieces(t.Inputs(), *model, 1.0);
+  REQUIRE(none.ok());
+  CHECK(*none == 3);
+}
+
+TEST_CASE("the trace labels every pair by the ground truth and the oracle merges by it") {
+  Scene s;
+  const cv::Mat gt = s.gt.clone();
+  std::FILE* csv = std::tmpfile();
+  REQUIRE(csv != nullptr);
+  LayoutMergeTrace trace;
+  trace.ground_truth = &gt;
+  trace.csv = csv;
+  trace.oracle = true;
+  const LayoutMergeModel no_model;  // the oracle does not ask it
+  auto merged = MergeLayoutPieces(s.Inputs(), no_model, 0.5, trace);
+  REQUIRE(merged.ok());
+  CHECK(*merged == 2);
+  CHECK(s.labels.at<int>(50, 10) == s.labels.at<int>(50, 90));
+  CHECK(s.labels.at<int>(50, 10) != s.labels.at<int>(50, 150));
+  std::rewind(csv);
+  char line[4096];
+  std::set<std::string> step0;
+  int rows = 0, fields = 0;
+  while (std::fgets(line, sizeof line, csv) != nullptr) {
+    ++rows;
+    const std::string l(line);
+    if (l.rfind("0,", 0) == 0) step0.insert(l.substr(0, 4));
+    fields = 1;
+    for (char ch : l) fields += ch == ',';
+  }
+  std::fclose(csv);
+  CHECK(rows == 3);  // two pairs at step 0, one (A with B) at step 1
+  CHECK(step0 == std::set<std::string>{"0,0,", "0,1,"});  // one pair of one room, one not
+  CHECK(fields == 2 + kLayoutFeatureCount);
+}
+
+TEST_CASE("bad inputs to the layout merge are one clear error") {
+  Scene s;
+  LayoutMergeInputs in = s.Inputs();
+  cv::Mat wrong = cv::Mat::zeros(10, 10, CV_8U);
+  in.occupied = wrong;
+  auto r = MergeLayoutPieces(in, LayoutMergeModel{}, 0.5);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("same size") != std::string::npos);
+}
+
+TEST_CASE("the compiled-in model parses and has trees") {
+  CHECK(DefaultLayoutMergeModel().trees.size() >= 10);
+}
+
+}  // namespace
+}  // namespace zm
