@@ -3,6 +3,7 @@
 // database's keyframes alone when no grid is given. Writes a GeoJSON zone file; optionally caps
 // the keyframes per zone (--db with --max-zone-keyframes) and scores against a ground-truth PNG.
 #include <chrono>
+#include <cstdlib>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -27,6 +28,9 @@ struct SegmentOpts {
   double cell_size_m = 8.0;
   std::vector<std::string> params;  // KEY=VALUE overrides of SegmentOptions
   std::string labels_png;
+  std::string merge_model;  // a layout merge model JSON instead of the compiled-in one
+  std::string merge_trace;  // CSV of every pair's features and --score's label, every step
+  bool merge_oracle = false;  // trace: merge by the ground truth instead of the model
   bool json = false;
 };
 
@@ -72,7 +76,31 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
     for (const std::string& kv : o.params) {
       if (Status st = SetSegmentOption(kv, &options); !st.ok()) return ctx.Fail(kCmd, st);
     }
-    auto seg = SegmentRooms(*grid, options);
+    LayoutMergeModel model = DefaultLayoutMergeModel();
+    if (!o.merge_model.empty()) {
+      auto loaded = LoadLayoutMergeModel(o.merge_model);
+      if (!loaded.ok()) return ctx.Fail(kCmd, loaded.status());
+      model = std::move(loaded).value();
+    }
+    // Training data for the layout merge (scripts/train_layout_merge.py): the ground truth
+    // labels each pair at each step.
+    cv::Mat trace_gt;
+    LayoutMergeTrace trace;
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> trace_file(nullptr, &std::fclose);
+    if (!o.merge_trace.empty()) {
+      if (o.score_gt.empty()) return ctx.Fail(kCmd, "--merge-trace needs --score GT.png");
+      auto gt = LoadGroundTruthLabels(o.score_gt);
+      if (!gt.ok()) return ctx.Fail(kCmd, gt.status());
+      trace_gt = std::move(gt).value();
+      trace_file.reset(std::fopen(o.merge_trace.c_str(), "w"));
+      if (!trace_file) return ctx.Fail(kCmd, o.merge_trace + ": cannot open for writing");
+      trace.ground_truth = &trace_gt;
+      trace.csv = trace_file.get();
+      trace.oracle = o.merge_oracle;
+    } else if (o.merge_oracle) {
+      return ctx.Fail(kCmd, "--merge-oracle needs --merge-trace");
+    }
+    auto seg = SegmentRooms(*grid, options, model, trace);
     if (!seg.ok()) return ctx.Fail(kCmd, seg.status());
     report["source"] = o.map;
     report["segment_ms"] = seg->runtime_ms;
@@ -162,6 +190,15 @@ void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx) {
                   "for evaluation: see docs/segmentation.md)");
   cmd->add_option("--labels", opts->labels_png,
                   "write the segments as a colour PNG over the grid (for inspection)");
+  cmd->add_option("--merge-model", opts->merge_model,
+                  "layout merge model JSON to use instead of the compiled-in one (training and "
+                  "evaluation: scripts/train_layout_merge.py)");
+  cmd->add_option("--merge-trace", opts->merge_trace,
+                  "write every layout pair's features and ground-truth label (from --score) at "
+                  "every merge step to this CSV (training data)");
+  cmd->add_flag("--merge-oracle", opts->merge_oracle,
+                "with --merge-trace: merge pairs of one ground-truth room instead of asking "
+                "the model");
   cmd->add_flag("--json", opts->json, "print a JSON report");
   cmd->callback([opts, &ctx] { Run(*opts, ctx); });
 }

@@ -21,6 +21,7 @@
 #include <unordered_map>
 
 #include "zones/declutter.h"
+#include "zones/layout_merge.h"
 #include "zones/polygon.h"
 
 namespace zm {
@@ -563,6 +564,13 @@ Status CheckOptions(const SegmentOptions& o) {
     return bad("areas must be >= 0");
   }
   if (o.simplify_tolerance_m < 0.0) return bad("simplify_tolerance_m must be >= 0");
+  if (!(o.layout_merge_threshold >= 0.0 && o.layout_merge_threshold <= 1.0)) {
+    return bad("layout_merge_threshold must be in [0, 1] (0 = the rule merges)");
+  }
+  if (o.layout_line_max_m < 0.0 || o.layout_mouth_max_m < 0.0 || o.layout_facade_max_m < 0.0 ||
+      o.layout_seedless_min_area_m2 < 0.0) {
+    return bad("the layout_* lengths and areas must be >= 0");
+  }
   if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
       o.opening_max_width_m < 0.0 || o.opening_merge_ratio < 0.0 ||
       o.facade_opening_max_width_m < 0.0 || o.mouth_opening_max_width_m < 0.0 ||
@@ -622,6 +630,11 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"corridor_elongation", &SegmentOptions::corridor_elongation},
       {"corridor_max_width_m", &SegmentOptions::corridor_max_width_m},
       {"simplify_tolerance_m", &SegmentOptions::simplify_tolerance_m},
+      {"layout_merge_threshold", &SegmentOptions::layout_merge_threshold},
+      {"layout_line_max_m", &SegmentOptions::layout_line_max_m},
+      {"layout_mouth_max_m", &SegmentOptions::layout_mouth_max_m},
+      {"layout_facade_max_m", &SegmentOptions::layout_facade_max_m},
+      {"layout_seedless_min_area_m2", &SegmentOptions::layout_seedless_min_area_m2},
   };
   std::string known;
   for (const auto& [name, field] : fields) {
@@ -665,7 +678,33 @@ Status WriteSegmentationPng(const std::string& path, const OccupancyGrid& grid,
   return Status::Ok();
 }
 
+namespace {
+
+// The options the layout pieces are cut with: every thin wall end continued across the building,
+// wide mouths and facades, small enclosed spaces their own pieces, and none of the rule merges
+// (the learned merge decides instead).
+SegmentOptions LayoutPieceOptions(const SegmentOptions& o) {
+  SegmentOptions p = o;
+  p.opening_max_width_m = o.layout_line_max_m;
+  p.facing_opening_max_width_m = o.layout_line_max_m;
+  p.mouth_opening_max_width_m = o.layout_mouth_max_m;
+  p.facade_opening_max_width_m = o.layout_facade_max_m;
+  p.seedless_room_min_area_m2 = o.layout_seedless_min_area_m2;
+  p.opening_merge_ratio = 0.0;
+  p.opening_local_ratio = 0.0;
+  p.merge_open_border_ratio = 0.0;
+  p.merge_no_constriction_ratio = 0.0;
+  return p;
+}
+
+}  // namespace
+
 Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOptions& options) {
+  return SegmentRooms(grid, options, DefaultLayoutMergeModel());
+}
+
+Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOptions& given,
+                                  const LayoutMergeModel& model, const LayoutMergeTrace& trace) {
   const auto t0 = std::chrono::steady_clock::now();
   if (grid.cells.empty() || grid.cells.type() != CV_8UC1) {
     return InvalidArgument("occupancy grid is empty or not 8-bit single-channel");
@@ -674,7 +713,9 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
     return InvalidArgument("occupancy grid resolution must be > 0, got " +
                            std::to_string(grid.resolution_m));
   }
-  ZM_RETURN_IF_ERROR(CheckOptions(options));
+  ZM_RETURN_IF_ERROR(CheckOptions(given));
+  const bool layout = given.layout_merge_threshold > 0.0;
+  const SegmentOptions options = layout ? LayoutPieceOptions(given) : given;
   const double res = grid.resolution_m;
   Segmentation seg;
   try {
@@ -727,6 +768,28 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         }
       }
       const int label_count = seed_count + std::max(0, n_extra - 1);
+      if (layout) {
+        LayoutMergeInputs in;
+        in.labels = &labels;
+        in.count = MergeSmallSegments(&labels, label_count, 0);  // numbers pieces densely
+        in.occupied = (grid.cells(box) == kCellOccupied) & (labels == 0);
+        in.resolution_m = res;
+        in.wall_angle_rad = walls.angle_rad;
+        in.offset = box.tl();
+        // The rule merges' segmentation of the same grid is the model's second opinion: they
+        // were chosen on office buildings, where their corridors and halls are right.
+        SegmentOptions rule_options = given;
+        rule_options.layout_merge_threshold = 0.0;
+        ZM_ASSIGN_OR_RETURN(const Segmentation rules, SegmentRooms(grid, rule_options));
+        in.rule_labels = rules.labels(box).clone();
+        ZM_ASSIGN_OR_RETURN(const int count,
+                            MergeLayoutPieces(in, model, given.layout_merge_threshold, trace));
+        Describe(labels, dt, count, res, options, &seg.segments);
+        labels.copyTo(seg.labels(box));
+        seg.runtime_ms = std::chrono::duration<double, std::milli>(
+                             std::chrono::steady_clock::now() - t0).count();
+        return seg;
+      }
       MergeAcrossOpenings(&labels, dt, dt_closed, openings, walls.opening_ids(box),
                           walls.opening_lines, label_count, options.opening_merge_ratio,
                           options.opening_local_ratio,

@@ -20,6 +20,10 @@
 // constriction relative to them (`merge_open_border_ratio`) merge (one open room cut in two by
 // clutter); segments smaller than `min_room_area_m2` merge into the neighbour sharing the
 // longest border; each segment is labelled corridor when long and narrow, else room.
+// Those merges are "the rule merges". By default (`layout_merge_threshold` > 0) the pieces are
+// cut with every thin wall end continued across the building and no rule merge, and the learned
+// layout merge (layout_merge.h) joins them, with the rule merges' segmentation of the same grid
+// as one of its inputs.
 //
 // Invariants of a Segmentation: labels is CV_32SC1 of the grid's size; 0 = no zone, 1..N =
 // segments[label - 1]; every labelled cell is free in the cleaned grid; each segment is one
@@ -34,6 +38,7 @@
 
 #include "common/status.h"
 #include "zones/grid_map.h"
+#include "zones/layout_merge.h"
 #include "zones/zone_set.h"
 
 namespace zm {
@@ -106,6 +111,17 @@ struct SegmentOptions {
   double corridor_elongation = 4.0;   // length / width at or above this = corridor
   double corridor_max_width_m = 3.5;  // corridors are at most this wide
   double simplify_tolerance_m = 0.10;  // approxPolyDP tolerance for polygons
+
+  // The learned layout merge (layout_merge.h; issue 16, fifth part). When on, free space is cut
+  // into layout pieces (every thin wall end continued up to `layout_line_max_m`, mouths and
+  // facades as below, enclosed spaces from `layout_seedless_min_area_m2`, no rule merges) and
+  // the compiled-in model merges neighbouring pieces while its probability that they are one
+  // room is >= the threshold. 0 = off: the rule merges above decide, as before.
+  double layout_merge_threshold = 0.6;
+  double layout_line_max_m = 20.0;
+  double layout_mouth_max_m = 6.0;
+  double layout_facade_max_m = 8.0;
+  double layout_seedless_min_area_m2 = 0.2;
 };
 
 struct SegmentInfo {
@@ -131,8 +147,14 @@ struct Segmentation {
 [[nodiscard]] Status SetSegmentOption(const std::string& key_value, SegmentOptions* options);
 
 // Segments the grid into rooms and corridors. Errors: empty grid, bad options, OpenCV failure.
+// The first form uses the compiled-in layout merge model; the second takes another one (a model
+// being trained or evaluated) and a trace (training data; layout_merge.h).
 [[nodiscard]] Result<Segmentation> SegmentRooms(const OccupancyGrid& grid,
                                                 const SegmentOptions& options = {});
+[[nodiscard]] Result<Segmentation> SegmentRooms(const OccupancyGrid& grid,
+                                                const SegmentOptions& options,
+                                                const LayoutMergeModel& model,
+                                                const LayoutMergeTrace& trace = {});
 
 // Splits every segment holding more than `max_keyframes` of `positions_m` (map frame) in two
 // along the principal axis of its keyframes at their median, recursively, until each part

@@ -1,7 +1,8 @@
-// Automatic zones: a synthetic floor of rectangular rooms joined by doors is segmented exactly,
-// also cluttered (furniture, unseen floor); unknown cells inside a room do not split it; a
-// corridor with aligned rooms on both sides stays one corridor; a real map stays above a
-// labelled regression floor; grid loaders (YAML, PNG,
+// Automatic zones: with the rule merges, a synthetic floor of rectangular rooms joined by doors
+// is segmented exactly, also cluttered (furniture, unseen floor); unknown cells inside a room do
+// not split it; a corridor with aligned rooms on both sides stays one corridor; each layout rule
+// makes its room; with the default (the learned layout merge), the same floors; a real map stays
+// above a labelled regression floor with each; grid loaders (YAML, PNG,
 // RTAB-Map opt_map) place cells right and reject bad input with one clear error; keyframe-only
 // zones and oversize splits respect their keyframe cap.
 #include <doctest/doctest.h>
@@ -25,6 +26,14 @@
 
 namespace zm {
 namespace {
+
+// The rule merges (issue 16, parts 1-4), which the tests below pin down one by one; the default
+// (the learned layout merge) is tested on the same floors further down.
+SegmentOptions Rules() {
+  SegmentOptions o;
+  o.layout_merge_threshold = 0.0;
+  return o;
+}
 
 std::filesystem::path TempDir(const std::string& name) {
   auto dir = std::filesystem::path(ZM_BINARY_DIR) / "segmentation_test" / name;
@@ -66,7 +75,7 @@ OccupancyGrid SyntheticFloor(cv::Mat* truth) {
 TEST_CASE("a synthetic floor of rooms joined by doors is segmented one segment per room") {
   cv::Mat truth;
   const OccupancyGrid grid = SyntheticFloor(&truth);
-  auto seg = SegmentRooms(grid);
+  auto seg = SegmentRooms(grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 4);
   auto score = ScoreSegmentation(seg->labels, truth);
@@ -159,7 +168,7 @@ TEST_CASE("a cluttered floor still segments into its rooms") {
   // Room 3: a 0.8 m cabinet standing free; the corridor: a person.
   fill(10.5, 4.5, 11.3, 5.0, kCellOccupied);
   fill(6.0, 1.6, 6.3, 1.9, kCellOccupied);
-  auto seg = SegmentRooms(grid);
+  auto seg = SegmentRooms(grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 4);
   auto score = ScoreSegmentation(seg->labels, truth);
@@ -169,7 +178,7 @@ TEST_CASE("a cluttered floor still segments into its rooms") {
   CHECK(score->mean_iou > 0.95);
   CHECK(CountKind(*seg, "corridor") == 1);
   // Without decluttering the table's 1.4 m2 shadow stays an obstacle (the old behaviour).
-  SegmentOptions off;
+  SegmentOptions off = Rules();
   off.wall_min_length_m = 0.0;
   auto cluttered = SegmentRooms(grid, off);
   REQUIRE(cluttered.ok());
@@ -182,7 +191,7 @@ TEST_CASE("unknown cells inside a room do not split it") {
   // Unseen floor: a 2.5 x 1.5 m patch in the middle and a 3 m band nearly across the room.
   f.Fill(3.5, 2.5, 6.0, 4.0, kCellUnknown);
   f.Fill(1.6, 4.6, 8.4, 5.0, kCellUnknown);
-  auto seg = SegmentRooms(f.grid);
+  auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 1);
   auto score = ScoreSegmentation(seg->labels, f.truth);
@@ -204,7 +213,7 @@ TEST_CASE("a corridor with rooms on both sides stays one corridor") {
     f.Fill(x0 + 1.5, 5.1, x0 + 2.4, 5.2, kCellFree);
     f.Fill(x0 + 1.5, 6.8, x0 + 2.4, 6.9, kCellFree);
   }
-  auto seg = SegmentRooms(f.grid);
+  auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 11);
   CHECK(CountKind(*seg, "corridor") == 1);
@@ -258,7 +267,7 @@ TEST_CASE("rooms joined by open-plan openings of 1.5 to 3 m split into the rooms
   f.Fill(x[1] - 0.1, 2.5, x[1], 4.0, kCellFree);  // 1.5 m, wall on both sides
   f.Fill(x[2] - 0.1, 3.0, x[2], 5.0, kCellFree);  // 2.0 m, wall on both sides
   f.Fill(x[3] - 0.1, 4.05, x[3], 7.0, kCellFree);  // 3.0 m, from a 3 m stub to the outer wall
-  auto seg = SegmentRooms(f.grid);
+  auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 4);
   std::set<int> used;
@@ -273,7 +282,7 @@ TEST_CASE("rooms joined by open-plan openings of 1.5 to 3 m split into the rooms
   CHECK(score->mean_iou > 0.9);
   // Without the layout step the same floor is one or two segments (the openings are too wide
   // for doors and too wide to narrow the clearance much).
-  SegmentOptions off;
+  SegmentOptions off = Rules();
   off.opening_max_width_m = 0.0;
   auto without = SegmentRooms(f.grid, off);
   REQUIRE(without.ok());
@@ -288,13 +297,13 @@ TEST_CASE("an opening that constricts neither side joins the two spaces") {
   Floor f(8.0, 5.5);
   f.Room(1.0, 1.0, 7.0, 4.5, 1);
   f.Fill(3.95, 1.0, 4.05, 1.6, kCellOccupied);
-  auto seg = SegmentRooms(f.grid);
+  auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 1);
   int l = 0;
   CHECK(BestShare(*seg, f.truth, 1, &l) > 0.95);  // less the partial wall
   // With the local ratio above 0.83 the opening stays a border: the partial wall did make one.
-  SegmentOptions strict;
+  SegmentOptions strict = Rules();
   strict.opening_local_ratio = 0.9;
   auto split = SegmentRooms(f.grid, strict);
   REQUIRE(split.ok());
@@ -304,7 +313,7 @@ TEST_CASE("an opening that constricts neither side joins the two spaces") {
   Floor g(8.0, 5.5);
   g.Room(1.0, 1.0, 7.0, 4.5, 1);
   g.Fill(3.95, 1.0, 4.05, 3.0, kCellOccupied);
-  auto parts = SegmentRooms(g.grid);
+  auto parts = SegmentRooms(g.grid, Rules());
   REQUIRE(parts.ok());
   CHECK(parts->segments.size() == 2);
 }
@@ -323,7 +332,7 @@ TEST_CASE("an apartment with a sliding partition, a balcony slider and a WC spli
   f.Fill(7.0, 5.0, 7.1, 7.5, kCellFree);    // the sliding door: 2.5 m open at the bottom
   f.Fill(2.8, 7.5, 5.2, 7.6, kCellFree);    // the balcony slider, 2.4 m
   f.Fill(1.5, 2.2, 2.2, 3.0, kCellFree);    // WC door, 0.7 m
-  auto seg = SegmentRooms(f.grid);
+  auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   std::set<int> used;
   for (int i = 1; i <= 4; ++i) {
@@ -345,7 +354,7 @@ TEST_CASE("a wardrobe behind a door in a wall of short pieces is a room of its o
   f.Fill(1.9, 1.0, 3.7, 1.8, kCellOccupied);
   f.Room(2.0, 1.0, 3.6, 1.7, 2);
   f.Fill(2.4, 1.7, 3.2, 1.8, kCellFree);
-  SegmentOptions o;
+  SegmentOptions o = Rules();
   o.wall_stub_min_length_m = 0.3;
   o.seedless_room_min_area_m2 = 0.5;
   o.min_room_area_m2 = 0.5;
@@ -368,7 +377,7 @@ TEST_CASE("a wardrobe behind a door in a wall of short pieces is a room of its o
 // Room 2 of `f` is a segment of its own (holding `share` of it) beside room 1 with the default
 // options, and is flooded from room 1 with `rule_off` (the rule that finds it turned off).
 void CheckOwnRoomOnlyWithRule(const Floor& f, double share, const SegmentOptions& rule_off) {
-  auto seg = SegmentRooms(f.grid);
+  auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   int l1 = 0, l2 = 0;
   CHECK(BestShare(*seg, f.truth, 1, &l1) > 0.9);
@@ -394,7 +403,7 @@ TEST_CASE("a balcony behind a full-width slider, protruding from the facade, is 
   f.Room(2.5, 5.15, 5.0, 6.15, 2);
   f.Fill(2.5, 5.0, 5.0, 5.15, kCellFree);  // the slider, open
   // Without facade openings the balcony is flooded from the room.
-  SegmentOptions off;
+  SegmentOptions off = Rules();
   off.facade_opening_max_width_m = 0.0;
   CheckOwnRoomOnlyWithRule(f, /*share=*/0.85, off);
 }
@@ -408,7 +417,7 @@ TEST_CASE("a wardrobe whose whole front is one door is a room of its own") {
   f.Fill(2.0, 1.0, 2.1, 1.7, kCellOccupied);
   f.Fill(3.6, 1.0, 3.7, 1.7, kCellOccupied);
   cv::rectangle(f.truth, Floor::R(2.1, 1.0, 3.6, 1.7), cv::Scalar(2), cv::FILLED);
-  SegmentOptions off;
+  SegmentOptions off = Rules();
   off.mouth_opening_max_width_m = 0.0;
   CheckOwnRoomOnlyWithRule(f, /*share=*/0.8, off);
 }
@@ -424,7 +433,7 @@ TEST_CASE("an L-shaped room and a room with furniture against its walls stay who
   f.Fill(7.0, 4.05, 7.1, 4.95, kCellFree);  // a 0.9 m door from the L's arm to the room
   f.Fill(8.0, 1.0, 10.0, 1.6, kCellOccupied);   // cabinet against the top wall
   f.Fill(11.4, 2.5, 12.0, 3.7, kCellOccupied);  // desk against the right wall
-  auto seg = SegmentRooms(f.grid);
+  auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 2);
   int l1 = 0, l2 = 0;
@@ -433,8 +442,98 @@ TEST_CASE("an L-shaped room and a room with furniture against its walls stay who
   CHECK(l1 != l2);
 }
 
+// The default: layout pieces merged by the compiled-in model (layout_merge.h). The same floors
+// as the rule tests above; the model was trained on real plans, never on these.
+TEST_CASE("the default layout merge: rooms joined by doors, one segment per room") {
+  cv::Mat truth;
+  const OccupancyGrid grid = SyntheticFloor(&truth);
+  auto seg = SegmentRooms(grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  auto score = ScoreSegmentation(seg->labels, truth);
+  REQUIRE(score.ok());
+  MESSAGE("synthetic floor, layout merge: " << score->precision << " " << score->recall << " "
+                                            << score->mean_iou << " "
+                                            << score->predicted_segments);
+  CHECK(score->predicted_segments == 4);
+  CHECK(score->precision > 0.99);
+  CHECK(score->recall > 0.99);
+  CHECK(score->mean_iou > 0.98);
+  CHECK(CountKind(*seg, "corridor") == 1);
+}
+
+TEST_CASE("the default layout merge: a corridor crossed by aligned walls stays one") {
+  Floor f(22.0, 12.0);
+  f.Room(1.0, 5.2, 21.0, 6.8, 100);
+  for (int i = 0; i < 5; ++i) {
+    const double x0 = 1.0 + 4.0 * i;
+    f.Room(x0, 1.0, x0 + 3.9, 5.1, i + 1);
+    f.Room(x0, 6.9, x0 + 3.9, 11.0, i + 11);
+    f.Fill(x0 + 1.5, 5.1, x0 + 2.4, 5.2, kCellFree);
+    f.Fill(x0 + 1.5, 6.8, x0 + 2.4, 6.9, kCellFree);
+  }
+  auto seg = SegmentRooms(f.grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  int corridor_label = 0;
+  CHECK(BestShare(*seg, f.truth, 100, &corridor_label) > 0.95);
+  std::set<int> room_labels;
+  for (int id : {1, 2, 3, 4, 5, 11, 12, 13, 14, 15}) {
+    int label = 0;
+    CHECK(BestShare(*seg, f.truth, id, &label) > 0.95);
+    room_labels.insert(label);
+  }
+  CHECK(room_labels.size() == 10);
+  CHECK(room_labels.count(corridor_label) == 0);
+}
+
+TEST_CASE("the default layout merge: an L-shaped room stays whole") {
+  Floor f(13.0, 8.0);
+  f.Room(1.0, 1.0, 4.0, 7.0, 1);
+  f.Room(1.0, 4.0, 7.0, 7.0, 1);
+  f.Room(7.1, 1.0, 12.0, 5.0, 2);
+  f.Fill(7.0, 4.05, 7.1, 4.95, kCellFree);
+  f.Fill(8.0, 1.0, 10.0, 1.6, kCellOccupied);
+  f.Fill(11.4, 2.5, 12.0, 3.7, kCellOccupied);
+  auto seg = SegmentRooms(f.grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  int l1 = 0, l2 = 0;
+  CHECK(BestShare(*seg, f.truth, 1, &l1) > 0.95);
+  CHECK(BestShare(*seg, f.truth, 2, &l2) > 0.85);
+  CHECK(l1 != l2);
+}
+
+TEST_CASE("the layout pieces are the rule borders and more; a model that merges nothing keeps "
+          "them all") {
+  cv::Mat truth;
+  const OccupancyGrid grid = SyntheticFloor(&truth);
+  auto never = ParseLayoutMergeModel(
+      "{\"features\":" + [] {
+        std::string s = "[";
+        for (std::size_t i = 0; i < kLayoutFeatureNames.size(); ++i) {
+          s += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[i] + "\"";
+        }
+        return s + "]";
+      }() + ",\"init\":-20,\"learning_rate\":1,\"trees\":[]}");
+  REQUIRE(never.ok());
+  auto pieces = SegmentRooms(grid, SegmentOptions{}, *never);
+  auto merged = SegmentRooms(grid);
+  auto rules = SegmentRooms(grid, Rules());
+  REQUIRE(pieces.ok());
+  REQUIRE(merged.ok());
+  REQUIRE(rules.ok());
+  CHECK(pieces->segments.size() >= merged->segments.size());
+  CHECK(pieces->segments.size() >= rules->segments.size());
+  // Every labelled cell is free in the cleaned grid, whatever merges.
+  for (int r = 0; r < pieces->labels.rows; ++r) {
+    for (int c = 0; c < pieces->labels.cols; ++c) {
+      if (pieces->labels.at<int>(r, c) > 0) {
+        CHECK(pieces->free_cleaned.at<std::uint8_t>(r, c) == 255);
+      }
+    }
+  }
+}
+
 TEST_CASE("segmentation options are set by name, with one clear error otherwise") {
-  SegmentOptions o;
+  SegmentOptions o = Rules();
   REQUIRE(SetSegmentOption("door_max_width_m=0.9", &o).ok());
   CHECK(o.door_max_width_m == 0.9);
   const Status unknown = SetSegmentOption("door_width=1", &o);
@@ -450,9 +549,40 @@ TEST_CASE("segmentation options are set by name, with one clear error otherwise"
 // the six shared maps (docs/segmentation.md). map15 measured 96.1 / 95.2 / 83.5 % with 23
 // segments (98.4 / 86.9 / 81.6 % with 25 before the layout step); these floors sit a few points
 // below both so that only a real regression trips them.
-TEST_CASE("regression floor: map15 with the default options") {
+TEST_CASE("regression floor: map15 with the rule merges") {
   // The shared data sit beside the checkout; a worktree elsewhere points at them with the
   // environment variable ZM_SHARED_DIR.
+  const char* env = std::getenv("ZM_SHARED_DIR");
+  const std::string base =
+      std::string(env != nullptr ? env : ZM_SHARED_DIR) + "/data/floorplans/map15";
+  if (!std::filesystem::exists(base + "_map.png")) {
+    MESSAGE("skipped: no shared floor plan at " << base << "_map.png (set ZM_SHARED_DIR)");
+    return;
+  }
+  auto grid = LoadGridImage(base + "_map.png");
+  REQUIRE_MESSAGE(grid.ok(), grid.status().ToString());
+  auto gt = LoadGroundTruthLabels(base + "_gt.png");
+  REQUIRE(gt.ok());
+  auto seg = SegmentRooms(*grid, Rules());
+  REQUIRE(seg.ok());
+  auto score = ScoreSegmentation(seg->labels, *gt);
+  REQUIRE(score.ok());
+  CHECK(score->gt_rooms == 20);
+  // Third part of issue 16 (stubs, seedless rooms, local opening measure): measured 87.3 /
+  // 85.1 / 74.3 %, down from 96.1 / 95.2 / 83.5 (docs/segmentation.md: a trade on this map).
+  // Fourth part (facade, mouths, facing ends; a border's main opening decides): 94.3 / 83.0 /
+  // 77.8 % with 37 segments (31 before): door recesses and closets are segments of their own.
+  CHECK(score->precision >= 0.90);
+  CHECK(score->recall >= 0.80);
+  CHECK(score->mean_iou >= 0.75);
+  CHECK(score->predicted_segments >= 16);
+  CHECK(score->predicted_segments <= 40);
+}
+
+// SCORING REGRESSION FLOOR for the default (the learned layout merge, issue 16 fifth part): map15
+// measured 94.3 / 81.6 / 81.3 % with 47 segments; leave-one-out (the model trained without map15) measured 89.6 / 83.0 / 78.6.
+// The compiled-in model saw map15 in training, so this is a floor, not an evaluation.
+TEST_CASE("regression floor: map15 with the default options (the layout merge)") {
   const char* env = std::getenv("ZM_SHARED_DIR");
   const std::string base =
       std::string(env != nullptr ? env : ZM_SHARED_DIR) + "/data/floorplans/map15";
@@ -468,16 +598,14 @@ TEST_CASE("regression floor: map15 with the default options") {
   REQUIRE(seg.ok());
   auto score = ScoreSegmentation(seg->labels, *gt);
   REQUIRE(score.ok());
+  MESSAGE("map15, layout merge: " << score->precision << " " << score->recall << " "
+                                  << score->mean_iou << " " << score->predicted_segments);
   CHECK(score->gt_rooms == 20);
-  // Third part of issue 16 (stubs, seedless rooms, local opening measure): measured 87.3 /
-  // 85.1 / 74.3 %, down from 96.1 / 95.2 / 83.5 (docs/segmentation.md: a trade on this map).
-  // Fourth part (facade, mouths, facing ends; a border's main opening decides): 94.3 / 83.0 /
-  // 77.8 % with 37 segments (31 before): door recesses and closets are segments of their own.
   CHECK(score->precision >= 0.90);
-  CHECK(score->recall >= 0.80);
-  CHECK(score->mean_iou >= 0.75);
-  CHECK(score->predicted_segments >= 16);
-  CHECK(score->predicted_segments <= 40);
+  CHECK(score->recall >= 0.78);
+  CHECK(score->mean_iou >= 0.77);
+  CHECK(score->predicted_segments >= 30);
+  CHECK(score->predicted_segments <= 60);
 }
 
 TEST_CASE("bad inputs give one clear error naming the file") {
@@ -632,7 +760,7 @@ TEST_CASE("keyframe-only zones are compact, disjoint and capped in keyframes") {
 TEST_CASE("segments holding too many keyframes are split until each fits") {
   cv::Mat truth;
   const OccupancyGrid grid = SyntheticFloor(&truth);
-  auto seg = SegmentRooms(grid);
+  auto seg = SegmentRooms(grid, Rules());
   REQUIRE(seg.ok());
   // 60 keyframes along the corridor (y = 6.2 m), 10 in the first room.
   std::vector<Eigen::Vector2d> kf;
