@@ -13,10 +13,11 @@ both; it is written as JSON (--json) and as lib/zones/layout_merge_model.inc (--
 compiled in.
 
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
-           [--exclude NAME ...] [--threshold 0.6] [--weight DIR=W ...]
+           [--exclude NAME ...] [--threshold 0.6] [--weight DIR=W ...] [--loo DIR]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
-its maps, unless --weight gives it W times that.
+its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
+prints the leave-one-out table instead: each map of DIR scored by a model trained without it.
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
 """
 import json
@@ -103,8 +104,47 @@ def export(clf, x_check):
     return model
 
 
+def train(zonemap, pairs, dir_weight, threshold):
+    with tempfile.TemporaryDirectory() as tmp:
+        x1, y1, w1 = collect(zonemap, pairs, tmp, ["--merge-oracle"], dir_weight)
+        first = export(fit(x1, y1, w1), x1[:200])
+        first_json = os.path.join(tmp, "first.json")
+        with open(first_json, "w") as f:
+            json.dump(first, f)
+        x2, y2, w2 = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
+                                                    f"layout_merge_threshold={threshold}"],
+                             dir_weight)
+        x, y, w = np.concatenate([x1, x2]), np.concatenate([y1, y2]), np.concatenate([w1, w2])
+        return export(fit(x, y, w), x[:200]), len(y1), len(y2), y.mean()
+
+
+def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold):
+    """For each map of loo_dir (which is also a training DIR): train without it, score it."""
+    print("| map | precision % | recall % | mean IoU % | segments |")
+    print("|---|---:|---:|---:|---:|")
+    scores = []
+    for m, g, _ in maps([loo_dir], set()):
+        name = os.path.basename(m)[: -len("_map.png")]
+        model, _, _, _ = train(zonemap, list(maps(dirs, {name})), dir_weight, threshold)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "model.json")
+            with open(path, "w") as f:
+                json.dump(model, f)
+            out = subprocess.run([zonemap, "zones", "segment", m, "--out", os.devnull, "--score",
+                                  g, "--json", "--merge-model", path, "--param",
+                                  f"layout_merge_threshold={threshold}"],
+                                 check=True, capture_output=True, text=True).stdout
+        s = json.loads(out)["score"]
+        scores.append([s["precision"], s["recall"], s["mean_iou"]])
+        print(f"| {name} | {100 * s['precision']:.1f} | {100 * s['recall']:.1f} | "
+              f"{100 * s['mean_iou']:.1f} | {s['segments']} |", flush=True)
+    mean = 100 * np.mean(scores, axis=0)
+    print(f"| **mean** | **{mean[0]:.1f}** | **{mean[1]:.1f}** | **{mean[2]:.1f}** | |")
+
+
 def main(argv):
     args, exclude, out_json, out_inc, threshold, dir_weight = [], set(), None, None, 0.6, {}
+    loo_dir = None
     i = 0
     while i < len(argv):
         if argv[i] == "--exclude":
@@ -115,6 +155,9 @@ def main(argv):
             i += 2
         elif argv[i] == "--inc":
             out_inc = argv[i + 1]
+            i += 2
+        elif argv[i] == "--loo":
+            loo_dir = argv[i + 1]
             i += 2
         elif argv[i] == "--weight":
             d, w = argv[i + 1].rsplit("=", 1)
@@ -129,19 +172,12 @@ def main(argv):
     if len(args) < 2:
         sys.exit(__doc__)
     zonemap, dirs = args[0], args[1:]
+    if loo_dir:
+        return leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold)
     pairs = list(maps(dirs, exclude))
-    with tempfile.TemporaryDirectory() as tmp:
-        x1, y1, w1 = collect(zonemap, pairs, tmp, ["--merge-oracle"], dir_weight)
-        first = export(fit(x1, y1, w1), x1[:200])
-        first_json = os.path.join(tmp, "first.json")
-        with open(first_json, "w") as f:
-            json.dump(first, f)
-        x2, y2, w2 = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
-                                                f"layout_merge_threshold={threshold}"], dir_weight)
-        x, y, w = np.concatenate([x1, x2]), np.concatenate([y1, y2]), np.concatenate([w1, w2])
-        model = export(fit(x, y, w), x[:200])
-    print(f"{len(pairs)} maps, {len(y1)} oracle + {len(y2)} model-driven pair rows, "
-          f"{100 * y.mean():.0f} % one room", file=sys.stderr)
+    model, n1, n2, share = train(zonemap, pairs, dir_weight, threshold)
+    print(f"{len(pairs)} maps, {n1} oracle + {n2} model-driven pair rows, "
+          f"{100 * share:.0f} % one room", file=sys.stderr)
     text = json.dumps(model, separators=(",", ":"))
     if out_json:
         with open(out_json, "w") as f:

@@ -568,7 +568,7 @@ Status CheckOptions(const SegmentOptions& o) {
     return bad("layout_merge_threshold must be in [0, 1] (0 = the rule merges)");
   }
   if (o.layout_line_max_m < 0.0 || o.layout_mouth_max_m < 0.0 || o.layout_facade_max_m < 0.0 ||
-      o.layout_seedless_min_area_m2 < 0.0) {
+      o.layout_seedless_min_area_m2 < 0.0 || o.layout_min_area_m2 < 0.0) {
     return bad("the layout_* lengths and areas must be >= 0");
   }
   if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
@@ -635,6 +635,7 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"layout_mouth_max_m", &SegmentOptions::layout_mouth_max_m},
       {"layout_facade_max_m", &SegmentOptions::layout_facade_max_m},
       {"layout_seedless_min_area_m2", &SegmentOptions::layout_seedless_min_area_m2},
+      {"layout_min_area_m2", &SegmentOptions::layout_min_area_m2},
   };
   std::string known;
   for (const auto& [name, field] : fields) {
@@ -782,8 +783,12 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         rule_options.layout_merge_threshold = 0.0;
         ZM_ASSIGN_OR_RETURN(const Segmentation rules, SegmentRooms(grid, rule_options));
         in.rule_labels = rules.labels(box).clone();
-        ZM_ASSIGN_OR_RETURN(const int count,
+        ZM_ASSIGN_OR_RETURN(const int merged,
                             MergeLayoutPieces(in, model, given.layout_merge_threshold, trace));
+        // Specks and slivers the model left alone (a laser map's stray free cells) are no zone
+        // of their own, as in the rule merges.
+        const int count = MergeSmallSegments(
+            &labels, merged, static_cast<int>(given.layout_min_area_m2 / (res * res)));
         Describe(labels, dt, count, res, options, &seg.segments);
         labels.copyTo(seg.labels(box));
         seg.runtime_ms = std::chrono::duration<double, std::milli>(
