@@ -20,6 +20,7 @@ its maps, unless --weight gives it W times that. --loo DIR (DIR also among the t
 prints the leave-one-out table instead: each map of DIR scored by a model trained without it.
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
 """
+import argparse
 import json
 import os
 import subprocess
@@ -143,35 +144,21 @@ def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold):
 
 
 def main(argv):
-    args, exclude, out_json, out_inc, threshold, dir_weight = [], set(), None, None, 0.6, {}
-    loo_dir = None
-    i = 0
-    while i < len(argv):
-        if argv[i] == "--exclude":
-            exclude.add(argv[i + 1])
-            i += 2
-        elif argv[i] == "--json":
-            out_json = argv[i + 1]
-            i += 2
-        elif argv[i] == "--inc":
-            out_inc = argv[i + 1]
-            i += 2
-        elif argv[i] == "--loo":
-            loo_dir = argv[i + 1]
-            i += 2
-        elif argv[i] == "--weight":
-            d, w = argv[i + 1].rsplit("=", 1)
-            dir_weight[d] = float(w)
-            i += 2
-        elif argv[i] == "--threshold":
-            threshold = float(argv[i + 1])
-            i += 2
-        else:
-            args.append(argv[i])
-            i += 1
-    if len(args) < 2:
-        sys.exit(__doc__)
-    zonemap, dirs = args[0], args[1:]
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog=__doc__)
+    ap.add_argument("zonemap")
+    ap.add_argument("dirs", nargs="+", metavar="DIR")
+    ap.add_argument("--exclude", action="append", default=[], metavar="NAME")
+    ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--inc", metavar="OUT.inc")
+    ap.add_argument("--threshold", type=float, default=0.6)
+    ap.add_argument("--weight", action="append", default=[], metavar="DIR=W")
+    ap.add_argument("--loo", metavar="DIR")
+    a = ap.parse_args(argv)
+    exclude, out_json, out_inc, threshold, loo_dir = set(a.exclude), a.json, a.inc, a.threshold, a.loo
+    dir_weight = {d: float(w) for d, w in (x.rsplit("=", 1) for x in a.weight)}
+    zonemap, dirs = a.zonemap, a.dirs
     if loo_dir:
         return leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold)
     pairs = list(maps(dirs, exclude))
