@@ -1,5 +1,9 @@
 #!/usr/bin/env python3
-"""Leave-one-out evaluation of `zonemap zones segment` on the shared floor plans.
+"""Leave-one-out evaluation of `zonemap zones segment`'s rule merges on the shared floor plans.
+
+Every run passes `--param layout_merge_threshold=0`: this script evaluates the rule merges
+(issue 16, parts 1-4) and their parameter choice. The default since the fifth part, the learned
+layout merge, has its own leave-one-out: `scripts/train_layout_merge.py ... --loo DIR`.
 
 The segmentation's free choices (below: CANDIDATES, each value a physical quantity) are picked
 by the best mean IoU over the OTHER maps, then the held-out map is scored with that pick, for
@@ -103,7 +107,7 @@ def run(zonemap, directory, name, params, out):
     os.close(fd)
     cmd = [zonemap, "zones", "segment", os.path.join(directory, name + "_map.png"),
            "--score", os.path.join(directory, name + "_gt.png"),
-           "--out", geojson, "--json"]
+           "--out", geojson, "--json", "--param", "layout_merge_threshold=0"]
     for k, v in params:
         cmd += ["--param", f"{k}={v}"]
     j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
