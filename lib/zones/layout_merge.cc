@@ -5,11 +5,11 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
 #include <sstream>
 #include <unordered_map>
 #include <utility>
-
-#include <opencv2/imgproc.hpp>
 
 namespace zm {
 namespace {
@@ -21,22 +21,22 @@ constexpr int kEndSupportCells = 8;  // 0.4 m beyond each end of a border
 constexpr int kEndSupportHalfWidth = 2;
 
 struct Piece {
-  double area = 0;  // cells (counts kept as doubles: exact, and the features are ratios)
-  float peak = 0.0f;  // cells
-  double perimeter = 0;  // cell edges to anything not this piece
+  double area = 0;            // cells (counts kept as doubles: exact, and the features are ratios)
+  float peak = 0.0f;          // cells
+  double perimeter = 0;       // cell edges to anything not this piece
   double open_perimeter = 0;  // cell edges to other pieces
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
-  std::unordered_map<int, long> gt;  // ground-truth room -> cells (traces only)
+  std::unordered_map<int, long> gt;    // ground-truth room -> cells (traces only)
   std::unordered_map<int, long> rule;  // rule segment -> cells
   bool alive = true;
 };
 
 struct Contact {
-  double edges = 0;  // 4-neighbour cell edges between the two
-  double rays = 0;   // rays across a wall, from either side
+  double edges = 0;            // 4-neighbour cell edges between the two
+  double rays = 0;             // rays across a wall, from either side
   double rule_same_edges = 0;  // edges whose two cells lie in one rule segment
-  float clearance = 0.0f;  // cells
-  std::vector<int> cells;  // border cells of either side (row * cols + col)
+  float clearance = 0.0f;      // cells
+  std::vector<int> cells;      // border cells of either side (row * cols + col)
   double probability = 0.0;
   bool traced = false;  // its current features are in the trace already
 };
@@ -113,9 +113,8 @@ struct MapContext {
   double rule_segment_m2 = 0.0;
 };
 
-std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb,
-                                                const Contact& c, const cv::Mat& occupied,
-                                                const Frame& f, double res,
+std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb, const Contact& c,
+                                                const cv::Mat& occupied, const Frame& f, double res,
                                                 const MapContext& map) {
   const bool a_small = pa.area <= pb.area;
   const Piece& s = a_small ? pa : pb;
@@ -127,7 +126,8 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
   const double cc = static_cast<double>(c.clearance) * res;
   const double perim_s = std::max(s.perimeter * res, 1e-3);
   const double du_s = s.umax - s.umin, dv_s = s.vmax - s.vmin;
-  const double ext_max = std::max(du_s, dv_s) * res + res, ext_min = std::min(du_s, dv_s) * res + res;
+  const double ext_max = std::max(du_s, dv_s) * res + res,
+               ext_min = std::min(du_s, dv_s) * res + res;
   const double rect_s = Rectangularity(s.area, du_s, dv_s);
   const double rect_l = Rectangularity(l.area, l.umax - l.umin, l.vmax - l.vmin);
   const double du_u = std::max(s.umax, l.umax) - std::min(s.umin, l.umin);
@@ -135,18 +135,35 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
   const double rect_u = Rectangularity(s.area + l.area, du_u, dv_u);
   const auto ends = EndSupport(c.cells, occupied, f);
   const double values[kLayoutFeatureCount] = {
-      open, wall, open / std::max(open + wall, 1e-9),
-      s.area * res * res, l.area * res * res,
-      peak_s, peak_l, cc, cc / std::max(peak_s, 1e-3), cc / std::max(peak_l, 1e-3),
-      open / perim_s, wall / perim_s, s.open_perimeter * res / perim_s,
-      open / std::max(ext_max, 1e-3), open / std::max(ext_min, 1e-3),
-      rect_s, rect_l, rect_u, rect_u - std::max(rect_s, rect_l),
-      ends[0], ends[1], ends[2] * res,
-      Elongation(du_s, dv_s), Elongation(l.umax - l.umin, l.vmax - l.vmin),
+      open,
+      wall,
+      open / std::max(open + wall, 1e-9),
+      s.area * res * res,
+      l.area * res * res,
+      peak_s,
+      peak_l,
+      cc,
+      cc / std::max(peak_s, 1e-3),
+      cc / std::max(peak_l, 1e-3),
+      open / perim_s,
+      wall / perim_s,
+      s.open_perimeter * res / perim_s,
+      open / std::max(ext_max, 1e-3),
+      open / std::max(ext_min, 1e-3),
+      rect_s,
+      rect_l,
+      rect_u,
+      rect_u - std::max(rect_s, rect_l),
+      ends[0],
+      ends[1],
+      ends[2] * res,
+      Elongation(du_s, dv_s),
+      Elongation(l.umax - l.umin, l.vmax - l.vmin),
       Elongation(du_u, dv_u),
       (Majority(s.rule) != 0 && Majority(s.rule) == Majority(l.rule)) ? 1.0 : 0.0,
       c.rule_same_edges / std::max(c.edges, 1.0),
-      map.free_m2, map.rule_segment_m2};
+      map.free_m2,
+      map.rule_segment_m2};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
@@ -171,7 +188,8 @@ double LayoutMergeModel::Probability(const std::array<float, kLayoutFeatureCount
   for (const Tree& t : trees) {
     int n = 0;
     while (t.feature[Idx(n)] >= 0) {
-      n = static_cast<double>(x[Idx(t.feature[Idx(n)])]) <= t.threshold[Idx(n)] ? t.left[Idx(n)] : t.right[Idx(n)];
+      n = static_cast<double>(x[Idx(t.feature[Idx(n)])]) <= t.threshold[Idx(n)] ? t.left[Idx(n)]
+                                                                                : t.right[Idx(n)];
     }
     raw += rate * static_cast<double>(t.value[Idx(n)]);
   }
@@ -253,8 +271,9 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
   cv::Mat& labels = *in.labels;
   if (labels.type() != CV_32SC1 || in.occupied.size() != labels.size() ||
       in.occupied.type() != CV_8UC1) {
-    return InvalidArgument("layout merge: labels must be CV_32SC1 and occupied CV_8UC1 of "
-                           "the same size");
+    return InvalidArgument(
+        "layout merge: labels must be CV_32SC1 and occupied CV_8UC1 of "
+        "the same size");
   }
   if (trace.ground_truth != nullptr && trace.ground_truth->type() != CV_32SC1) {
     return InvalidArgument("layout merge: ground truth must be CV_32SC1");
@@ -343,8 +362,9 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
       for (const auto& [seg, k] : p.rule) rule_cells[seg] += k;
     }
     context.free_m2 = cells * res * res;
-    context.rule_segment_m2 =
-        rule_cells.empty() ? context.free_m2 : context.free_m2 / static_cast<double>(rule_cells.size());
+    context.rule_segment_m2 = rule_cells.empty()
+                                  ? context.free_m2
+                                  : context.free_m2 / static_cast<double>(rule_cells.size());
   }
   // Rays alone (a wall with no opening) do not make neighbours: only pieces that touch merge.
   for (auto it = pairs.begin(); it != pairs.end();) {
@@ -364,9 +384,9 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
     if (trace.csv != nullptr || trace.oracle) {
       std::vector<const PairKey*> same;
       for (auto& [k, c] : pairs) {
-        const bool one_room = Majority(pieces[Idx(k.first)].gt) != 0 &&
-                              Majority(pieces[Idx(k.first)].gt) ==
-                                  Majority(pieces[Idx(k.second)].gt);
+        const bool one_room =
+            Majority(pieces[Idx(k.first)].gt) != 0 &&
+            Majority(pieces[Idx(k.first)].gt) == Majority(pieces[Idx(k.second)].gt);
         if (one_room) same.push_back(&k);
         if (trace.csv != nullptr && !c.traced) {
           // Each state of a pair once: a pair the last merge did not touch is unchanged.

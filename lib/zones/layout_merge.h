@@ -15,11 +15,9 @@
 
 #include <array>
 #include <cstdio>
-#include <random>
+#include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core/mat.hpp>
 
 #include "common/status.h"
 
@@ -28,6 +26,8 @@ namespace zm {
 // The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
 // in metres, areas in m2. The order is the model's input order.
 inline constexpr int kLayoutFeatureCount = 29;
+// One feature, or one family, per line with its meaning.
+// clang-format off
 inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
     "open_m",          // free border between them (4-neighbour cell edges x resolution)
     "wall_m",          // wall between them: cells where a ray across an occupied run of at most
@@ -51,11 +51,12 @@ inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureName
     "map_free_m2",        // the building's scale: all pieces' area (a flat, an office floor)
     "map_rule_segment_m2",  // ...and its rule segments' mean area
 };
+// clang-format on
 
 // A binary gradient-boosted tree ensemble: p = sigmoid(init + rate * sum of leaf values).
 struct LayoutMergeModel {
   struct Tree {
-    std::vector<int> feature;  // split feature per node, -1 at a leaf
+    std::vector<int> feature;       // split feature per node, -1 at a leaf
     std::vector<double> threshold;  // go left when x[feature] <= threshold (as scikit-learn)
     std::vector<int> left, right;
     std::vector<float> value;  // leaf value
@@ -85,15 +86,15 @@ struct LayoutMergeTrace {
 };
 
 struct LayoutMergeInputs {
-  cv::Mat* labels = nullptr;   // CV_32SC1 pieces 1..count, 0 = none; merged in place
+  cv::Mat* labels = nullptr;  // CV_32SC1 pieces 1..count, 0 = none; merged in place
   int count = 0;
-  cv::Mat occupied;            // CV_8UC1, nonzero = wall or obstacle; labels' size
+  cv::Mat occupied;  // CV_8UC1, nonzero = wall or obstacle; labels' size
   double resolution_m = 0.05;
   double wall_angle_rad = 0.0;  // the dominant wall direction (extents are taken along it)
-  cv::Point offset;            // where labels' (0, 0) lies in the ground truth
-  cv::Mat rule_labels;         // CV_32SC1, labels' size: the same free space segmented by the
-                               // rule merges (SegmentOptions with layout_merge_threshold 0); its
-                               // opinion is two features. Empty: both features 0
+  cv::Point offset;             // where labels' (0, 0) lies in the ground truth
+  cv::Mat rule_labels;          // CV_32SC1, labels' size: the same free space segmented by the
+                                // rule merges (SegmentOptions with layout_merge_threshold 0); its
+                                // opinion is two features. Empty: both features 0
 };
 
 // Merges pieces greedily while the best pair's probability is >= threshold; returns the number

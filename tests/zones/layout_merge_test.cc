@@ -7,10 +7,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <opencv2/imgproc.hpp>
 #include <set>
 #include <string>
-
-#include <opencv2/imgproc.hpp>
 
 namespace zm {
 namespace {
@@ -18,8 +17,7 @@ namespace {
 std::string Names() {
   std::string s = "[";
   for (int i = 0; i < kLayoutFeatureCount; ++i) {
-    s += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[static_cast<std::size_t>(i)] +
-         "\"";
+    s += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[static_cast<std::size_t>(i)] + "\"";
   }
   return s + "]";
 }
@@ -71,11 +69,12 @@ TEST_CASE("a layout merge model parses, and each defect gets one clear error") {
   REQUIRE_FALSE(bad.ok());
   CHECK(bad.status().message().find("feature 1 is 'wall_x'") != std::string::npos);
 
-  auto short_names = ParseLayoutMergeModel("{\"features\":[\"open_m\"],\"init\":0,"
-                                           "\"learning_rate\":1,\"trees\":[]}");
+  auto short_names = ParseLayoutMergeModel(
+      "{\"features\":[\"open_m\"],\"init\":0,"
+      "\"learning_rate\":1,\"trees\":[]}");
   REQUIRE_FALSE(short_names.ok());
-  CHECK(short_names.status().message().find("1 features, expected " +
-                                                  std::to_string(kLayoutFeatureCount)) != std::string::npos);
+  CHECK(short_names.status().message().find(
+            "1 features, expected " + std::to_string(kLayoutFeatureCount)) != std::string::npos);
 
   std::string cycle = StumpModel(0.8);
   cycle.replace(cycle.find("\"left\":[1"), 9, "\"left\":[0");
