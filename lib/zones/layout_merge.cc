@@ -28,7 +28,6 @@ struct Piece {
   double umin = 1e18, umax = -1e18, vmin = 1e18, vmax = -1e18;
   std::unordered_map<int, long> gt;    // ground-truth room -> cells (traces only)
   std::unordered_map<int, long> rule;  // rule segment -> cells
-  bool alive = true;
 };
 
 struct Contact {
@@ -53,7 +52,17 @@ struct Frame {
   }
 };
 
-int Majority(const std::unordered_map<int, long>& histogram);
+int Majority(const std::unordered_map<int, long>& histogram) {
+  int best = 0;
+  long most = 0;
+  for (const auto& [room, n] : histogram) {
+    if (n > most || (n == most && room < best)) {
+      best = room;
+      most = n;
+    }
+  }
+  return best;
+}
 
 double Elongation(double du, double dv) {
   return (std::max(du, dv) + 1.0) / (std::min(du, dv) + 1.0);
@@ -167,18 +176,6 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
-}
-
-int Majority(const std::unordered_map<int, long>& histogram) {
-  int best = 0;
-  long most = 0;
-  for (const auto& [room, n] : histogram) {
-    if (n > most || (n == most && room < best)) {
-      best = room;
-      most = n;
-    }
-  }
-  return best;
 }
 
 }  // namespace
@@ -425,7 +422,6 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
     pa.vmax = std::max(pa.vmax, pb.vmax);
     for (const auto& [room, cells] : pb.gt) pa.gt[room] += cells;
     for (const auto& [seg, cells] : pb.rule) pa.rule[seg] += cells;
-    pb.alive = false;
     parent[Idx(b)] = a;
     pairs.erase(PairKey{a, b});
     // Every border of b becomes a border of a.

@@ -142,6 +142,36 @@ struct Floor {
   }
 };
 
+// A 20 x 1.6 m corridor (truth 100); five 4 m rooms above and five below (1-5, 11-15), their
+// walls aligned across the corridor (1.6 m apart: wider than any door taken as one), each with a
+// 0.9 m door.
+Floor CorridorFloor() {
+  Floor f(22.0, 12.0);
+  f.Room(1.0, 5.2, 21.0, 6.8, 100);
+  for (int i = 0; i < 5; ++i) {
+    const double x0 = 1.0 + 4.0 * i;
+    f.Room(x0, 1.0, x0 + 3.9, 5.1, i + 1);
+    f.Room(x0, 6.9, x0 + 3.9, 11.0, i + 11);
+    f.Fill(x0 + 1.5, 5.1, x0 + 2.4, 5.2, kCellFree);
+    f.Fill(x0 + 1.5, 6.8, x0 + 2.4, 6.9, kCellFree);
+  }
+  return f;
+}
+
+// An L-shaped room (1; its reflex corner's walls continue across it to the outer walls) and a
+// 5 x 4 m room (2) with a 2 m long, 0.6 m deep cabinet against one wall and a 1.2 m desk against
+// another: their fronts are straight runs whose continuations cut nothing for good.
+Floor LShapedFloor() {
+  Floor f(13.0, 8.0);
+  f.Room(1.0, 1.0, 4.0, 7.0, 1);  // the L: a 3 x 6 m arm...
+  f.Room(1.0, 4.0, 7.0, 7.0, 1);  // ...and a 6 x 3 m arm
+  f.Room(7.1, 1.0, 12.0, 5.0, 2);
+  f.Fill(7.0, 4.05, 7.1, 4.95, kCellFree);  // a 0.9 m door from the L's arm to the room
+  f.Fill(8.0, 1.0, 10.0, 1.6, kCellOccupied);   // cabinet against the top wall
+  f.Fill(11.4, 2.5, 12.0, 3.7, kCellOccupied);  // desk against the right wall
+  return f;
+}
+
 int CountKind(const Segmentation& seg, const std::string& kind) {
   int n = 0;
   for (const auto& s : seg.segments) n += s.kind == kind ? 1 : 0;
@@ -203,17 +233,7 @@ TEST_CASE("unknown cells inside a room do not split it") {
 }
 
 TEST_CASE("a corridor with rooms on both sides stays one corridor") {
-  // A 20 x 1.6 m corridor; five 4 m rooms above and five below, their walls aligned across the
-  // corridor (1.6 m apart: wider than any door taken as one), each with a 0.9 m door.
-  Floor f(22.0, 12.0);
-  f.Room(1.0, 5.2, 21.0, 6.8, 100);
-  for (int i = 0; i < 5; ++i) {
-    const double x0 = 1.0 + 4.0 * i;
-    f.Room(x0, 1.0, x0 + 3.9, 5.1, i + 1);
-    f.Room(x0, 6.9, x0 + 3.9, 11.0, i + 11);
-    f.Fill(x0 + 1.5, 5.1, x0 + 2.4, 5.2, kCellFree);
-    f.Fill(x0 + 1.5, 6.8, x0 + 2.4, 6.9, kCellFree);
-  }
+  const Floor f = CorridorFloor();
   auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 11);
@@ -424,16 +444,7 @@ TEST_CASE("a wardrobe whose whole front is one door is a room of its own") {
 }
 
 TEST_CASE("an L-shaped room and a room with furniture against its walls stay whole") {
-  // An L-shaped room (its reflex corner's walls continue across it to the outer walls) and a
-  // 5 x 4 m room with a 2 m long, 0.6 m deep cabinet against one wall and a 1.2 m desk against
-  // another: their fronts are straight runs whose continuations cut nothing for good.
-  Floor f(13.0, 8.0);
-  f.Room(1.0, 1.0, 4.0, 7.0, 1);  // the L: a 3 x 6 m arm...
-  f.Room(1.0, 4.0, 7.0, 7.0, 1);  // ...and a 6 x 3 m arm
-  f.Room(7.1, 1.0, 12.0, 5.0, 2);
-  f.Fill(7.0, 4.05, 7.1, 4.95, kCellFree);  // a 0.9 m door from the L's arm to the room
-  f.Fill(8.0, 1.0, 10.0, 1.6, kCellOccupied);   // cabinet against the top wall
-  f.Fill(11.4, 2.5, 12.0, 3.7, kCellOccupied);  // desk against the right wall
+  const Floor f = LShapedFloor();
   auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   CHECK(seg->segments.size() == 2);
@@ -463,15 +474,7 @@ TEST_CASE("the default layout merge: rooms joined by doors, one segment per room
 }
 
 TEST_CASE("the default layout merge: a corridor crossed by aligned walls stays one") {
-  Floor f(22.0, 12.0);
-  f.Room(1.0, 5.2, 21.0, 6.8, 100);
-  for (int i = 0; i < 5; ++i) {
-    const double x0 = 1.0 + 4.0 * i;
-    f.Room(x0, 1.0, x0 + 3.9, 5.1, i + 1);
-    f.Room(x0, 6.9, x0 + 3.9, 11.0, i + 11);
-    f.Fill(x0 + 1.5, 5.1, x0 + 2.4, 5.2, kCellFree);
-    f.Fill(x0 + 1.5, 6.8, x0 + 2.4, 6.9, kCellFree);
-  }
+  const Floor f = CorridorFloor();
   auto seg = SegmentRooms(f.grid);
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   int corridor_label = 0;
@@ -487,13 +490,7 @@ TEST_CASE("the default layout merge: a corridor crossed by aligned walls stays o
 }
 
 TEST_CASE("the default layout merge: an L-shaped room stays whole") {
-  Floor f(13.0, 8.0);
-  f.Room(1.0, 1.0, 4.0, 7.0, 1);
-  f.Room(1.0, 4.0, 7.0, 7.0, 1);
-  f.Room(7.1, 1.0, 12.0, 5.0, 2);
-  f.Fill(7.0, 4.05, 7.1, 4.95, kCellFree);
-  f.Fill(8.0, 1.0, 10.0, 1.6, kCellOccupied);
-  f.Fill(11.4, 2.5, 12.0, 3.7, kCellOccupied);
+  const Floor f = LShapedFloor();
   auto seg = SegmentRooms(f.grid);
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   int l1 = 0, l2 = 0;
