@@ -122,8 +122,8 @@ struct SideCounts {
 // `keep(SideCounts)` holds. `outside` may be empty (nothing is the outside); an unknown cell that
 // is not the outside (a piece of furniture's inside, its shadow) ends the look as kOther.
 template <typename Keep>
-void KeepPieces(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside,
-                int thickness, Keep keep, cv::Mat* pieces) {
+void KeepPieces(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside, int thickness,
+                Keep keep, cv::Mat* pieces) {
   cv::Mat ids, stats, centroids;
   const int n = cv::connectedComponentsWithStats(*pieces, ids, stats, centroids, 8, CV_32S);
   const int rows = pieces->rows;
@@ -171,8 +171,9 @@ void KeepPieces(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& out
 // side.
 void KeepFreeOnBothSides(const cv::Mat& occupied, const cv::Mat& free, int thickness,
                          cv::Mat* runs) {
-  KeepPieces(occupied, free, cv::Mat(), thickness,
-             [](const SideCounts& s) { return 2 * s.free_both >= s.columns; }, runs);
+  KeepPieces(
+      occupied, free, cv::Mat(), thickness,
+      [](const SideCounts& s) { return 2 * s.free_both >= s.columns; }, runs);
 }
 
 // Unknown cells (neither free nor occupied) 8-connected to the grid's border through unknown
@@ -207,11 +208,11 @@ cv::Mat OutsideMask(const cv::Mat& free, const cv::Mat& occupied) {
 // (its unknown inside is enclosed). Three columns, not a share: a short piece between the
 // building's corner and a balcony's side wall has walls beyond most of it (and may poke a cell or
 // two into the balcony).
-void KeepFacade(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside,
-                int thickness, cv::Mat* pieces) {
-  KeepPieces(occupied, free, outside, thickness,
-             [](const SideCounts& s) { return s.facade >= 3 && s.free_both < s.facade; },
-             pieces);
+void KeepFacade(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside, int thickness,
+                cv::Mat* pieces) {
+  KeepPieces(
+      occupied, free, outside, thickness,
+      [](const SideCounts& s) { return s.facade >= 3 && s.free_both < s.facade; }, pieces);
 }
 
 // The facade continued across the mouths of the building's protrusions (a balcony, a loggia, a
@@ -219,9 +220,8 @@ void KeepFacade(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& out
 // facade pieces at least `piece` long, where the gap holds no occupied cell and none of the
 // outside (a window or a door in the exterior wall opens onto the outside: no mouth; a notch in
 // the outline runs through the outside: no mouth either).
-cv::Mat FacadeGapsAlongRows(const cv::Mat& occupied, const cv::Mat& free,
-                            const cv::Mat& outside, int piece, int min_gap, int max_gap,
-                            int thickness) {
+cv::Mat FacadeGapsAlongRows(const cv::Mat& occupied, const cv::Mat& free, const cv::Mat& outside,
+                            int piece, int min_gap, int max_gap, int thickness) {
   cv::Mat pieces;
   cv::dilate(occupied, pieces, LineKernel(3, false));
   cv::morphologyEx(pieces, pieces, cv::MORPH_OPEN, LineKernel(piece, true));
@@ -256,9 +256,8 @@ cv::Mat FacadeGapsAlongRows(const cv::Mat& occupied, const cv::Mat& free,
 // rows apart, each the other's nearest such end, with nothing occupied and none of `outside`
 // on the column between the two walls. Set in `*out` as a band of three columns across the
 // rows between them (so it crosses the rows, perpendicular to the runs).
-void AlignedEndMouthsAlongRows(const cv::Mat& runs, const cv::Mat& occupied,
-                               const cv::Mat& outside, int min_gap, int max_gap,
-                               int max_thickness, int tol, cv::Mat* out) {
+void AlignedEndMouthsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& outside,
+                               int min_gap, int max_gap, int max_thickness, int tol, cv::Mat* out) {
   struct End {
     int row, col, dir;  // dir: +1 the run lies left of the end (a right end), -1 right of it
   };
@@ -552,17 +551,17 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, const WallCell
     rot.at<double>(0, 2) += w / 2.0 - centre.x;
     rot.at<double>(1, 2) += h / 2.0 - centre.y;
     cv::Mat rotated;
-    cv::warpAffine(occupied, rotated, rot, cv::Size(w, h), cv::INTER_NEAREST,
-                   cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::warpAffine(occupied, rotated, rot, cv::Size(w, h), cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+                   cv::Scalar(0));
     cv::Mat rotated_free;
     if (!free.empty()) {
       cv::warpAffine(free, rotated_free, rot, cv::Size(w, h), cv::INTER_NEAREST,
                      cv::BORDER_CONSTANT, cv::Scalar(0));
     }
     const WallEvidence r = AxisWalls(rotated, rotated_free, cells);
-    for (const auto& [from, to] : {std::pair{&r.walls, &out.walls},
-                                   std::pair{&r.doorways, &out.doorways},
-                                   std::pair{&r.openings, &out.openings}}) {
+    for (const auto& [from, to] :
+         {std::pair{&r.walls, &out.walls}, std::pair{&r.doorways, &out.doorways},
+          std::pair{&r.openings, &out.openings}}) {
       cv::warpAffine(*from, *to, rot, occupied.size(), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
                      cv::BORDER_CONSTANT, cv::Scalar(0));
       // Nearest-neighbour resampling there and back can shift a cell: widen by one.
@@ -580,11 +579,10 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, const WallCell
     cv::invertAffineTransform(rot, back);
     auto unrotate = [&](cv::Point2f p) {
       const double x = static_cast<double>(p.x), y = static_cast<double>(p.y);
-      return cv::Point2f(
-          static_cast<float>(back.at<double>(0, 0) * x + back.at<double>(0, 1) * y +
-                             back.at<double>(0, 2)),
-          static_cast<float>(back.at<double>(1, 0) * x + back.at<double>(1, 1) * y +
-                             back.at<double>(1, 2)));
+      return cv::Point2f(static_cast<float>(back.at<double>(0, 0) * x + back.at<double>(0, 1) * y +
+                                            back.at<double>(0, 2)),
+                         static_cast<float>(back.at<double>(1, 0) * x + back.at<double>(1, 1) * y +
+                                            back.at<double>(1, 2)));
     };
     out.opening_lines = r.opening_lines;
     for (OpeningLine& line : out.opening_lines) {

@@ -58,10 +58,10 @@ struct OpeningLine {
 };
 
 struct WallEvidence {
-  cv::Mat walls;     // CV_8UC1, 255 = occupied cell on a straight wall run
-  cv::Mat doorways;  // CV_8UC1, 255 = non-occupied cell in a gap between two collinear runs
-  cv::Mat openings;  // CV_8UC1, 255 = non-occupied cell on a wall run continued from its free
-                     // end to the next wall run (candidate border, see declutter.h)
+  cv::Mat walls;        // CV_8UC1, 255 = occupied cell on a straight wall run
+  cv::Mat doorways;     // CV_8UC1, 255 = non-occupied cell in a gap between two collinear runs
+  cv::Mat openings;     // CV_8UC1, 255 = non-occupied cell on a wall run continued from its free
+                        // end to the next wall run (candidate border, see declutter.h)
   cv::Mat opening_ids;  // CV_32SC1, k > 0 where `openings` is set: the cell lies on
                         // opening_lines[k - 1] (where two cross, one of them)
   std::vector<OpeningLine> opening_lines;

@@ -326,7 +326,10 @@ int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
   for (int l = 1; l <= label_count; ++l) {
     int t = l;
     while (t != 0 && !alive[Idx(t)]) {
-      if (target[Idx(t)] == t) { t = 0; break; }
+      if (target[Idx(t)] == t) {
+        t = 0;
+        break;
+      }
       t = target[Idx(t)];
     }
     if (t == 0) continue;
@@ -511,9 +514,8 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     // The merged space is at least as open as the opening it merged across: two strips cut
     // from one room by a wall's continuation are, together, the room again, and a wardrobe
     // off it is measured against the room, not against a strip.
-    peak[Idx(best_pair.first)] = std::max({peak[Idx(best_pair.first)],
-                                           peak[Idx(best_pair.second)],
-                                           current[best_pair].first});
+    peak[Idx(best_pair.first)] = std::max(
+        {peak[Idx(best_pair.first)], peak[Idx(best_pair.second)], current[best_pair].first});
   }
   for (int r = 0; r < labels->rows; ++r) {
     int* l = labels->ptr<int>(r);
@@ -574,12 +576,12 @@ Status CheckOptions(const SegmentOptions& o) {
   if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
       o.opening_max_width_m < 0.0 || o.opening_merge_ratio < 0.0 ||
       o.facade_opening_max_width_m < 0.0 || o.mouth_opening_max_width_m < 0.0 ||
-      o.facing_opening_max_width_m < 0.0 ||
-      o.opening_local_ratio < 0.0 || o.opening_side_depth_m < 0.0 ||
-      o.wall_stub_min_length_m < 0.0 ||
+      o.facing_opening_max_width_m < 0.0 || o.opening_local_ratio < 0.0 ||
+      o.opening_side_depth_m < 0.0 || o.wall_stub_min_length_m < 0.0 ||
       o.opening_wall_max_thickness_m < 0.0) {
-    return bad("wall_min_length_m, wall_stub_min_length_m, wall_line_gap_m, door_max_width_m "
-               "and the opening_* options must be >= 0");
+    return bad(
+        "wall_min_length_m, wall_stub_min_length_m, wall_line_gap_m, door_max_width_m "
+        "and the opening_* options must be >= 0");
   }
   return Status::Ok();
 }
@@ -752,8 +754,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       cv::Mat labels = FindSeeds(dt_closed, options, res, &seed_count);
       if (options.seedless_room_min_area_m2 > 0.0) {
         AddSeedlessRooms(dt_closed > 0.0f,
-                         static_cast<int>(options.seedless_room_min_area_m2 / (res * res)),
-                         &labels, &seed_count);
+                         static_cast<int>(options.seedless_room_min_area_m2 / (res * res)), &labels,
+                         &seed_count);
       }
       Flood(free_roi, dt_closed, &labels);
       // Free areas no seed reached (too thin for any level) become segments of their own; the
@@ -791,8 +793,9 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
             &labels, merged, static_cast<int>(given.layout_min_area_m2 / (res * res)));
         Describe(labels, dt, count, res, options, &seg.segments);
         labels.copyTo(seg.labels(box));
-        seg.runtime_ms = std::chrono::duration<double, std::milli>(
-                             std::chrono::steady_clock::now() - t0).count();
+        seg.runtime_ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count();
         return seg;
       }
       MergeAcrossOpenings(&labels, dt, dt_closed, openings, walls.opening_ids(box),
@@ -862,8 +865,8 @@ Status SplitOversizeSegments(const OccupancyGrid& grid,
       }
     }
     if (split == 0) {
-      return FailedPrecondition("zone " + std::to_string(label) + " holds " +
-                                std::to_string(n) + " keyframes at one spot, more than the limit " +
+      return FailedPrecondition("zone " + std::to_string(label) + " holds " + std::to_string(n) +
+                                " keyframes at one spot, more than the limit " +
                                 std::to_string(max_keyframes) + ": cannot split it in space");
     }
     const double threshold = 0.5 * (sorted[split - 1] + sorted[split]);
@@ -890,7 +893,8 @@ Status SplitOversizeSegments(const OccupancyGrid& grid,
     info.area_m2 = info.area_cells * grid.resolution_m * grid.resolution_m;
     seg->segments.push_back(info);
     std::vector<Eigen::Vector2d> low, high;
-    for (std::size_t i = 0; i < pts.size(); ++i) (proj[i] > threshold ? high : low).push_back(pts[i]);
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      (proj[i] > threshold ? high : low).push_back(pts[i]);
     work.emplace_back(label, std::move(low));
     work.emplace_back(new_label, std::move(high));
   }
@@ -909,12 +913,11 @@ Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg, const Occ
       cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
       if (contours.empty()) continue;
       const auto largest = std::max_element(
-          contours.begin(), contours.end(), [](const auto& a, const auto& b) {
-            return cv::contourArea(a) < cv::contourArea(b);
-          });
+          contours.begin(), contours.end(),
+          [](const auto& a, const auto& b) { return cv::contourArea(a) < cv::contourArea(b); });
       std::vector<Eigen::Vector2d> ring;
       // Simplify; halve the tolerance while the outline self-intersects; last resort the hull.
-      for (double eps = eps_px; ; eps *= 0.5) {
+      for (double eps = eps_px;; eps *= 0.5) {
         std::vector<cv::Point> approx;
         if (eps < 0.25) {
           cv::convexHull(*largest, approx);
@@ -923,8 +926,8 @@ Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg, const Occ
         }
         ring.clear();
         for (const cv::Point& p : approx) ring.push_back(grid.CellToMetres(p.x, p.y));
-        if (eps < 0.25 || (ring.size() >= 3 && !FindSelfIntersection(ring) &&
-                           std::abs(SignedArea(ring)) > 0.0)) {
+        if (eps < 0.25 ||
+            (ring.size() >= 3 && !FindSelfIntersection(ring) && std::abs(SignedArea(ring)) > 0.0)) {
           break;
         }
       }
@@ -1002,8 +1005,9 @@ struct CellPart {
 Result<std::vector<Zone>> ZonesFromKeyframes(std::span<const Eigen::Vector2d> positions_m,
                                              const KeyframeZoneOptions& options) {
   if (!(options.cell_size_m > 0.0) || options.max_keyframes < 1 || options.margin_m < 0.0) {
-    return InvalidArgument("keyframe zones: need cell_size_m > 0, max_keyframes >= 1, "
-                           "margin_m >= 0");
+    return InvalidArgument(
+        "keyframe zones: need cell_size_m > 0, max_keyframes >= 1, "
+        "margin_m >= 0");
   }
   std::map<std::pair<std::int64_t, std::int64_t>, std::vector<Eigen::Vector2d>> cells;
   for (const auto& p : positions_m) {
@@ -1113,8 +1117,8 @@ Result<cv::Mat> LoadGroundTruthLabels(const std::string& path, int min_room_cell
     int* l = labels.ptr<int>(r);
     for (int c = 0; c < img.cols; ++c) {
       if (p[c][0] <= 20 && p[c][1] <= 20 && p[c][2] <= 20) continue;
-      const std::uint32_t key = (std::uint32_t{p[c][0]} << 16) | (std::uint32_t{p[c][1]} << 8) |
-                                std::uint32_t{p[c][2]};
+      const std::uint32_t key =
+          (std::uint32_t{p[c][0]} << 16) | (std::uint32_t{p[c][1]} << 8) | std::uint32_t{p[c][2]};
       auto [it, inserted] = ids.emplace(key, static_cast<int>(ids.size()) + 1);
       l[c] = it->second;
     }
@@ -1145,7 +1149,7 @@ Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::
   const int cols = std::min(predicted.cols, ground_truth.cols);
   std::map<std::pair<int, int>, std::int64_t> overlap;  // (pred, gt) -> cells
   std::map<int, std::int64_t> pred_area, gt_area;       // restricted to cells in both
-  std::map<int, std::int64_t> gt_full, pred_full;  // every cell
+  std::map<int, std::int64_t> gt_full, pred_full;       // every cell
   std::map<int, bool> gt_present, pred_present;
   std::int64_t total = 0;
   for (int r = 0; r < rows; ++r) {
@@ -1173,8 +1177,7 @@ Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::
     best_for_gt[g] = std::max(best_for_gt[g], n);
     const double iou = static_cast<double>(n) / static_cast<double>(pred_area[p] + gt_area[g] - n);
     best_iou[g] = std::max(best_iou[g], iou);
-    const double full =
-        static_cast<double>(n) / static_cast<double>(pred_full[p] + gt_full[g] - n);
+    const double full = static_cast<double>(n) / static_cast<double>(pred_full[p] + gt_full[g] - n);
     best_iou_full[g] = std::max(best_iou_full[g], full);
   }
   std::int64_t sum_p = 0, sum_g = 0;

@@ -44,72 +44,72 @@
 namespace zm {
 
 struct SegmentOptions {
-  double wall_gap_close_m = 0.45;     // gaps in walls up to this width are closed
-  double ray_width_m = 0.15;          // free strands thinner than this are dropped
-  double clutter_area_m2 = 0.5;       // obstacle islands smaller than this become free
-  double wall_min_length_m = 1.0;     // decluttering: an island of obstacles or unknown cells
-                                      // with no straight run this long along the dominant wall
-                                      // directions becomes free (declutter.h); 0 = off
-  double wall_line_gap_m = 0.45;      // collinear pieces this close form one run (dashed walls)
+  double wall_gap_close_m = 0.45;       // gaps in walls up to this width are closed
+  double ray_width_m = 0.15;            // free strands thinner than this are dropped
+  double clutter_area_m2 = 0.5;         // obstacle islands smaller than this become free
+  double wall_min_length_m = 1.0;       // decluttering: an island of obstacles or unknown cells
+                                        // with no straight run this long along the dominant wall
+                                        // directions becomes free (declutter.h); 0 = off
+  double wall_line_gap_m = 0.45;        // collinear pieces this close form one run (dashed walls)
   double wall_stub_min_length_m = 0.3;  // a straight piece this long, joined to a wall and
-                                      // seen free on both sides (a wall between two doors),
-                                      // bounds doorways and openings like a wall run
-                                      // (declutter.h; 0 = off). Physical, fixed (issue 16,
-                                      // third part)
-  double door_max_width_m = 1.2;      // a gap up to this wide between two collinear wall runs
-                                      // is a door: closed while seeds are found (0 = off). At
-                                      // most the narrowest corridor (1.2 m), so room walls
-                                      // aligned across a corridor never close it
-  double opening_max_width_m = 3.0;   // layout: a thin wall run ending in free space is
-                                      // continued along its direction to the next wall at most
-                                      // this far away (declutter.h); seeds are found with these
-                                      // openings closed (0 = off). Physical: a sliding partition
-                                      // or open-plan opening between two rooms is up to 3 m
+                                        // seen free on both sides (a wall between two doors),
+                                        // bounds doorways and openings like a wall run
+                                        // (declutter.h; 0 = off). Physical, fixed (issue 16,
+                                        // third part)
+  double door_max_width_m = 1.2;        // a gap up to this wide between two collinear wall runs
+                                        // is a door: closed while seeds are found (0 = off). At
+                                        // most the narrowest corridor (1.2 m), so room walls
+                                        // aligned across a corridor never close it
+  double opening_max_width_m = 3.0;     // layout: a thin wall run ending in free space is
+                                        // continued along its direction to the next wall at most
+                                        // this far away (declutter.h); seeds are found with these
+                                        // openings closed (0 = off). Physical: a sliding partition
+                                        // or open-plan opening between two rooms is up to 3 m
   double facade_opening_max_width_m = 3.0;  // layout: the exterior wall continued across a
-                                      // protrusion's mouth up to this wide (a balcony behind a
-                                      // full-width slider, a bay; declutter.h; 0 = off), an
-                                      // opening like the others. Physical, the opening width
+                                            // protrusion's mouth up to this wide (a balcony behind
+                                            // a full-width slider, a bay; declutter.h; 0 = off), an
+                                            // opening like the others. Physical, the opening width
   double facing_opening_max_width_m = 4.0;  // layout: a free wall end is continued beyond the
-                                      // opening width, up to this far, only to the free end of
-                                      // a collinear wall facing it (one wall with a wide sliding
-                                      // door; declutter.h; 0 = off)
+                                            // opening width, up to this far, only to the free end
+                                            // of a collinear wall facing it (one wall with a wide
+                                            // sliding door; declutter.h; 0 = off)
   double mouth_opening_max_width_m = 3.0;  // layout: the line between the aligned free ends of
-                                      // two parallel walls up to this far apart (a closet or
-                                      // wardrobe whose front is one door; declutter.h; 0 = off),
-                                      // an opening like the others
+                                           // two parallel walls up to this far apart (a closet or
+                                           // wardrobe whose front is one door; declutter.h; 0 =
+                                           // off), an opening like the others
   double opening_wall_max_thickness_m = 0.3;  // ...from the free end of a wall at most this
-                                      // thick (interior partitions are 0.1-0.25 m): the face of
-                                      // a block or a corner is no free end
-  double opening_merge_ratio = 0.6;   // ...and the two segments an opening separates merge
-                                      // again when its clearance is >= this x the LARGER one's
-                                      // peak clearance: it constricts neither (a corridor
-                                      // crossed by an aligned wall). Leave-one-out pick
-  double opening_local_ratio = 0.75;  // ...and only when the opening line is open over >=
-                                      // this share of the free width just either side of it
-                                      // (declutter.h, OpeningLine::Constriction; 0 = off); an
-                                      // opening no wider than a door never merges. Fixed
-  double opening_side_depth_m = 1.0;  // ...measured up to this far either side of the opening
-  double seed_min_level_m = 0.35;     // lowest distance-transform level tried for seeds
-  double seed_level_step_m = 0.05;    // step between levels
-  double seed_max_level_m = 3.0;      // highest level tried
-  double seed_min_area_m2 = 0.6;      // a child at a level counts when at least this big...
-  double seed_min_persistence_m = 0.3;  // ...and rises this far above the level it split at
+                                              // thick (interior partitions are 0.1-0.25 m): the
+                                              // face of a block or a corner is no free end
+  double opening_merge_ratio = 0.6;        // ...and the two segments an opening separates merge
+                                           // again when its clearance is >= this x the LARGER one's
+                                           // peak clearance: it constricts neither (a corridor
+                                           // crossed by an aligned wall). Leave-one-out pick
+  double opening_local_ratio = 0.75;       // ...and only when the opening line is open over >=
+                                           // this share of the free width just either side of it
+                                           // (declutter.h, OpeningLine::Constriction; 0 = off); an
+                                           // opening no wider than a door never merges. Fixed
+  double opening_side_depth_m = 1.0;       // ...measured up to this far either side of the opening
+  double seed_min_level_m = 0.35;          // lowest distance-transform level tried for seeds
+  double seed_level_step_m = 0.05;         // step between levels
+  double seed_max_level_m = 3.0;           // highest level tried
+  double seed_min_area_m2 = 0.6;           // a child at a level counts when at least this big...
+  double seed_min_persistence_m = 0.3;     // ...and rises this far above the level it split at
   double seedless_room_min_area_m2 = 0.5;  // a space enclosed by walls, doors and openings
-                                      // that no seed reached (narrower than the lowest level:
-                                      // a closet) is a segment of its own from this area on,
-                                      // instead of flooded from a neighbour (0 = off). Fixed
-  double merge_open_border_ratio = 0.45;  // neighbours merge when their border's clearance is
-                                         // >= this x the smaller one's peak clearance (0 = off)
-  double merge_min_opening_m = 2.4;   // ...and the opening is wider than any door (a double
-                                      // door with its frame is < 2.4 m)
+                                           // that no seed reached (narrower than the lowest level:
+                                           // a closet) is a segment of its own from this area on,
+                                           // instead of flooded from a neighbour (0 = off). Fixed
+  double merge_open_border_ratio = 0.45;   // neighbours merge when their border's clearance is
+                                           // >= this x the smaller one's peak clearance (0 = off)
+  double merge_min_opening_m = 2.4;        // ...and the opening is wider than any door (a double
+                                           // door with its frame is < 2.4 m)
   double merge_no_constriction_ratio = 0.0;  // neighbours also merge, however narrow, when the
-                                      // border is >= this x the narrower one's peak clearance:
-                                      // no constriction, one space (a corridor cut at a side
-                                      // opening); 0 = off
-  double min_room_area_m2 = 0.5;      // smaller segments merge into a neighbour (0.5 m2: a
-                                      // closet; fixed in the third part, was 1 m2, a WC)
-  double corridor_elongation = 4.0;   // length / width at or above this = corridor
-  double corridor_max_width_m = 3.5;  // corridors are at most this wide
+                                             // border is >= this x the narrower one's peak
+                                             // clearance: no constriction, one space (a corridor
+                                             // cut at a side opening); 0 = off
+  double min_room_area_m2 = 0.5;       // smaller segments merge into a neighbour (0.5 m2: a
+                                       // closet; fixed in the third part, was 1 m2, a WC)
+  double corridor_elongation = 4.0;    // length / width at or above this = corridor
+  double corridor_max_width_m = 3.5;   // corridors are at most this wide
   double simplify_tolerance_m = 0.10;  // approxPolyDP tolerance for polygons
 
   // The learned layout merge (layout_merge.h; issue 16, fifth part). When on, free space is cut
@@ -122,25 +122,25 @@ struct SegmentOptions {
   double layout_mouth_max_m = 6.0;
   double layout_facade_max_m = 8.0;
   double layout_seedless_min_area_m2 = 0.2;
-  double layout_min_area_m2 = 0.1;    // ...and segments it leaves smaller than this merge into
-                                      // the neighbour sharing the longest border (specks;
-                                      // 0.5 m2 as the rule merges costs 1-5 IoU points on the
-                                      // apartments: their closets are 0.5-1 m2)
+  double layout_min_area_m2 = 0.1;  // ...and segments it leaves smaller than this merge into
+                                    // the neighbour sharing the longest border (specks;
+                                    // 0.5 m2 as the rule merges costs 1-5 IoU points on the
+                                    // apartments: their closets are 0.5-1 m2)
 };
 
 struct SegmentInfo {
-  int label = 0;               // value in Segmentation::labels
-  std::string kind;            // "room" or "corridor"
+  int label = 0;     // value in Segmentation::labels
+  std::string kind;  // "room" or "corridor"
   int area_cells = 0;
   double area_m2 = 0.0;
-  double width_m = 0.0;        // twice the largest distance to an obstacle inside
-  double elongation = 0.0;     // area / width^2 (length over width for a rectangle)
+  double width_m = 0.0;     // twice the largest distance to an obstacle inside
+  double elongation = 0.0;  // area / width^2 (length over width for a rectangle)
 };
 
 struct Segmentation {
   cv::Mat labels;  // CV_32SC1, 0 = none
   std::vector<SegmentInfo> segments;
-  cv::Mat free_cleaned;  // CV_8UC1, 255 where the cleaned grid is free
+  cv::Mat free_cleaned;         // CV_8UC1, 255 where the cleaned grid is free
   double wall_angle_rad = 0.0;  // dominant wall direction found by decluttering
   double runtime_ms = 0.0;
 };
@@ -207,9 +207,9 @@ inline constexpr int kDefaultMinGtRoomCells = 200;
                                                     int min_room_cells = kDefaultMinGtRoomCells);
 
 struct SegmentationScore {
-  double precision = 0.0;  // [0, 1], area-weighted best-GT fraction of each predicted segment
-  double recall = 0.0;     // [0, 1], area-weighted best-segment fraction of each GT room
-  double mean_iou = 0.0;   // [0, 1], mean over GT rooms of the best IoU with one segment
+  double precision = 0.0;      // [0, 1], area-weighted best-GT fraction of each predicted segment
+  double recall = 0.0;         // [0, 1], area-weighted best-segment fraction of each GT room
+  double mean_iou = 0.0;       // [0, 1], mean over GT rooms of the best IoU with one segment
   double mean_iou_full = 0.0;  // the same over every cell of room and segment (stricter)
   int gt_rooms = 0;
   int predicted_segments = 0;

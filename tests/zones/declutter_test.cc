@@ -24,8 +24,8 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 // A closed outline of a w x h rectangle rotated by `deg` around (cx, cy), 1 cell thick.
 cv::Mat RotatedRoom(double deg, int w, int h) {
   cv::Mat occ = cv::Mat::zeros(300, 300, CV_8U);
-  const cv::RotatedRect rect(cv::Point2f(150, 150), cv::Size2f(static_cast<float>(w),
-                                                               static_cast<float>(h)),
+  const cv::RotatedRect rect(cv::Point2f(150, 150),
+                             cv::Size2f(static_cast<float>(w), static_cast<float>(h)),
                              static_cast<float>(deg));
   cv::Point2f p[4];
   rect.points(p);
@@ -53,7 +53,7 @@ TEST_CASE("walls are long straight runs; doorways join collinear runs only") {
   const WallEvidence w = FindWalls(occ, 0.0, {.min_length = 20, .gap = 9, .door = 24});
   CHECK(w.walls.at<std::uint8_t>(40, 50) == 255);
   CHECK(w.walls.at<std::uint8_t>(80, 100) == 255);
-  CHECK(w.walls.at<std::uint8_t>(57, 143) == 0);  // furniture is no wall
+  CHECK(w.walls.at<std::uint8_t>(57, 143) == 0);       // furniture is no wall
   CHECK(w.doorways.at<std::uint8_t>(40, 100) == 255);  // the door gap is closed...
   for (int r = 42; r < 79; ++r) {  // ...but nothing across the corridor between the two walls
     CHECK(w.doorways.at<std::uint8_t>(r, 100) == 0);
@@ -72,8 +72,8 @@ TEST_CASE("openings continue a thin wall from its free end to the next wall, now
   cv::rectangle(occ, cv::Rect(69, 10, 2, 50), cv::Scalar(255), cv::FILLED);
   cv::rectangle(occ, cv::Rect(90, 78, 30, 12), cv::Scalar(255), cv::FILLED);
   cv::rectangle(occ, cv::Rect(10, 70, 50, 2), cv::Scalar(255), cv::FILLED);
-  const WallEvidence w = FindWalls(
-      occ, 0.0, {.min_length = 20, .gap = 9, .door = 24, .opening = 60, .thickness = 6});
+  const WallEvidence w =
+      FindWalls(occ, 0.0, {.min_length = 20, .gap = 9, .door = 24, .opening = 60, .thickness = 6});
   // The partition's free end is continued down to the bottom wall: a 2.5 m opening.
   for (int r = 62; r < 88; ++r) CHECK(w.openings.at<std::uint8_t>(r, 70) == 255);
   // Its top end meets the top wall (a T): nothing is continued above it or beside it.
@@ -101,8 +101,7 @@ TEST_CASE("a short wall piece joined to a wall and seen from both rooms bounds a
   free.setTo(0, occ);
   auto walls = [&](int stub_px, const cv::Mat& f) {
     return FindWalls(occ, 0.0,
-                     {.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = stub_px},
-                     f);
+                     {.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = stub_px}, f);
   };
   const WallEvidence w = walls(/*stub_px=*/6, free);
   CHECK(w.doorways.at<std::uint8_t>(50, 35) == 255);  // both doors are closed
@@ -147,23 +146,23 @@ TEST_CASE("the facade is continued across a balcony's mouth, not across a window
   auto wall = [&](int x, int y, int w, int h) {
     cv::rectangle(occ, cv::Rect(x, y, w, h), cv::Scalar(255), cv::FILLED);
   };
-  wall(10, 10, 121, 3);   // top, a window at columns 60-79
+  wall(10, 10, 121, 3);  // top, a window at columns 60-79
   occ(cv::Rect(60, 10, 20, 3)).setTo(0);
-  wall(10, 10, 3, 83);    // left
-  wall(128, 10, 3, 30);   // right, above the notch
-  wall(128, 70, 3, 23);   // right, below the notch
-  wall(108, 37, 23, 3);   // the notch's top...
-  wall(108, 37, 3, 36);   // ...back...
-  wall(108, 70, 23, 3);   // ...and bottom
-  wall(10, 90, 40, 3);    // bottom, left of the balcony
-  wall(90, 90, 41, 3);    // bottom, right of it
-  wall(47, 90, 3, 23);    // the balcony's sides and front
+  wall(10, 10, 3, 83);   // left
+  wall(128, 10, 3, 30);  // right, above the notch
+  wall(128, 70, 3, 23);  // right, below the notch
+  wall(108, 37, 23, 3);  // the notch's top...
+  wall(108, 37, 3, 36);  // ...back...
+  wall(108, 70, 23, 3);  // ...and bottom
+  wall(10, 90, 40, 3);   // bottom, left of the balcony
+  wall(90, 90, 41, 3);   // bottom, right of it
+  wall(47, 90, 3, 23);   // the balcony's sides and front
   wall(90, 90, 3, 23);
   wall(47, 110, 46, 3);
   cv::Mat free = FreeInside(occ, {cv::Rect(13, 13, 115, 77), cv::Rect(50, 90, 40, 20)});
   free(cv::Rect(108, 40, 23, 30)).setTo(0);  // the notch is outside
-  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6,
-                        .facade = 60};
+  const WallCells cells{
+      .min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6, .facade = 60};
   const WallEvidence w = FindWalls(occ, 0.0, cells, free);
   for (int c = 52; c < 88; ++c) CHECK(w.openings.at<std::uint8_t>(91, c) == 255);
   CHECK(cv::countNonZero(w.openings(cv::Rect(58, 5, 24, 12))) == 0);    // not the window
@@ -191,15 +190,16 @@ TEST_CASE("the mouth between two aligned wall ends is an opening; something in i
   wall(90, 10, 2, 18);
   wall(115, 10, 2, 28);
   const cv::Mat free = FreeInside(occ, {cv::Rect(12, 12, 117, 77)});
-  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6,
-                        .mouth = 60};
+  const WallCells cells{
+      .min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6, .mouth = 60};
   const WallEvidence w = FindWalls(occ, 0.0, cells, free);
   for (int c = 34; c < 60; ++c) CHECK(w.openings.at<std::uint8_t>(27, c) == 255);
   CHECK(cv::countNonZero(w.openings(cv::Rect(93, 12, 21, 30))) == 0);
   // A box standing in the mouth: nothing.
   cv::Mat blocked = occ.clone();
   cv::rectangle(blocked, cv::Rect(44, 24, 4, 6), cv::Scalar(255), cv::FILLED);
-  const WallEvidence b = FindWalls(blocked, 0.0, cells, FreeInside(blocked, {cv::Rect(12, 12, 117, 77)}));
+  const WallEvidence b =
+      FindWalls(blocked, 0.0, cells, FreeInside(blocked, {cv::Rect(12, 12, 117, 77)}));
   CHECK(cv::countNonZero(b.openings(cv::Rect(33, 25, 28, 4))) == 0);
 }
 
@@ -212,8 +212,8 @@ TEST_CASE("beyond an opening's width a wall end reaches only a collinear wall en
   cv::rectangle(occ, cv::Rect(10, 50, 60, 2), cv::Scalar(255), cv::FILLED);
   cv::rectangle(occ, cv::Rect(140, 50, 71, 2), cv::Scalar(255), cv::FILLED);
   cv::rectangle(occ, cv::Rect(10, 75, 130, 2), cv::Scalar(255), cv::FILLED);
-  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .opening = 60, .thickness = 6,
-                        .facing = 80};
+  const WallCells cells{
+      .min_length = 20, .gap = 9, .door = 24, .opening = 60, .thickness = 6, .facing = 80};
   const WallEvidence w = FindWalls(occ, 0.0, cells);
   for (int c = 72; c < 138; ++c) CHECK(w.openings.at<std::uint8_t>(50, c) == 255);
   CHECK(w.openings.at<std::uint8_t>(76, 175) == 0);
@@ -268,9 +268,9 @@ TEST_CASE("walls rotated off the axes are found in the rotated frame") {
 
 TEST_CASE("clutter islands become free unless they hold a wall or touch the border") {
   cv::Mat free = cv::Mat(100, 100, CV_8U, cv::Scalar(255));
-  cv::rectangle(free, cv::Rect(0, 0, 100, 5), cv::Scalar(0), cv::FILLED);     // border wall
-  cv::rectangle(free, cv::Rect(20, 20, 30, 20), cv::Scalar(0), cv::FILLED);   // furniture
-  cv::rectangle(free, cv::Rect(60, 60, 30, 3), cv::Scalar(0), cv::FILLED);    // partition
+  cv::rectangle(free, cv::Rect(0, 0, 100, 5), cv::Scalar(0), cv::FILLED);    // border wall
+  cv::rectangle(free, cv::Rect(20, 20, 30, 20), cv::Scalar(0), cv::FILLED);  // furniture
+  cv::rectangle(free, cv::Rect(60, 60, 30, 3), cv::Scalar(0), cv::FILLED);   // partition
   cv::Mat walls = cv::Mat::zeros(free.size(), CV_8U);
   walls.at<std::uint8_t>(61, 70) = 255;
   const cv::Mat out = FillClutterIslands(free, walls);
