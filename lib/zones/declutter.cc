@@ -59,6 +59,21 @@ class FreeEnds {
     }
     return false;
   }
+  // `c` is a run's last cell in row `r`, `inward` the step back into the run: the run ends at a
+  // corner or a T of a thin wall. The end column is spanned further across than `max_thickness`
+  // (the perpendicular wall), and within `look` cells back the run's own wall is at most
+  // `max_thickness` thick. The face of a thick block (thick all along) is no such end.
+  [[nodiscard]] bool Corner(int r, int c, int inward, int look) const {
+    if (across_.at<int>(r, c) <= max_thickness_) return false;
+    for (int back = 1; back <= look; ++back) {
+      const int cc = c + back * inward;
+      if (cc < 0 || cc >= across_.cols) break;
+      const int t = across_.at<int>(r, cc);
+      if (t == 0) return false;
+      if (t <= max_thickness_) return true;
+    }
+    return false;
+  }
 
  private:
   cv::Mat across_;
@@ -73,25 +88,39 @@ class FreeEnds {
 // end. Cells that are not wall (free, unknown, clutter, a stub shorter than a wall) are crossed:
 // clutter standing in an opening must not leave a hole in it. A free end that meets no wall
 // within `max_len` (an open hall) is not continued.
+// Corners (`corner_len` > 0, needs `free`): a thin wall's run that ends at a corner or a T, with
+// free space just beyond it, is continued the same way across at most `corner_len` cells: the
+// wall's line extended past the room it bounds into the space beyond (a closet or WC set into a
+// room's corner, whose open side is the line of the wall beside it).
 void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& walls,
-                           int max_len, int max_thickness, int facing_len, cv::Mat* out) {
+                           const cv::Mat& free, int max_len, int max_thickness, int facing_len,
+                           int corner_len, cv::Mat* out) {
   const int rows = runs.rows, cols = runs.cols;
   const FreeEnds ends(occupied, max_thickness);
   auto free_end = [&](int r, int c, int inward) { return ends.At(r, c, inward); };
+  const bool corners = corner_len > 0 && !free.empty();
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* run = runs.ptr<std::uint8_t>(r);
     const std::uint8_t* wall = walls.ptr<std::uint8_t>(r);
+    const std::uint8_t* fr = corners ? free.ptr<std::uint8_t>(r) : nullptr;
     std::uint8_t* o = out->ptr<std::uint8_t>(r);
-    auto walk = [&](int start, int step) {
+    auto walk = [&](int start, int step, int len, int facing, std::uint8_t kind) {
       int k = start;
       int n = 0;
-      const int reach = std::max(max_len, facing_len);
+      const int reach = std::max(len, facing);
       while (k >= 0 && k < cols && wall[k] == 0 && n <= reach) k += step, ++n;
       if (n == 0 || n > reach || k < 0 || k >= cols) return;
       // Beyond an opening's width only to the free end of a collinear run facing this one: the
       // two halves of one wall with a wide sliding door between them.
-      if (n > max_len && (run[k] == 0 || !free_end(r, k, step))) return;
-      for (int j = start; j != k; j += step) o[j] = 255;
+      if (n > len && (run[k] == 0 || !free_end(r, k, step))) return;
+      for (int j = start; j != k; j += step) o[j] |= kind;
+    };
+    // The perpendicular wall at a corner is at most a thick wall's width (a block is not).
+    const int look = 3 * max_thickness;
+    auto corner = [&](int c, int inward) {
+      const int beyond = c - inward;
+      return corners && beyond >= 0 && beyond < cols && fr[beyond] != 0 &&
+             ends.Corner(r, c, inward, look);
     };
     for (int c = 0; c < cols;) {
       if (run[c] == 0) {
@@ -100,8 +129,58 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const c
       }
       const int a = c;
       while (c < cols && run[c] != 0) ++c;
-      if (free_end(r, c - 1, -1)) walk(c, +1);
-      if (free_end(r, a, +1)) walk(a - 1, -1);
+      if (free_end(r, c - 1, -1)) {
+        walk(c, +1, max_len, facing_len, kOpeningFreeEnd);
+      } else if (corner(c - 1, -1)) {
+        walk(c, +1, corner_len, 0, kOpeningCorner);
+      }
+      if (free_end(r, a, +1)) {
+        walk(a - 1, -1, max_len, facing_len, kOpeningFreeEnd);
+      } else if (corner(a, +1)) {
+        walk(a - 1, -1, corner_len, 0, kOpeningCorner);
+      }
+    }
+  }
+}
+
+// End caps (`cap_len` > 0): from the free end of each thin run of `runs` (rows of 255), the line
+// across the wall's end, perpendicular to it, on either side: from just past the wall through
+// free space to the first cell of `walls` at most `cap_len` cells away. The cells crossed are
+// set to kOpeningCap in `*out_t`, which is transposed (a line along a column of the grid is a
+// row there). The front of a closet whose side wall ends where its door closes lies on one.
+void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& walls,
+                const cv::Mat& free, int max_thickness, int cap_len, cv::Mat* out_t) {
+  const int rows = runs.rows, cols = runs.cols;
+  const FreeEnds ends(occupied, max_thickness);
+  auto cap = [&](int r0, int c, int step) {
+    int r = r0;
+    // Past the wall's own cells, then through anything that is not wall.
+    for (int k = 0; k <= max_thickness + 1 && r >= 0 && r < rows && occupied.at<std::uint8_t>(r, c);
+         ++k) {
+      r += step;
+    }
+    if (r < 0 || r >= rows || free.at<std::uint8_t>(r, c) == 0) return;
+    const int start = r;
+    int n = 0;
+    while (r >= 0 && r < rows && walls.at<std::uint8_t>(r, c) == 0 && n <= cap_len) r += step, ++n;
+    if (n == 0 || n > cap_len || r < 0 || r >= rows) return;
+    for (int j = start; j != r; j += step) out_t->at<std::uint8_t>(c, j) |= kOpeningCap;
+  };
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* run = runs.ptr<std::uint8_t>(r);
+    for (int c = 0; c < cols;) {
+      if (run[c] == 0) {
+        ++c;
+        continue;
+      }
+      const int a = c;
+      while (c < cols && run[c] != 0) ++c;
+      // The band's top row caps upwards, its bottom row downwards; both at the end column.
+      for (const auto& [end, inward] : {std::pair{c - 1, -1}, std::pair{a, +1}}) {
+        if (!ends.At(r, end, inward)) continue;
+        if (r == 0 || runs.at<std::uint8_t>(r - 1, end) == 0) cap(r, end, -1);
+        if (r == rows - 1 || runs.at<std::uint8_t>(r + 1, end) == 0) cap(r, end, +1);
+      }
     }
   }
 }
@@ -390,7 +469,8 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
     }
   }
   out.opening_ids = cv::Mat::zeros(occupied.size(), CV_32S);
-  if (opening > 0 || facade > 0 || mouth > 0) {
+  out.opening_kinds = cv::Mat::zeros(occupied.size(), CV_8U);
+  if (opening > 0 || facade > 0 || mouth > 0 || cells.corner > 0 || cells.cap > 0) {
     cv::Mat t_runs, t_occ;
     cv::transpose(runs[1], t_runs);
     cv::transpose(occupied, t_occ);
@@ -409,30 +489,41 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
       AlignedEndMouthsAlongRows(runs[0], occupied, outside, gap, mouth, thickness, 2, &cols_out);
       cv::Mat rows_out_t = cv::Mat::zeros(t_runs.size(), CV_8U);
       AlignedEndMouthsAlongRows(t_runs, t_occ, t_outside, gap, mouth, thickness, 2, &rows_out_t);
-      t_out |= cols_out.t();
-      row_out |= rows_out_t.t();
       mouths = cols_out | rows_out_t.t();
+      t_out |= cv::Mat(cols_out.t()) & cv::Scalar(kOpeningMouth);
+      row_out |= cv::Mat(rows_out_t.t()) & cv::Scalar(kOpeningMouth);
     }
     // A run may end on a wall of either direction (a partition running into the outer wall),
     // in a doorway or in a mouth: a wall that ends beside a door is continued across the door
     // only, never on through the corridor the door opens onto, and a wall whose end a mouth
     // joins to its neighbour (a wardrobe's side) is not continued past the mouth.
     const cv::Mat any_wall = ((runs[0] | runs[1]) & occupied) | out.doorways | mouths;
-    ContinueRunsAlongRows(runs[0], occupied, any_wall, opening, thickness, facing, &row_out);
+    cv::Mat t_free;
+    if (!free.empty()) cv::transpose(free, t_free);
+    ContinueRunsAlongRows(runs[0], occupied, any_wall, free, opening, thickness, facing,
+                          cells.corner, &row_out);
     cv::Mat t_wall;
     cv::transpose(any_wall, t_wall);
-    ContinueRunsAlongRows(t_runs, t_occ, t_wall, opening, thickness, facing, &t_out);
+    ContinueRunsAlongRows(t_runs, t_occ, t_wall, t_free, opening, thickness, facing, cells.corner,
+                          &t_out);
+    if (cells.cap > 0 && !free.empty()) {
+      CapRunEnds(runs[0], occupied, any_wall, free, thickness, cells.cap, &t_out);
+      cv::Mat caps = cv::Mat::zeros(occupied.size(), CV_8U);
+      CapRunEnds(t_runs, t_occ, t_wall, t_free, thickness, cells.cap, &caps);
+      row_out |= caps;
+    }
     if (facade > 0 && !free.empty()) {
       // The facade across a protrusion's mouth is an opening too: a candidate border that the
       // segmentation keeps only where it constricts (a balcony behind a full-width slider), not
       // where it does not (a bay window of the room itself).
       const int piece = std::max(3, stub > 0 ? stub : min_length);
-      row_out |= FacadeGapsAlongRows(occupied, free, outside, piece, gap, facade, thickness);
-      cv::Mat t_free;
-      cv::transpose(free, t_free);
-      t_out |= FacadeGapsAlongRows(t_occ, t_free, t_outside, piece, gap, facade, thickness);
+      row_out |= FacadeGapsAlongRows(occupied, free, outside, piece, gap, facade, thickness) &
+                 cv::Scalar(kOpeningFacade);
+      t_out |= FacadeGapsAlongRows(t_occ, t_free, t_outside, piece, gap, facade, thickness) &
+               cv::Scalar(kOpeningFacade);
     }
-    out.openings = row_out | t_out.t();
+    out.opening_kinds = row_out | t_out.t();
+    out.openings = out.opening_kinds != 0;
     // Each band of continued rows (a wall is a few cells thick) is one opening: its line runs
     // along the band's middle from end to end.
     for (const bool transposed : {false, true}) {
@@ -561,7 +652,7 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, const WallCell
     const WallEvidence r = AxisWalls(rotated, rotated_free, cells);
     for (const auto& [from, to] :
          {std::pair{&r.walls, &out.walls}, std::pair{&r.doorways, &out.doorways},
-          std::pair{&r.openings, &out.openings}}) {
+          std::pair{&r.openings, &out.openings}, std::pair{&r.opening_kinds, &out.opening_kinds}}) {
       cv::warpAffine(*from, *to, rot, occupied.size(), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
                      cv::BORDER_CONSTANT, cv::Scalar(0));
       // Nearest-neighbour resampling there and back can shift a cell: widen by one.
@@ -594,6 +685,7 @@ WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad, const WallCell
   out.doorways &= ~occupied;
   out.openings &= ~out.walls;
   out.opening_ids.setTo(0, out.openings == 0);
+  out.opening_kinds.setTo(0, out.openings == 0);
   out.angle_rad = angle_rad;
   return out;
 }

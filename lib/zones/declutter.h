@@ -26,6 +26,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdint>
 #include <opencv2/core/mat.hpp>
 #include <vector>
 
@@ -57,13 +58,24 @@ struct OpeningLine {
   }
 };
 
+// What made an opening (WallEvidence::opening_kinds holds these as bits; a cell where two
+// cross has both).
+enum OpeningKind : std::uint8_t {
+  kOpeningFreeEnd = 1,  // a thin wall continued from its free end (to a facing end too)
+  kOpeningCorner = 2,   // a thin wall continued past a corner or a T
+  kOpeningMouth = 4,    // the line between aligned wall ends
+  kOpeningFacade = 8,   // the facade across a protrusion's mouth
+  kOpeningCap = 16,     // across a thin wall's free end, perpendicular to it
+};
+
 struct WallEvidence {
-  cv::Mat walls;        // CV_8UC1, 255 = occupied cell on a straight wall run
-  cv::Mat doorways;     // CV_8UC1, 255 = non-occupied cell in a gap between two collinear runs
-  cv::Mat openings;     // CV_8UC1, 255 = non-occupied cell on a wall run continued from its free
-                        // end to the next wall run (candidate border, see declutter.h)
-  cv::Mat opening_ids;  // CV_32SC1, k > 0 where `openings` is set: the cell lies on
-                        // opening_lines[k - 1] (where two cross, one of them)
+  cv::Mat walls;          // CV_8UC1, 255 = occupied cell on a straight wall run
+  cv::Mat doorways;       // CV_8UC1, 255 = non-occupied cell in a gap between two collinear runs
+  cv::Mat openings;       // CV_8UC1, 255 = non-occupied cell on a wall run continued from its free
+                          // end to the next wall run (candidate border, see declutter.h)
+  cv::Mat opening_ids;    // CV_32SC1, k > 0 where `openings` is set: the cell lies on
+                          // opening_lines[k - 1] (where two cross, one of them)
+  cv::Mat opening_kinds;  // CV_8UC1, OpeningKind bits where `openings` is set, else 0
   std::vector<OpeningLine> opening_lines;
   double angle_rad = 0.0;
 };
@@ -79,6 +91,8 @@ struct WallCells {
   int facade = 0;      // facade openings up to this wide (needs `free`)
   int mouth = 0;       // mouths between aligned wall ends up to this wide (needs `free`)
   int facing = 0;      // openings reach this far to the free end of a collinear run facing it
+  int corner = 0;      // runs ending at a corner or a T continued this far (needs `free`)
+  int cap = 0;         // end caps across free ends up to this long (needs `free`)
 };
 
 // Wall evidence along `angle_rad` and `angle_rad` + pi/2: occupied cells on a straight run of
@@ -90,6 +104,10 @@ struct WallCells {
 // most `opening` cells to the first cell of a wall run of either direction (a run that meets no
 // wall within that length is not continued), or across at most `facing` cells when that first
 // wall cell is the free end of a collinear run facing it (one wall with a wide sliding door).
+// Corner openings (`corner` > 0, needs `free`): a thin wall's run that ends at a corner or a T
+// (not a block's face) with free space just beyond is continued the same way across at most
+// `corner` cells: the wall's line extended into the space beyond the corner (the open side of a
+// closet set into a room's corner lies on it).
 // Stubs (`stub` > 0, below `min_length`): a straight piece at least `stub` long (no gap
 // closing) that is joined to a wall run (one 8-connected occupied component, a cell of slack;
 // pieces and runs collinear across at most `door` count as joined) and, when `free` (CV_8UC1,

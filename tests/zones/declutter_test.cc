@@ -5,8 +5,9 @@
 // wall pieces joined to a wall and seen from both sides bounding doors (furniture against a
 // wall and free-standing pieces not), the facade continued across a balcony's mouth (not a
 // window's or a notch's), the mouth between two aligned wall ends, a wall end reaching a
-// collinear one facing it beyond an opening's width, openings measured against the space beside
-// them, and clutter islands filled unless they hold a wall or touch the border.
+// collinear one facing it beyond an opening's width, a thin wall ending at a corner continued
+// into the free space beyond it, a free end capped across, openings measured against the space
+// beside them, and clutter islands filled unless they hold a wall or touch the border.
 #include "zones/declutter.h"
 
 #include <doctest/doctest.h>
@@ -221,6 +222,63 @@ TEST_CASE("beyond an opening's width a wall end reaches only a collinear wall en
   WallCells off = cells;
   off.facing = 0;
   CHECK(FindWalls(occ, 0.0, off).openings.at<std::uint8_t>(50, 105) == 0);
+}
+
+TEST_CASE("a thin wall ending at a corner is continued into the free space beyond it") {
+  // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 x 1.5 m closet set against its top wall (side
+  // walls at columns 50 and 80, front wall at rows 40-41, 0.1 m thick) and a solid 1.5 x 0.6 m
+  // block against the bottom wall.
+  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
+  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
+  auto wall = [&](int x, int y, int w, int h) {
+    cv::rectangle(occ, cv::Rect(x, y, w, h), cv::Scalar(255), cv::FILLED);
+  };
+  wall(50, 10, 2, 32);
+  wall(80, 10, 2, 32);
+  wall(50, 40, 32, 2);
+  wall(90, 78, 30, 12);
+  const cv::Mat free = FreeInside(occ, {cv::Rect(12, 12, 117, 77)});
+  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .corner = 60};
+  const WallEvidence w = FindWalls(occ, 0.0, cells, free);
+  // The closet's side walls end at its front wall's corners: continued down to the bottom wall;
+  // its front wall is continued left and right to the room's side walls.
+  for (int r = 43; r < 77; ++r) {
+    CHECK(w.openings.at<std::uint8_t>(r, 51) == 255);
+    CHECK(w.opening_kinds.at<std::uint8_t>(r, 51) == kOpeningCorner);
+  }
+  for (int c = 12; c < 49; ++c) CHECK(w.openings.at<std::uint8_t>(41, c) == 255);
+  for (int c = 83; c < 129; ++c) CHECK(w.openings.at<std::uint8_t>(40, c) == 255);
+  // The block's faces and the room's outline (the outside beyond its corners) are not.
+  CHECK(cv::countNonZero(w.openings(cv::Rect(83, 78, 6, 11))) == 0);
+  CHECK(cv::countNonZero(w.openings(cv::Rect(90, 50, 30, 27))) == 0);
+  CHECK(cv::countNonZero(w.openings(cv::Rect(12, 50, 30, 38))) == 0);
+  // Off by default, and without the free space.
+  WallCells off = cells;
+  off.corner = 0;
+  CHECK(cv::countNonZero(FindWalls(occ, 0.0, off, free).openings) == 0);
+  CHECK(cv::countNonZero(FindWalls(occ, 0.0, cells).openings) == 0);
+}
+
+TEST_CASE("a thin wall's free end is capped across, to the next wall within the cap's length") {
+  // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 m partition down from the top wall (column 60,
+  // free end at row 40): the wall on its left is 2.4 m away, the one on its right 3.3 m.
+  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
+  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
+  cv::rectangle(occ, cv::Rect(60, 10, 2, 31), cv::Scalar(255), cv::FILLED);
+  const cv::Mat free = FreeInside(occ, {cv::Rect(12, 12, 117, 77)});
+  const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .cap = 60};
+  const WallEvidence w = FindWalls(occ, 0.0, cells, free);
+  for (int c = 12; c < 60; ++c) {
+    CHECK(w.openings.at<std::uint8_t>(40, c) == 255);
+    CHECK(w.opening_kinds.at<std::uint8_t>(40, c) == kOpeningCap);
+  }
+  CHECK(cv::countNonZero(w.openings(cv::Rect(62, 12, 67, 77))) == 0);
+  // The partition is not continued (no opening width) and the outline's corners are no ends.
+  CHECK(cv::countNonZero(w.openings(cv::Rect(12, 42, 117, 47))) == 0);
+  CHECK(cv::countNonZero(w.openings(cv::Rect(12, 12, 47, 27))) == 0);
+  WallCells off = cells;
+  off.cap = 0;
+  CHECK(cv::countNonZero(FindWalls(occ, 0.0, off, free).openings) == 0);
 }
 
 TEST_CASE("an opening across a corridor is open; a partition's opening constricts the room") {
