@@ -8,16 +8,20 @@ product share one definition of each. Training data, in two passes over every tr
   2. the model fitted on those is run (`--merge-model`), and every pair at every step of its own
      merges is written with its label (one round of DAgger: the model learns from the states its
      own decisions lead to, not only the ones a perfect merge passes through).
-The model is scikit-learn's GradientBoostingClassifier (100 trees of depth 3, fixed seed) on
+The model is scikit-learn's GradientBoostingClassifier (200 trees of depth 4, fixed seed) on
 both; it is written as JSON (--json) and as lib/zones/layout_merge_model.inc (--inc), which is
 compiled in.
 
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
-           [--exclude NAME ...] [--threshold 0.6] [--weight DIR=W ...] [--loo DIR]
+           [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
+           [--weight DIR=W ...] [--loo DIR] [--param K=V ...]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
 prints the leave-one-out table instead: each map of DIR scored by a model trained without it.
+--param K=V is passed to every `zones segment` run (SegmentOptions; the pieces' cutting options
+must be the ones the model is used with). The DAgger pass merges at --dagger-threshold (0.6, as
+when the threshold was chosen); --loo scores at --threshold (the default's 0.4).
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
 """
 import argparse
@@ -37,7 +41,9 @@ FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "
             "rectangularity_l", "rectangularity_union", "rectangularity_gain",
             "end_support_min", "end_support_max", "border_straightness_m",
             "elongation_s", "elongation_l", "elongation_union", "rule_same_segment",
-            "rule_open_share", "map_free_m2", "map_rule_segment_m2"]
+            "rule_open_share", "map_free_m2", "map_rule_segment_m2", "doorway_share",
+            "free_end_share", "corner_share", "mouth_share", "facade_share",
+            "cap_share"]
 
 
 def maps(dirs, exclude):
@@ -75,7 +81,7 @@ def collect(zonemap, pairs, tmp, extra, dir_weight):
 
 
 def fit(x, y, w):
-    return GradientBoostingClassifier(n_estimators=100, max_depth=3, random_state=0).fit(
+    return GradientBoostingClassifier(n_estimators=200, max_depth=4, random_state=0).fit(
         x, y, sample_weight=w * len(w) / w.sum())
 
 
@@ -105,35 +111,36 @@ def export(clf, x_check):
     return model
 
 
-def train(zonemap, pairs, dir_weight, threshold):
+def train(zonemap, pairs, dir_weight, dagger_threshold, params):
     with tempfile.TemporaryDirectory() as tmp:
-        x1, y1, w1 = collect(zonemap, pairs, tmp, ["--merge-oracle"], dir_weight)
+        x1, y1, w1 = collect(zonemap, pairs, tmp, ["--merge-oracle"] + params, dir_weight)
         first = export(fit(x1, y1, w1), x1[:200])
         first_json = os.path.join(tmp, "first.json")
         with open(first_json, "w") as f:
             json.dump(first, f)
         x2, y2, w2 = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
-                                                    f"layout_merge_threshold={threshold}"],
-                             dir_weight)
+                                                    f"layout_merge_threshold={dagger_threshold}"]
+                             + params, dir_weight)
         x, y, w = np.concatenate([x1, x2]), np.concatenate([y1, y2]), np.concatenate([w1, w2])
         return export(fit(x, y, w), x[:200]), len(y1), len(y2), y.mean()
 
 
-def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold):
+def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshold, params):
     """For each map of loo_dir (which is also a training DIR): train without it, score it."""
     print("| map | precision % | recall % | mean IoU % | segments |")
     print("|---|---:|---:|---:|---:|")
     scores = []
     for m, g, _ in maps([loo_dir], set()):
         name = os.path.basename(m)[: -len("_map.png")]
-        model, _, _, _ = train(zonemap, list(maps(dirs, {name})), dir_weight, threshold)
+        model, _, _, _ = train(zonemap, list(maps(dirs, {name})), dir_weight, dagger_threshold,
+                               params)
         with tempfile.TemporaryDirectory() as tmp:
             path = os.path.join(tmp, "model.json")
             with open(path, "w") as f:
                 json.dump(model, f)
             out = subprocess.run([zonemap, "zones", "segment", m, "--out", os.devnull, "--score",
                                   g, "--json", "--merge-model", path, "--param",
-                                  f"layout_merge_threshold={threshold}"],
+                                  f"layout_merge_threshold={threshold}"] + params,
                                  check=True, capture_output=True, text=True).stdout
         s = json.loads(out)["score"]
         scores.append([s["precision"], s["recall"], s["mean_iou"]])
@@ -152,17 +159,21 @@ def main(argv):
     ap.add_argument("--exclude", action="append", default=[], metavar="NAME")
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--inc", metavar="OUT.inc")
-    ap.add_argument("--threshold", type=float, default=0.6)
+    ap.add_argument("--threshold", type=float, default=0.4)
+    ap.add_argument("--dagger-threshold", type=float, default=0.6)
     ap.add_argument("--weight", action="append", default=[], metavar="DIR=W")
     ap.add_argument("--loo", metavar="DIR")
+    ap.add_argument("--param", action="append", default=[], metavar="K=V")
     a = ap.parse_args(argv)
+    params = [x for p in a.param for x in ("--param", p)]
     exclude, out_json, out_inc, threshold, loo_dir = set(a.exclude), a.json, a.inc, a.threshold, a.loo
     dir_weight = {d: float(w) for d, w in (x.rsplit("=", 1) for x in a.weight)}
     zonemap, dirs = a.zonemap, a.dirs
     if loo_dir:
-        return leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold)
+        return leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, a.dagger_threshold,
+                             params)
     pairs = list(maps(dirs, exclude))
-    model, n1, n2, share = train(zonemap, pairs, dir_weight, threshold)
+    model, n1, n2, share = train(zonemap, pairs, dir_weight, a.dagger_threshold, params)
     print(f"{len(pairs)} maps, {n1} oracle + {n2} model-driven pair rows, "
           f"{100 * share:.0f} % one room", file=sys.stderr)
     text = json.dumps(model, separators=(",", ":"))

@@ -34,8 +34,10 @@ struct Contact {
   double edges = 0;            // 4-neighbour cell edges between the two
   double rays = 0;             // rays across a wall, from either side
   double rule_same_edges = 0;  // edges whose two cells lie in one rule segment
-  float clearance = 0.0f;      // cells
-  std::vector<int> cells;      // border cells of either side (row * cols + col)
+  // Edges on a doorway, then on an opening of each OpeningKind bit (either cell).
+  std::array<double, 6> kind_edges{};
+  float clearance = 0.0f;  // cells
+  std::vector<int> cells;  // border cells of either side (row * cols + col)
   double probability = 0.0;
   bool traced = false;  // its current features are in the trace already
 };
@@ -172,7 +174,13 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       (Majority(s.rule) != 0 && Majority(s.rule) == Majority(l.rule)) ? 1.0 : 0.0,
       c.rule_same_edges / std::max(c.edges, 1.0),
       map.free_m2,
-      map.rule_segment_m2};
+      map.rule_segment_m2,
+      c.kind_edges[0] / std::max(c.edges, 1.0),
+      c.kind_edges[1] / std::max(c.edges, 1.0),
+      c.kind_edges[2] / std::max(c.edges, 1.0),
+      c.kind_edges[3] / std::max(c.edges, 1.0),
+      c.kind_edges[4] / std::max(c.edges, 1.0),
+      c.kind_edges[5] / std::max(c.edges, 1.0)};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
@@ -279,7 +287,21 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
   if (has_rules && (in.rule_labels.type() != CV_32SC1 || in.rule_labels.size() != labels.size())) {
     return InvalidArgument("layout merge: rule labels must be CV_32SC1 of the labels' size");
   }
+  for (const cv::Mat* m : {&in.doorways, &in.opening_kinds}) {
+    if (!m->empty() && (m->type() != CV_8UC1 || m->size() != labels.size())) {
+      return InvalidArgument(
+          "layout merge: doorways and opening kinds must be CV_8UC1 of the "
+          "labels' size");
+    }
+  }
   const int rows = labels.rows, cols = labels.cols, n = in.count;
+  // Bit 0 a doorway, bits 1.. the OpeningKind bits, of one cell.
+  auto kind_bits = [&](int r, int c) {
+    int bits = 0;
+    if (!in.doorways.empty() && in.doorways.at<std::uint8_t>(r, c) != 0) bits |= 1;
+    if (!in.opening_kinds.empty()) bits |= in.opening_kinds.at<std::uint8_t>(r, c) << 1;
+    return bits;
+  };
   const double res = in.resolution_m;
   const Frame frame{std::cos(in.wall_angle_rad), std::sin(in.wall_angle_rad)};
   cv::Mat dt;
@@ -328,6 +350,10 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
             ++ct.edges;
             if (rule_here > 0 && in.rule_labels.at<int>(r + kDr[k], c + kDc[k]) == rule_here) {
               ++ct.rule_same_edges;
+            }
+            const int bits = kind_bits(r, c) | kind_bits(r + kDr[k], c + kDc[k]);
+            for (std::size_t i = 0; i < ct.kind_edges.size(); ++i) {
+              if ((bits >> i) & 1) ++ct.kind_edges[i];
             }
           }
           if (ct.cells.empty() || ct.cells.back() != r * cols + c) ct.cells.push_back(r * cols + c);
@@ -439,6 +465,8 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
       Contact& into = pairs[{std::min(a, other), std::max(a, other)}];
       into.edges += c.edges;
       into.rule_same_edges += c.rule_same_edges;
+      for (std::size_t i = 0; i < into.kind_edges.size(); ++i)
+        into.kind_edges[i] += c.kind_edges[i];
       into.rays += c.rays;
       into.clearance = std::max(into.clearance, c.clearance);
       into.cells.insert(into.cells.end(), c.cells.begin(), c.cells.end());

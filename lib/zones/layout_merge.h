@@ -25,7 +25,7 @@ namespace zm {
 
 // The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
 // in metres, areas in m2. The order is the model's input order.
-inline constexpr int kLayoutFeatureCount = 29;
+inline constexpr int kLayoutFeatureCount = 35;
 // One feature, or one family, per line with its meaning.
 // clang-format off
 inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
@@ -50,6 +50,9 @@ inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureName
     "rule_open_share",    // share of the border's edges the rule merges do not keep as a border
     "map_free_m2",        // the building's scale: all pieces' area (a flat, an office floor)
     "map_rule_segment_m2",  // ...and its rule segments' mean area
+    "doorway_share",      // share of the border's edges on a doorway (a gap in a wall)...
+    "free_end_share", "corner_share", "mouth_share", "facade_share", "cap_share",  // ...or on
+                          // an opening of that kind (declutter.h, OpeningKind)
 };
 // clang-format on
 
@@ -95,6 +98,8 @@ struct LayoutMergeInputs {
   cv::Mat rule_labels;          // CV_32SC1, labels' size: the same free space segmented by the
                                 // rule merges (SegmentOptions with layout_merge_threshold 0); its
                                 // opinion is two features. Empty: both features 0
+  cv::Mat doorways;             // CV_8UC1, labels' size, nonzero = doorway cell; may be empty
+  cv::Mat opening_kinds;        // CV_8UC1, labels' size, OpeningKind bits; may be empty
 };
 
 // Merges pieces greedily while the best pair's probability is >= threshold; returns the number

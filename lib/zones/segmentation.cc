@@ -76,7 +76,9 @@ cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res
                                .stub = CellsFromMetres(o.wall_stub_min_length_m, res),
                                .facade = CellsFromMetres(o.facade_opening_max_width_m, res),
                                .mouth = CellsFromMetres(o.mouth_opening_max_width_m, res),
-                               .facing = CellsFromMetres(o.facing_opening_max_width_m, res)};
+                               .facing = CellsFromMetres(o.facing_opening_max_width_m, res),
+                               .corner = CellsFromMetres(o.corner_opening_max_width_m, res),
+                               .cap = CellsFromMetres(o.cap_opening_max_width_m, res)};
     *walls = FindWalls(occupied, DominantWallAngle(occupied), wall_cells, free_mask);
     free_mask = FillClutterIslands(free_mask, walls->walls);
     occupied &= ~free_mask;
@@ -85,6 +87,7 @@ cv::Mat CleanFreeSpace(const cv::Mat& cells, const SegmentOptions& o, double res
     walls->doorways = cv::Mat::zeros(cells.size(), CV_8U);
     walls->openings = cv::Mat::zeros(cells.size(), CV_8U);
     walls->opening_ids = cv::Mat::zeros(cells.size(), CV_32S);
+    walls->opening_kinds = cv::Mat::zeros(cells.size(), CV_8U);
   }
   // Close gaps in walls (scan noise) so that rooms do not leak through them.
   const int gap = CellsFromMetres(o.wall_gap_close_m, res);
@@ -570,13 +573,15 @@ Status CheckOptions(const SegmentOptions& o) {
     return bad("layout_merge_threshold must be in [0, 1] (0 = the rule merges)");
   }
   if (o.layout_line_max_m < 0.0 || o.layout_mouth_max_m < 0.0 || o.layout_facade_max_m < 0.0 ||
+      o.layout_corner_max_m < 0.0 || o.layout_cap_max_m < 0.0 ||
       o.layout_seedless_min_area_m2 < 0.0 || o.layout_min_area_m2 < 0.0) {
     return bad("the layout_* lengths and areas must be >= 0");
   }
   if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
       o.opening_max_width_m < 0.0 || o.opening_merge_ratio < 0.0 ||
       o.facade_opening_max_width_m < 0.0 || o.mouth_opening_max_width_m < 0.0 ||
-      o.facing_opening_max_width_m < 0.0 || o.opening_local_ratio < 0.0 ||
+      o.facing_opening_max_width_m < 0.0 || o.corner_opening_max_width_m < 0.0 ||
+      o.cap_opening_max_width_m < 0.0 || o.opening_local_ratio < 0.0 ||
       o.opening_side_depth_m < 0.0 || o.wall_stub_min_length_m < 0.0 ||
       o.opening_wall_max_thickness_m < 0.0) {
     return bad(
@@ -614,6 +619,8 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"facade_opening_max_width_m", &SegmentOptions::facade_opening_max_width_m},
       {"mouth_opening_max_width_m", &SegmentOptions::mouth_opening_max_width_m},
       {"facing_opening_max_width_m", &SegmentOptions::facing_opening_max_width_m},
+      {"corner_opening_max_width_m", &SegmentOptions::corner_opening_max_width_m},
+      {"cap_opening_max_width_m", &SegmentOptions::cap_opening_max_width_m},
       {"opening_wall_max_thickness_m", &SegmentOptions::opening_wall_max_thickness_m},
       {"opening_merge_ratio", &SegmentOptions::opening_merge_ratio},
       {"opening_local_ratio", &SegmentOptions::opening_local_ratio},
@@ -636,6 +643,8 @@ Status SetSegmentOption(const std::string& key_value, SegmentOptions* options) {
       {"layout_line_max_m", &SegmentOptions::layout_line_max_m},
       {"layout_mouth_max_m", &SegmentOptions::layout_mouth_max_m},
       {"layout_facade_max_m", &SegmentOptions::layout_facade_max_m},
+      {"layout_corner_max_m", &SegmentOptions::layout_corner_max_m},
+      {"layout_cap_max_m", &SegmentOptions::layout_cap_max_m},
       {"layout_seedless_min_area_m2", &SegmentOptions::layout_seedless_min_area_m2},
       {"layout_min_area_m2", &SegmentOptions::layout_min_area_m2},
   };
@@ -692,6 +701,8 @@ SegmentOptions LayoutPieceOptions(const SegmentOptions& o) {
   p.facing_opening_max_width_m = o.layout_line_max_m;
   p.mouth_opening_max_width_m = o.layout_mouth_max_m;
   p.facade_opening_max_width_m = o.layout_facade_max_m;
+  p.corner_opening_max_width_m = o.layout_corner_max_m;
+  p.cap_opening_max_width_m = o.layout_cap_max_m;
   p.seedless_room_min_area_m2 = o.layout_seedless_min_area_m2;
   p.opening_merge_ratio = 0.0;
   p.opening_local_ratio = 0.0;
@@ -785,6 +796,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         rule_options.layout_merge_threshold = 0.0;
         ZM_ASSIGN_OR_RETURN(const Segmentation rules, SegmentRooms(grid, rule_options));
         in.rule_labels = rules.labels(box).clone();
+        in.doorways = walls.doorways(box).clone();
+        in.opening_kinds = walls.opening_kinds(box).clone();
         ZM_ASSIGN_OR_RETURN(const int merged,
                             MergeLayoutPieces(in, model, given.layout_merge_threshold, trace));
         // Specks and slivers the model left alone (a laser map's stray free cells) are no zone

@@ -77,6 +77,12 @@ struct SegmentOptions {
                                            // two parallel walls up to this far apart (a closet or
                                            // wardrobe whose front is one door; declutter.h; 0 =
                                            // off), an opening like the others
+  double corner_opening_max_width_m = 0.0;  // layout: a thin wall ending at a corner or a T is
+                                            // continued past it into free space up to this far
+                                            // (declutter.h; 0 = off), an opening like the others
+  double cap_opening_max_width_m = 0.0;     // layout: the line across a thin wall's free end,
+                                            // perpendicular to it, to the next wall up to this far
+                                            // (declutter.h; 0 = off), an opening like the others
   double opening_wall_max_thickness_m = 0.3;  // ...from the free end of a wall at most this
                                               // thick (interior partitions are 0.1-0.25 m): the
                                               // face of a block or a corner is no free end
@@ -112,15 +118,18 @@ struct SegmentOptions {
   double corridor_max_width_m = 3.5;   // corridors are at most this wide
   double simplify_tolerance_m = 0.10;  // approxPolyDP tolerance for polygons
 
-  // The learned layout merge (layout_merge.h; issue 16, fifth part). When on, free space is cut
-  // into layout pieces (every thin wall end continued up to `layout_line_max_m`, mouths and
-  // facades as below, enclosed spaces from `layout_seedless_min_area_m2`, no rule merges) and
+  // The learned layout merge (layout_merge.h; issue 16, fifth and sixth parts). When on, free
+  // space is cut into layout pieces (every thin wall end continued up to `layout_line_max_m`,
+  // mouths and facades as below, thin walls continued past corners and T's and free ends capped
+  // across, enclosed spaces from `layout_seedless_min_area_m2`, no rule merges) and
   // the compiled-in model merges neighbouring pieces while its probability that they are one
   // room is >= the threshold. 0 = off: the rule merges above decide, as before.
-  double layout_merge_threshold = 0.6;
+  double layout_merge_threshold = 0.4;
   double layout_line_max_m = 20.0;
   double layout_mouth_max_m = 6.0;
   double layout_facade_max_m = 8.0;
+  double layout_corner_max_m = 3.0;  // (sixth part) walls continued past corners and T's...
+  double layout_cap_max_m = 3.5;     // ...and free ends capped across (declutter.h)
   double layout_seedless_min_area_m2 = 0.2;
   double layout_min_area_m2 = 0.1;  // ...and segments it leaves smaller than this merge into
                                     // the neighbour sharing the longest border (specks;

@@ -1,15 +1,20 @@
 // The learned layout merge: model parsing (one clear error per defect), the ensemble's
 // arithmetic, greedy merging of layout pieces by a model, the training trace's labels and the
-// oracle's merges, and the compiled-in model.
+// oracle's merges, the border-kind features, and the compiled-in model.
 #include "zones/layout_merge.h"
 
 #include <doctest/doctest.h>
 
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <opencv2/imgproc.hpp>
 #include <set>
+#include <sstream>
 #include <string>
+#include <vector>
+
+#include "zones/declutter.h"
 
 namespace zm {
 namespace {
@@ -154,6 +159,56 @@ TEST_CASE("the trace labels every pair by the ground truth and the oracle merges
   CHECK(rows == 3);  // two pairs at step 0, one (A with B) at step 1
   CHECK(step0 == std::set<std::string>{"0,0,", "0,1,"});  // one pair of one room, one not
   CHECK(fields == 2 + kLayoutFeatureCount);
+}
+
+TEST_CASE("the border's doorway and opening-kind shares are features") {
+  Scene s;
+  LayoutMergeInputs in = s.Inputs();
+  in.doorways = cv::Mat::zeros(s.labels.size(), CV_8U);
+  in.doorways(cv::Rect(100, 40, 3, 18)).setTo(255);  // the door between A and B
+  in.opening_kinds = cv::Mat::zeros(s.labels.size(), CV_8U);
+  in.opening_kinds(cv::Rect(49, 1, 2, 98)).setTo(kOpeningCap);  // the line cutting A
+  const cv::Mat gt = s.gt.clone();
+  std::FILE* csv = std::tmpfile();
+  REQUIRE(csv != nullptr);
+  LayoutMergeTrace trace;
+  trace.ground_truth = &gt;
+  trace.csv = csv;
+  REQUIRE(MergeLayoutPieces(in, LayoutMergeModel{}, 0.99, trace).ok());  // p 0.5: no merge
+  std::rewind(csv);
+  char line[4096];
+  std::map<int, std::vector<double>> by_label;  // 1: the pair within A, 0: A's piece and B
+  while (std::fgets(line, sizeof line, csv) != nullptr) {
+    std::vector<double> v;
+    std::stringstream ss(line);
+    std::string field;
+    while (std::getline(ss, field, ',')) v.push_back(std::stod(field));
+    by_label[static_cast<int>(v[1])] = std::vector<double>(v.begin() + 2, v.end());
+  }
+  std::fclose(csv);
+  REQUIRE(by_label.size() == 2);
+  auto feature = [&](int label, const std::string& name) {
+    for (int i = 0; i < kLayoutFeatureCount; ++i) {
+      if (name == kLayoutFeatureNames[static_cast<std::size_t>(i)]) {
+        return by_label[label][static_cast<std::size_t>(i)];
+      }
+    }
+    FAIL("no feature " << name);
+    return -1.0;
+  };
+  CHECK(feature(1, "cap_share") == doctest::Approx(1.0));
+  CHECK(feature(1, "doorway_share") == doctest::Approx(0.0));
+  CHECK(feature(0, "doorway_share") == doctest::Approx(1.0));
+  CHECK(feature(0, "cap_share") == doctest::Approx(0.0));
+  for (const char* name : {"free_end_share", "corner_share", "mouth_share", "facade_share"}) {
+    CHECK(feature(0, name) == 0.0);
+    CHECK(feature(1, name) == 0.0);
+  }
+  // Of the wrong type: one clear error.
+  in.doorways = cv::Mat::zeros(s.labels.size(), CV_32S);
+  auto bad = MergeLayoutPieces(in, LayoutMergeModel{}, 0.99);
+  REQUIRE_FALSE(bad.ok());
+  CHECK(bad.status().message().find("doorways and opening kinds") != std::string::npos);
 }
 
 TEST_CASE("bad inputs to the layout merge are one clear error") {
