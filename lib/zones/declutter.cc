@@ -148,8 +148,9 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const c
 // free space to the first cell of `walls` at most `cap_len` cells away. The cells crossed are
 // set to kOpeningCap in `*out_t`, which is transposed (a line along a column of the grid is a
 // row there). The front of a closet whose side wall ends where its door closes lies on one.
+// Ends whose wall goes on within `jamb_gap` beyond them (a door's jambs) are not capped.
 void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& walls,
-                const cv::Mat& free, int max_thickness, int cap_len, cv::Mat* out_t) {
+                const cv::Mat& free, int max_thickness, int cap_len, int jamb_gap, cv::Mat* out_t) {
   const int rows = runs.rows, cols = runs.cols;
   const FreeEnds ends(occupied, max_thickness);
   auto cap = [&](int r0, int c, int step) {
@@ -178,6 +179,17 @@ void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& wal
       // The band's top row caps upwards, its bottom row downwards; both at the end column.
       for (const auto& [end, inward] : {std::pair{c - 1, -1}, std::pair{a, +1}}) {
         if (!ends.At(r, end, inward)) continue;
+        // A door's jamb: the wall's line goes on within `jamb_gap` (a run along it, a cell of
+        // slack across: laser walls are ragged). The door explains the end, and a line across
+        // it would cut the corridor or room the door opens onto at every door.
+        bool jamb = false;
+        for (int k = 1, cc = end - inward; !jamb && k <= jamb_gap && cc >= 0 && cc < cols;
+             ++k, cc -= inward) {
+          for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr) {
+            jamb = jamb || runs.at<std::uint8_t>(rr, cc) != 0;
+          }
+        }
+        if (jamb) continue;
         if (r == 0 || runs.at<std::uint8_t>(r - 1, end) == 0) cap(r, end, -1);
         if (r == rows - 1 || runs.at<std::uint8_t>(r + 1, end) == 0) cap(r, end, +1);
       }
@@ -507,9 +519,11 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
     ContinueRunsAlongRows(t_runs, t_occ, t_wall, t_free, opening, thickness, facing, cells.corner,
                           &t_out);
     if (cells.cap > 0 && !free.empty()) {
-      CapRunEnds(runs[0], occupied, any_wall, free, thickness, cells.cap, &t_out);
+      // Gaps up to two doors' width (a double door with its frame) are doors in a wall.
+      const int jamb_gap = 2 * door;
+      CapRunEnds(runs[0], occupied, any_wall, free, thickness, cells.cap, jamb_gap, &t_out);
       cv::Mat caps = cv::Mat::zeros(occupied.size(), CV_8U);
-      CapRunEnds(t_runs, t_occ, t_wall, t_free, thickness, cells.cap, &caps);
+      CapRunEnds(t_runs, t_occ, t_wall, t_free, thickness, cells.cap, jamb_gap, &caps);
       row_out |= caps;
     }
     if (facade > 0 && !free.empty()) {

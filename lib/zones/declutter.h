@@ -108,6 +108,10 @@ struct WallCells {
 // (not a block's face) with free space just beyond is continued the same way across at most
 // `corner` cells: the wall's line extended into the space beyond the corner (the open side of a
 // closet set into a room's corner lies on it).
+// End caps (`cap` > 0, needs `free`): from a thin wall's free end, the line across the end,
+// perpendicular to the wall, on either side, through free space to the first wall at most `cap`
+// cells away (the front of a closet whose side wall ends where its door closes). Not at a door's
+// jamb: where the wall's line goes on within two door widths (`door`), nothing is capped.
 // Stubs (`stub` > 0, below `min_length`): a straight piece at least `stub` long (no gap
 // closing) that is joined to a wall run (one 8-connected occupied component, a cell of slack;
 // pieces and runs collinear across at most `door` count as joined) and, when `free` (CV_8UC1,

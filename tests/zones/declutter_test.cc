@@ -6,8 +6,9 @@
 // wall and free-standing pieces not), the facade continued across a balcony's mouth (not a
 // window's or a notch's), the mouth between two aligned wall ends, a wall end reaching a
 // collinear one facing it beyond an opening's width, a thin wall ending at a corner continued
-// into the free space beyond it, a free end capped across, openings measured against the space
-// beside them, and clutter islands filled unless they hold a wall or touch the border.
+// into the free space beyond it, a free end capped across (not a door's jamb), openings measured
+// against the space beside them, and clutter islands filled unless they hold a wall or touch the
+// border.
 #include "zones/declutter.h"
 
 #include <doctest/doctest.h>
@@ -259,7 +260,7 @@ TEST_CASE("a thin wall ending at a corner is continued into the free space beyon
   CHECK(cv::countNonZero(FindWalls(occ, 0.0, cells).openings) == 0);
 }
 
-TEST_CASE("a thin wall's free end is capped across, to the next wall within the cap's length") {
+TEST_CASE("a thin wall's free end is capped across, to the next wall; a door's jambs are not") {
   // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 m partition down from the top wall (column 60,
   // free end at row 40): the wall on its left is 2.4 m away, the one on its right 3.3 m.
   cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
@@ -275,6 +276,14 @@ TEST_CASE("a thin wall's free end is capped across, to the next wall within the 
   CHECK(cv::countNonZero(w.openings(cv::Rect(62, 12, 67, 77))) == 0);
   // The partition is not continued (no opening width) and the outline's corners are no ends.
   CHECK(cv::countNonZero(w.openings(cv::Rect(12, 42, 117, 47))) == 0);
+  // A wall with a 1 m door: its ends are the door's jambs, the wall goes on beyond the gap, and
+  // nothing is capped there (a cap would cut the room at every door).
+  cv::Mat door = occ.clone();
+  cv::rectangle(door, cv::Rect(12, 70, 68, 2), cv::Scalar(255), cv::FILLED);
+  cv::rectangle(door, cv::Rect(100, 70, 29, 2), cv::Scalar(255), cv::FILLED);
+  const WallEvidence d = FindWalls(door, 0.0, cells, FreeInside(door, {cv::Rect(12, 12, 117, 77)}));
+  CHECK(cv::countNonZero(d.openings(cv::Rect(76, 42, 28, 27))) == 0);
+  CHECK(cv::countNonZero(d.openings(cv::Rect(76, 73, 28, 15))) == 0);
   CHECK(cv::countNonZero(w.openings(cv::Rect(12, 12, 47, 27))) == 0);
   WallCells off = cells;
   off.cap = 0;
