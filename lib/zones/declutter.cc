@@ -80,6 +80,20 @@ class FreeEnds {
   int max_thickness_;
 };
 
+// Calls f(first, last) for each run of nonzero cells of the row `run` (`cols` long).
+template <typename F>
+void ForEachRun(const std::uint8_t* run, int cols, F f) {
+  for (int c = 0; c < cols;) {
+    if (run[c] == 0) {
+      ++c;
+      continue;
+    }
+    const int a = c;
+    while (c < cols && run[c] != 0) ++c;
+    f(a, c - 1);
+  }
+}
+
 // Continues the runs of `runs` (rows of 255) along the rows: from each free end of a run, across
 // at most `max_len` cells to the first cell of `walls`; the cells crossed are set in `*out`.
 // A free end is the end of a thin wall: in the run's last column, `occupied` spans at most
@@ -122,24 +136,18 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const c
       return corners && beyond >= 0 && beyond < cols && fr[beyond] != 0 &&
              ends.Corner(r, c, inward, look);
     };
-    for (int c = 0; c < cols;) {
-      if (run[c] == 0) {
-        ++c;
-        continue;
-      }
-      const int a = c;
-      while (c < cols && run[c] != 0) ++c;
-      if (free_end(r, c - 1, -1)) {
-        walk(c, +1, max_len, facing_len, kOpeningFreeEnd);
-      } else if (corner(c - 1, -1)) {
-        walk(c, +1, corner_len, 0, kOpeningCorner);
+    ForEachRun(run, cols, [&](int a, int last) {
+      if (free_end(r, last, -1)) {
+        walk(last + 1, +1, max_len, facing_len, kOpeningFreeEnd);
+      } else if (corner(last, -1)) {
+        walk(last + 1, +1, corner_len, 0, kOpeningCorner);
       }
       if (free_end(r, a, +1)) {
         walk(a - 1, -1, max_len, facing_len, kOpeningFreeEnd);
       } else if (corner(a, +1)) {
         walk(a - 1, -1, corner_len, 0, kOpeningCorner);
       }
-    }
+    });
   }
 }
 
@@ -168,16 +176,9 @@ void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& wal
     for (int j = start; j != r; j += step) out_t->at<std::uint8_t>(c, j) |= kOpeningCap;
   };
   for (int r = 0; r < rows; ++r) {
-    const std::uint8_t* run = runs.ptr<std::uint8_t>(r);
-    for (int c = 0; c < cols;) {
-      if (run[c] == 0) {
-        ++c;
-        continue;
-      }
-      const int a = c;
-      while (c < cols && run[c] != 0) ++c;
+    ForEachRun(runs.ptr<std::uint8_t>(r), cols, [&](int a, int last) {
       // The band's top row caps upwards, its bottom row downwards; both at the end column.
-      for (const auto& [end, inward] : {std::pair{c - 1, -1}, std::pair{a, +1}}) {
+      for (const auto& [end, inward] : {std::pair{last, -1}, std::pair{a, +1}}) {
         if (!ends.At(r, end, inward)) continue;
         // A door's jamb: the wall's line goes on within `jamb_gap` (a run along it, a cell of
         // slack across: laser walls are ragged). The door explains the end, and a line across
@@ -193,7 +194,7 @@ void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& wal
         if (r == 0 || runs.at<std::uint8_t>(r - 1, end) == 0) cap(r, end, -1);
         if (r == rows - 1 || runs.at<std::uint8_t>(r + 1, end) == 0) cap(r, end, +1);
       }
-    }
+    });
   }
 }
 

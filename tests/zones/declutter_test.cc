@@ -139,6 +139,17 @@ cv::Mat FreeInside(const cv::Mat& occ, const std::vector<cv::Rect>& inside) {
   return free;
 }
 
+// A 6 x 4 m room (1 cell = 5 cm, walls 2 cells thick: columns 10-130, rows 10-90) with these
+// wall rectangles filled in, and its free inside.
+struct Room {
+  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
+  explicit Room(const std::vector<cv::Rect>& walls) {
+    cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
+    for (const cv::Rect& w : walls) occ(w).setTo(255);
+  }
+  [[nodiscard]] cv::Mat Free() const { return FreeInside(occ, {cv::Rect(12, 12, 117, 77)}); }
+};
+
 TEST_CASE("the facade is continued across a balcony's mouth, not across a window or a notch") {
   // A 6 x 4 m flat (1 cell = 5 cm, walls 3 cells thick) with a 2 m x 1 m balcony protruding
   // below its bottom wall behind a full-width slider: the bottom wall is two facade pieces, the
@@ -182,16 +193,9 @@ TEST_CASE("the mouth between two aligned wall ends is an opening; something in i
   // walls (15 cells, 0.1 m thick) 1.6 m apart whose free ends are aligned at row 27, the front
   // being one wide door. Further right two more walls from the top wall end 0.5 m apart in
   // height: not aligned, no mouth.
-  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
-  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
-  auto wall = [&](int x, int y, int w, int h) {
-    cv::rectangle(occ, cv::Rect(x, y, w, h), cv::Scalar(255), cv::FILLED);
-  };
-  wall(30, 10, 2, 18);
-  wall(62, 10, 2, 18);
-  wall(90, 10, 2, 18);
-  wall(115, 10, 2, 28);
-  const cv::Mat free = FreeInside(occ, {cv::Rect(12, 12, 117, 77)});
+  const Room room({{30, 10, 2, 18}, {62, 10, 2, 18}, {90, 10, 2, 18}, {115, 10, 2, 28}});
+  const cv::Mat& occ = room.occ;
+  const cv::Mat free = room.Free();
   const WallCells cells{
       .min_length = 20, .gap = 9, .door = 24, .thickness = 6, .stub = 6, .mouth = 60};
   const WallEvidence w = FindWalls(occ, 0.0, cells, free);
@@ -229,16 +233,9 @@ TEST_CASE("a thin wall ending at a corner is continued into the free space beyon
   // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 x 1.5 m closet set against its top wall (side
   // walls at columns 50 and 80, front wall at rows 40-41, 0.1 m thick) and a solid 1.5 x 0.6 m
   // block against the bottom wall.
-  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
-  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
-  auto wall = [&](int x, int y, int w, int h) {
-    cv::rectangle(occ, cv::Rect(x, y, w, h), cv::Scalar(255), cv::FILLED);
-  };
-  wall(50, 10, 2, 32);
-  wall(80, 10, 2, 32);
-  wall(50, 40, 32, 2);
-  wall(90, 78, 30, 12);
-  const cv::Mat free = FreeInside(occ, {cv::Rect(12, 12, 117, 77)});
+  const Room room({{50, 10, 2, 32}, {80, 10, 2, 32}, {50, 40, 32, 2}, {90, 78, 30, 12}});
+  const cv::Mat& occ = room.occ;
+  const cv::Mat free = room.Free();
   const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .corner = 60};
   const WallEvidence w = FindWalls(occ, 0.0, cells, free);
   // The closet's side walls end at its front wall's corners: continued down to the bottom wall;
@@ -263,10 +260,9 @@ TEST_CASE("a thin wall ending at a corner is continued into the free space beyon
 TEST_CASE("a thin wall's free end is capped across, to the next wall; a door's jambs are not") {
   // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 m partition down from the top wall (column 60,
   // free end at row 40): the wall on its left is 2.4 m away, the one on its right 3.3 m.
-  cv::Mat occ = cv::Mat::zeros(100, 140, CV_8U);
-  cv::rectangle(occ, cv::Rect(10, 10, 121, 81), cv::Scalar(255), 2);
-  cv::rectangle(occ, cv::Rect(60, 10, 2, 31), cv::Scalar(255), cv::FILLED);
-  const cv::Mat free = FreeInside(occ, {cv::Rect(12, 12, 117, 77)});
+  const Room room({{60, 10, 2, 31}});
+  const cv::Mat& occ = room.occ;
+  const cv::Mat free = room.Free();
   const WallCells cells{.min_length = 20, .gap = 9, .door = 24, .thickness = 6, .cap = 60};
   const WallEvidence w = FindWalls(occ, 0.0, cells, free);
   for (int c = 12; c < 60; ++c) {
@@ -276,15 +272,14 @@ TEST_CASE("a thin wall's free end is capped across, to the next wall; a door's j
   CHECK(cv::countNonZero(w.openings(cv::Rect(62, 12, 67, 77))) == 0);
   // The partition is not continued (no opening width) and the outline's corners are no ends.
   CHECK(cv::countNonZero(w.openings(cv::Rect(12, 42, 117, 47))) == 0);
+  CHECK(cv::countNonZero(w.openings(cv::Rect(12, 12, 47, 27))) == 0);
   // A wall with a 1 m door: its ends are the door's jambs, the wall goes on beyond the gap, and
   // nothing is capped there (a cap would cut the room at every door).
-  cv::Mat door = occ.clone();
-  cv::rectangle(door, cv::Rect(12, 70, 68, 2), cv::Scalar(255), cv::FILLED);
-  cv::rectangle(door, cv::Rect(100, 70, 29, 2), cv::Scalar(255), cv::FILLED);
-  const WallEvidence d = FindWalls(door, 0.0, cells, FreeInside(door, {cv::Rect(12, 12, 117, 77)}));
+  const Room door({{60, 10, 2, 31}, {12, 70, 68, 2}, {100, 70, 29, 2}});
+  const WallEvidence d = FindWalls(door.occ, 0.0, cells, door.Free());
   CHECK(cv::countNonZero(d.openings(cv::Rect(76, 42, 28, 27))) == 0);
   CHECK(cv::countNonZero(d.openings(cv::Rect(76, 73, 28, 15))) == 0);
-  CHECK(cv::countNonZero(w.openings(cv::Rect(12, 12, 47, 27))) == 0);
+  // Off by default.
   WallCells off = cells;
   off.cap = 0;
   CHECK(cv::countNonZero(FindWalls(occ, 0.0, off, free).openings) == 0);

@@ -63,6 +63,26 @@ struct Scene {
   }
 };
 
+// Runs the merge of `in` with a trace against `gt` (the oracle's merges when `oracle`); returns
+// the trace's CSV lines and the merge's result in `*merged`.
+std::vector<std::string> TraceLines(const LayoutMergeInputs& in, const cv::Mat& gt, bool oracle,
+                                    double threshold, Result<int>* merged) {
+  const cv::Mat truth = gt.clone();
+  std::FILE* csv = std::tmpfile();
+  REQUIRE(csv != nullptr);
+  LayoutMergeTrace trace;
+  trace.ground_truth = &truth;
+  trace.csv = csv;
+  trace.oracle = oracle;
+  *merged = MergeLayoutPieces(in, LayoutMergeModel{}, threshold, trace);  // the oracle or p 0.5
+  std::rewind(csv);
+  std::vector<std::string> lines;
+  char line[4096];
+  while (std::fgets(line, sizeof line, csv) != nullptr) lines.emplace_back(line);
+  std::fclose(csv);
+  return lines;
+}
+
 TEST_CASE("a layout merge model parses, and each defect gets one clear error") {
   auto ok = ParseLayoutMergeModel(StumpModel(0.8));
   REQUIRE(ok.ok());
@@ -131,32 +151,20 @@ TEST_CASE("pieces of one room merge across an open line, not through a door in a
 
 TEST_CASE("the trace labels every pair by the ground truth and the oracle merges by it") {
   Scene s;
-  const cv::Mat gt = s.gt.clone();
-  std::FILE* csv = std::tmpfile();
-  REQUIRE(csv != nullptr);
-  LayoutMergeTrace trace;
-  trace.ground_truth = &gt;
-  trace.csv = csv;
-  trace.oracle = true;
-  const LayoutMergeModel no_model;  // the oracle does not ask it
-  auto merged = MergeLayoutPieces(s.Inputs(), no_model, 0.5, trace);
+  Result<int> merged = 0;
+  const std::vector<std::string> lines = TraceLines(s.Inputs(), s.gt, true, 0.5, &merged);
   REQUIRE(merged.ok());
   CHECK(*merged == 2);
   CHECK(s.labels.at<int>(50, 10) == s.labels.at<int>(50, 90));
   CHECK(s.labels.at<int>(50, 10) != s.labels.at<int>(50, 150));
-  std::rewind(csv);
-  char line[4096];
   std::set<std::string> step0;
-  int rows = 0, fields = 0;
-  while (std::fgets(line, sizeof line, csv) != nullptr) {
-    ++rows;
-    const std::string l(line);
+  int fields = 0;
+  for (const std::string& l : lines) {
     if (l.rfind("0,", 0) == 0) step0.insert(l.substr(0, 4));
     fields = 1;
     for (char ch : l) fields += ch == ',';
   }
-  std::fclose(csv);
-  CHECK(rows == 3);  // two pairs at step 0, one (A with B) at step 1
+  CHECK(lines.size() == 3);  // two pairs at step 0, one (A with B) at step 1
   CHECK(step0 == std::set<std::string>{"0,0,", "0,1,"});  // one pair of one room, one not
   CHECK(fields == 2 + kLayoutFeatureCount);
 }
@@ -168,24 +176,16 @@ TEST_CASE("the border's doorway and opening-kind shares are features") {
   in.doorways(cv::Rect(100, 40, 3, 18)).setTo(255);  // the door between A and B
   in.opening_kinds = cv::Mat::zeros(s.labels.size(), CV_8U);
   in.opening_kinds(cv::Rect(49, 1, 2, 98)).setTo(kOpeningCap);  // the line cutting A
-  const cv::Mat gt = s.gt.clone();
-  std::FILE* csv = std::tmpfile();
-  REQUIRE(csv != nullptr);
-  LayoutMergeTrace trace;
-  trace.ground_truth = &gt;
-  trace.csv = csv;
-  REQUIRE(MergeLayoutPieces(in, LayoutMergeModel{}, 0.99, trace).ok());  // p 0.5: no merge
-  std::rewind(csv);
-  char line[4096];
+  Result<int> merged = 0;
   std::map<int, std::vector<double>> by_label;  // 1: the pair within A, 0: A's piece and B
-  while (std::fgets(line, sizeof line, csv) != nullptr) {
+  for (const std::string& line : TraceLines(in, s.gt, false, 0.99, &merged)) {  // no merge
     std::vector<double> v;
     std::stringstream ss(line);
     std::string field;
     while (std::getline(ss, field, ',')) v.push_back(std::stod(field));
     by_label[static_cast<int>(v[1])] = std::vector<double>(v.begin() + 2, v.end());
   }
-  std::fclose(csv);
+  REQUIRE(merged.ok());
   REQUIRE(by_label.size() == 2);
   auto feature = [&](int label, const std::string& name) {
     for (int i = 0; i < kLayoutFeatureCount; ++i) {
