@@ -106,11 +106,10 @@ void ForEachRun(const std::uint8_t* run, int cols, F f) {
 // free space just beyond it, is continued the same way across at most `corner_len` cells: the
 // wall's line extended past the room it bounds into the space beyond (a closet or WC set into a
 // room's corner, whose open side is the line of the wall beside it).
-void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& walls,
+void ContinueRunsAlongRows(const cv::Mat& runs, const FreeEnds& ends, const cv::Mat& walls,
                            const cv::Mat& free, int max_len, int max_thickness, int facing_len,
                            int corner_len, cv::Mat* out) {
   const int rows = runs.rows, cols = runs.cols;
-  const FreeEnds ends(occupied, max_thickness);
   auto free_end = [&](int r, int c, int inward) { return ends.At(r, c, inward); };
   const bool corners = corner_len > 0 && !free.empty();
   for (int r = 0; r < rows; ++r) {
@@ -157,10 +156,10 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const c
 // set to kOpeningCap in `*out_t`, which is transposed (a line along a column of the grid is a
 // row there). The front of a closet whose side wall ends where its door closes lies on one.
 // Ends whose wall goes on within `jamb_gap` beyond them (a door's jambs) are not capped.
-void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& walls,
-                const cv::Mat& free, int max_thickness, int cap_len, int jamb_gap, cv::Mat* out_t) {
+void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const FreeEnds& ends,
+                const cv::Mat& walls, const cv::Mat& free, int max_thickness, int cap_len,
+                int jamb_gap, cv::Mat* out_t) {
   const int rows = runs.rows, cols = runs.cols;
-  const FreeEnds ends(occupied, max_thickness);
   auto cap = [&](int r0, int c, int step) {
     int r = r0;
     // Past the wall's own cells, then through anything that is not wall.
@@ -348,12 +347,12 @@ cv::Mat FacadeGapsAlongRows(const cv::Mat& occupied, const cv::Mat& free, const 
 // rows apart, each the other's nearest such end, with nothing occupied and none of `outside`
 // on the column between the two walls. Set in `*out` as a band of three columns across the
 // rows between them (so it crosses the rows, perpendicular to the runs).
-void AlignedEndMouthsAlongRows(const cv::Mat& runs, const cv::Mat& occupied, const cv::Mat& outside,
-                               int min_gap, int max_gap, int max_thickness, int tol, cv::Mat* out) {
+void AlignedEndMouthsAlongRows(const cv::Mat& runs, const cv::Mat& occupied,
+                               const FreeEnds& free_ends, const cv::Mat& outside, int min_gap,
+                               int max_gap, int tol, cv::Mat* out) {
   struct End {
     int row, col, dir;  // dir: +1 the run lies left of the end (a right end), -1 right of it
   };
-  const FreeEnds free_ends(occupied, max_thickness);
   cv::Mat ids, stats, centroids;
   const int n = cv::connectedComponentsWithStats(runs, ids, stats, centroids, 8, CV_32S);
   std::vector<End> ends;
@@ -487,6 +486,9 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
     cv::Mat t_runs, t_occ;
     cv::transpose(runs[1], t_runs);
     cv::transpose(occupied, t_occ);
+    // Where walls end freely, along the rows and (transposed) along the columns: once for the
+    // mouths, the continuations and the caps.
+    const FreeEnds row_ends(occupied, thickness), col_ends(t_occ, thickness);
     cv::Mat outside, t_outside;
     if ((facade > 0 || mouth > 0) && !free.empty()) {
       outside = OutsideMask(free, occupied);
@@ -499,9 +501,9 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
       // Mouths between aligned wall ends cross the runs' direction: those of the row runs are
       // column bands (into the transposed openings), those of the column runs row bands.
       cv::Mat cols_out = cv::Mat::zeros(occupied.size(), CV_8U);
-      AlignedEndMouthsAlongRows(runs[0], occupied, outside, gap, mouth, thickness, 2, &cols_out);
+      AlignedEndMouthsAlongRows(runs[0], occupied, row_ends, outside, gap, mouth, 2, &cols_out);
       cv::Mat rows_out_t = cv::Mat::zeros(t_runs.size(), CV_8U);
-      AlignedEndMouthsAlongRows(t_runs, t_occ, t_outside, gap, mouth, thickness, 2, &rows_out_t);
+      AlignedEndMouthsAlongRows(t_runs, t_occ, col_ends, t_outside, gap, mouth, 2, &rows_out_t);
       mouths = cols_out | rows_out_t.t();
       t_out |= cv::Mat(cols_out.t()) & cv::Scalar(kOpeningMouth);
       row_out |= cv::Mat(rows_out_t.t()) & cv::Scalar(kOpeningMouth);
@@ -513,18 +515,19 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
     const cv::Mat any_wall = ((runs[0] | runs[1]) & occupied) | out.doorways | mouths;
     cv::Mat t_free;
     if (!free.empty()) cv::transpose(free, t_free);
-    ContinueRunsAlongRows(runs[0], occupied, any_wall, free, opening, thickness, facing,
+    ContinueRunsAlongRows(runs[0], row_ends, any_wall, free, opening, thickness, facing,
                           cells.corner, &row_out);
     cv::Mat t_wall;
     cv::transpose(any_wall, t_wall);
-    ContinueRunsAlongRows(t_runs, t_occ, t_wall, t_free, opening, thickness, facing, cells.corner,
-                          &t_out);
+    ContinueRunsAlongRows(t_runs, col_ends, t_wall, t_free, opening, thickness, facing,
+                          cells.corner, &t_out);
     if (cells.cap > 0 && !free.empty()) {
       // Gaps up to two doors' width (a double door with its frame) are doors in a wall.
       const int jamb_gap = 2 * door;
-      CapRunEnds(runs[0], occupied, any_wall, free, thickness, cells.cap, jamb_gap, &t_out);
+      CapRunEnds(runs[0], occupied, row_ends, any_wall, free, thickness, cells.cap, jamb_gap,
+                 &t_out);
       cv::Mat caps = cv::Mat::zeros(occupied.size(), CV_8U);
-      CapRunEnds(t_runs, t_occ, t_wall, t_free, thickness, cells.cap, jamb_gap, &caps);
+      CapRunEnds(t_runs, t_occ, col_ends, t_wall, t_free, thickness, cells.cap, jamb_gap, &caps);
       row_out |= caps;
     }
     if (facade > 0 && !free.empty()) {

@@ -67,6 +67,7 @@ enum OpeningKind : std::uint8_t {
   kOpeningFacade = 8,   // the facade across a protrusion's mouth
   kOpeningCap = 16,     // across a thin wall's free end, perpendicular to it
 };
+inline constexpr int kOpeningKindCount = 5;
 
 struct WallEvidence {
   cv::Mat walls;          // CV_8UC1, 255 = occupied cell on a straight wall run

@@ -11,6 +11,8 @@
 #include <unordered_map>
 #include <utility>
 
+#include "zones/declutter.h"
+
 namespace zm {
 namespace {
 
@@ -35,7 +37,7 @@ struct Contact {
   double rays = 0;             // rays across a wall, from either side
   double rule_same_edges = 0;  // edges whose two cells lie in one rule segment
   // Edges on a doorway, then on an opening of each OpeningKind bit (either cell).
-  std::array<double, 6> kind_edges{};
+  std::array<double, 1 + kOpeningKindCount> kind_edges{};
   float clearance = 0.0f;  // cells
   std::vector<int> cells;  // border cells of either side (row * cols + col)
   double probability = 0.0;
@@ -145,6 +147,7 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
   const double dv_u = std::max(s.vmax, l.vmax) - std::min(s.vmin, l.vmin);
   const double rect_u = Rectangularity(s.area + l.area, du_u, dv_u);
   const auto ends = EndSupport(c.cells, occupied, f);
+  auto per_edge = [&](double n) { return n / std::max(c.edges, 1.0); };
   const double values[kLayoutFeatureCount] = {
       open,
       wall,
@@ -172,15 +175,15 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       Elongation(l.umax - l.umin, l.vmax - l.vmin),
       Elongation(du_u, dv_u),
       (Majority(s.rule) != 0 && Majority(s.rule) == Majority(l.rule)) ? 1.0 : 0.0,
-      c.rule_same_edges / std::max(c.edges, 1.0),
+      per_edge(c.rule_same_edges),
       map.free_m2,
       map.rule_segment_m2,
-      c.kind_edges[0] / std::max(c.edges, 1.0),
-      c.kind_edges[1] / std::max(c.edges, 1.0),
-      c.kind_edges[2] / std::max(c.edges, 1.0),
-      c.kind_edges[3] / std::max(c.edges, 1.0),
-      c.kind_edges[4] / std::max(c.edges, 1.0),
-      c.kind_edges[5] / std::max(c.edges, 1.0)};
+      per_edge(c.kind_edges[0]),
+      per_edge(c.kind_edges[1]),
+      per_edge(c.kind_edges[2]),
+      per_edge(c.kind_edges[3]),
+      per_edge(c.kind_edges[4]),
+      per_edge(c.kind_edges[5])};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;

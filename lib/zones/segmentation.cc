@@ -796,8 +796,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         rule_options.layout_merge_threshold = 0.0;
         ZM_ASSIGN_OR_RETURN(const Segmentation rules, SegmentRooms(grid, rule_options));
         in.rule_labels = rules.labels(box).clone();
-        in.doorways = walls.doorways(box).clone();
-        in.opening_kinds = walls.opening_kinds(box).clone();
+        in.doorways = walls.doorways(box);  // views: `walls` outlives the merge
+        in.opening_kinds = walls.opening_kinds(box);
         ZM_ASSIGN_OR_RETURN(const int merged,
                             MergeLayoutPieces(in, model, given.layout_merge_threshold, trace));
         // Specks and slivers the model left alone (a laser map's stray free cells) are no zone
