@@ -84,11 +84,11 @@ class Commands {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "zonemap-cotenant: a STAND-IN for a VLM served beside the map (weights mmap'ed from a file "
+      "zonemap-cotenant: a STAND-IN for a VLM served beside the map (weights read from a file "
       "and streamed once per token, a KV cache growing with the context). Not a real model."};
   zm::CotenantConfig flags;
   std::string profile_name, weights_text, kv_text, ledger_device_text;
-  std::string kv_allocation = "per_request", weights_load = "mmap";
+  std::string kv_allocation = "per_request", weights = "pinned";
   bool serve = false, jsonl = false, json = false, list = false, create_weights = false;
   app.add_option("--profile", profile_name,
                  "start from the profile's [model] and [cotenant] (flags given override them)");
@@ -118,16 +118,16 @@ int main(int argc, char** argv) {
   app.add_option("--kv-allocation", kv_allocation,
                  "per_request (grows and is freed per request) | at_load (llama.cpp)")
       ->check(CLI::IsMember({"per_request", "at_load"}));
-  app.add_option("--weights-load", weights_load, "mmap (llama.cpp) | read (Ollama's engine)")
-      ->check(CLI::IsMember({"mmap", "read"}));
+  app.add_option("--weights", weights,
+                 "pinned (GPU offload: read once, mlock'ed, KV cache locked too; default) | mmap "
+                 "(CPU backend: page cache, evictable) | read (anonymous, swappable)")
+      ->check(CLI::IsMember({"pinned", "mmap", "read"}));
   app.add_option("--weights-dir", flags.options.weights_dir,
                  "weights file cache (default " + zm::DefaultWeightsDir() + ")");
   app.add_flag("--prefetch,!--no-prefetch", flags.options.prefetch,
                "MAP_POPULATE + MADV_WILLNEED at load, as llama.cpp (default on)");
   app.add_flag("--cold-start,!--no-cold-start", flags.options.cold_start,
                "drop the file's cached pages before mapping (default on)");
-  app.add_flag("--mlock", flags.options.mlock,
-               "mlock the weights (llama.cpp --mlock; default off)");
   app.add_option("--ledger", flags.ledger_path, "device ledger file (the portable fallback)");
   app.add_option("--ledger-device-bytes", ledger_device_text,
                  "device total when the ledger file is created (e.g. 8GiB)");
@@ -192,14 +192,12 @@ int main(int argc, char** argv) {
   if (profile_name.empty() || given("--weights-dir")) o.weights_dir = f.weights_dir;
   if (profile_name.empty() || given("--prefetch")) o.prefetch = f.prefetch;
   if (profile_name.empty() || given("--cold-start")) o.cold_start = f.cold_start;
-  if (profile_name.empty() || given("--mlock")) o.mlock = f.mlock;
   if (profile_name.empty() || given("--kv-allocation")) {
     o.kv_allocation =
         kv_allocation == "at_load" ? zm::KvAllocation::kAtLoad : zm::KvAllocation::kPerRequest;
   }
-  if (profile_name.empty() || given("--weights-load")) {
-    o.weights_load = weights_load == "read" ? zm::WeightsLoad::kRead : zm::WeightsLoad::kMmap;
-  }
+  if (profile_name.empty() || given("--weights"))
+    (void)zm::ParseCotenantWeights(weights, &o.weights);
   config.device_scale = flags.device_scale;
   config.requests = flags.requests;
   config.ledger_path = flags.ledger_path;
@@ -286,9 +284,8 @@ int main(int argc, char** argv) {
         "  model %s at device scale %g: %s of weights (%s, %s) + KV cache %s reserved for %u "
         "tokens (%s per request, %s)\n",
         r.model.c_str(), r.device_scale, zm::FormatBytes(r.weights_bytes).c_str(),
-        r.weights_load.c_str(), r.weights_path.c_str(),
-        zm::FormatBytes(r.kv_reserved_bytes).c_str(), r.context_tokens,
-        zm::FormatBytes(r.request_kv_bytes).c_str(), r.kv_allocation.c_str());
+        r.weights.c_str(), r.weights_path.c_str(), zm::FormatBytes(r.kv_reserved_bytes).c_str(),
+        r.context_tokens, zm::FormatBytes(r.request_kv_bytes).c_str(), r.kv_allocation.c_str());
     if (r.starts > 0) {
       std::printf("  weights loaded in %.1f ms%s\n", r.load_ms,
                   r.weights_create_ms > 0.0 ? (" (file created first in " +

@@ -472,14 +472,23 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
 
   const std::string value = std::to_string(options.limit_bytes);
   const std::string what = "the device limit, " + FormatBytes(options.limit_bytes);
+  const std::string swap_what = "the device swap, " + FormatBytes(options.swap_bytes);
   if (cg.version_ == CgroupVersion::kV1) {
     ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.limit_in_bytes", value, what));
-    // memsw = memory + swap; equal to the memory limit means no swap at all. Absent when the
-    // kernel does not account swap (then there is nothing to hide pressure in, or it cannot
-    // be stopped: the report says swap_limited = false).
+    // memsw = memory + swap, never below the memory limit (so it is written second). Equal to
+    // the memory limit means no swap at all. Absent when the kernel does not account swap (then
+    // swap cannot be limited: swap_limited = false).
     if (Exists(dir + "/memory.memsw.limit_in_bytes")) {
-      ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.memsw.limit_in_bytes", value, what));
+      ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.memsw.limit_in_bytes",
+                                   std::to_string(options.limit_bytes + options.swap_bytes),
+                                   options.swap_bytes == 0 ? what : what + " + " + swap_what));
       cg.swap_limited_ = true;
+      cg.swap_limit_bytes_ = options.swap_bytes;
+      cg.swap_fd_ = OpenRead(dir + "/memory.memsw.usage_in_bytes");
+    }
+    if (options.swappiness >= 0 && Exists(dir + "/memory.swappiness")) {
+      ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.swappiness", std::to_string(options.swappiness),
+                                   "the device's swappiness"));
     }
     ZM_ASSIGN_OR_RETURN(cg.limit_bytes_, ReadNumber(dir + "/memory.limit_in_bytes"));
     cg.usage_fd_ = OpenRead(dir + "/memory.usage_in_bytes");
@@ -490,8 +499,11 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
   } else {
     ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.max", value, what));
     if (Exists(dir + "/memory.swap.max")) {
-      ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.swap.max", "0", "no swap"));
+      ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.swap.max", std::to_string(options.swap_bytes),
+                                   options.swap_bytes == 0 ? "no swap" : swap_what));
       cg.swap_limited_ = true;
+      cg.swap_limit_bytes_ = options.swap_bytes;
+      cg.swap_fd_ = OpenRead(dir + "/memory.swap.current");
     }
     ZM_ASSIGN_OR_RETURN(cg.limit_bytes_, ReadNumber(dir + "/memory.max"));
     cg.usage_fd_ = OpenRead(dir + "/memory.current");
@@ -518,6 +530,8 @@ Cgroup& Cgroup::operator=(Cgroup&& other) noexcept {
     limit_bytes_ = std::exchange(other.limit_bytes_, 0);
     sampled_peak_ = std::exchange(other.sampled_peak_, 0);
     swap_limited_ = std::exchange(other.swap_limited_, false);
+    swap_limit_bytes_ = std::exchange(other.swap_limit_bytes_, 0);
+    swap_fd_ = std::exchange(other.swap_fd_, -1);
     procs_fd_ = std::exchange(other.procs_fd_, -1);
     usage_fd_ = std::exchange(other.usage_fd_, -1);
     peak_fd_ = std::exchange(other.peak_fd_, -1);
@@ -531,8 +545,8 @@ Cgroup& Cgroup::operator=(Cgroup&& other) noexcept {
 Cgroup::~Cgroup() { (void)Remove(); }
 
 void Cgroup::CloseFiles() noexcept {
-  for (int* fd :
-       {&procs_fd_, &usage_fd_, &peak_fd_, &events_fd_, &failcnt_fd_, &memsw_failcnt_fd_}) {
+  for (int* fd : {&procs_fd_, &usage_fd_, &peak_fd_, &events_fd_, &failcnt_fd_, &memsw_failcnt_fd_,
+                  &swap_fd_}) {
     if (*fd >= 0) close(*fd);
     *fd = -1;
   }
@@ -560,6 +574,13 @@ CgroupSample Cgroup::Sample() noexcept {
   char buf[512];
   const std::string_view events = PreadAll(events_fd_, buf, sizeof buf);
   ok = ok && FindKeyValue(events, "oom_kill", &s.oom_kills);
+  std::uint64_t swap_or_memsw = 0;
+  if (PreadNumber(swap_fd_, &swap_or_memsw)) {
+    // v1 reads memory + swap: the swap is the difference (read after usage: clamp at 0).
+    s.swap_bytes = version_ == CgroupVersion::kV2  ? swap_or_memsw
+                   : swap_or_memsw > s.usage_bytes ? swap_or_memsw - s.usage_bytes
+                                                   : 0;
+  }
   if (version_ == CgroupVersion::kV1) {
     std::uint64_t under = 0;
     if (FindKeyValue(events, "under_oom", &under)) s.under_oom = under != 0;

@@ -49,9 +49,16 @@ struct CgroupLocation {
 
 struct CgroupOptions {
   std::string prefix = "zm-device";  // child names: <prefix>-<pid>-<start>-<n>; no '/'
-  std::uint64_t limit_bytes = 0;     // memory limit of the child (> 0); swap limited to it too
-  std::string parent_dir;            // "" = the cgroup this process runs in
-  bool remove_stale = true;          // first remove children left by crashed earlier runs
+  std::uint64_t limit_bytes = 0;     // memory limit of the child (> 0)
+  // Swap the child may use (the device's swap, harness/swap_device.h); 0 = none. v1:
+  // memory.memsw.limit_in_bytes = limit + swap (set after the memory limit: memsw may never be
+  // below it); v2: memory.swap.max = swap.
+  std::uint64_t swap_bytes = 0;
+  // v1 memory.swappiness of the child (v2 has none: the machine's vm.swappiness applies); < 0 =
+  // inherited. The device's is JetPack's, the kernel default 60 (device_run.cc).
+  int swappiness = -1;
+  std::string parent_dir;    // "" = the cgroup this process runs in
+  bool remove_stale = true;  // first remove children left by crashed earlier runs
 };
 
 // One reading of a cgroup's counters. Allocation-free.
@@ -61,6 +68,8 @@ struct CgroupSample {
                                   // kernel keeps no peak, the highest usage sampled
   std::uint64_t oom_kills = 0;    // processes the kernel OOM-killed in it (v1 memory.oom_control
                                   // oom_kill, v2 memory.events oom_kill)
+  std::uint64_t swap_bytes = 0;   // swapped out of it now: v1 memory.memsw.usage_in_bytes -
+                                  // memory.usage_in_bytes, v2 memory.swap.current
   std::uint64_t limit_hits = 0;   // times a charge met the limit (v1 memory.failcnt +
                                   // memory.memsw.failcnt, v2 memory.events max); best
                                   // effort: Linux 6.18's v1 failcnt stays 0 through OOM kills
@@ -101,6 +110,7 @@ class Cgroup {
   [[nodiscard]] CgroupVersion version() const noexcept { return version_; }
   [[nodiscard]] std::uint64_t limit_bytes() const noexcept { return limit_bytes_; }  // as set
   [[nodiscard]] bool swap_limited() const noexcept { return swap_limited_; }
+  [[nodiscard]] std::uint64_t swap_limit_bytes() const noexcept { return swap_limit_bytes_; }
   [[nodiscard]] bool active() const noexcept { return !dir_.empty(); }
 
  private:
@@ -111,12 +121,14 @@ class Cgroup {
   std::uint64_t limit_bytes_ = 0;
   std::uint64_t sampled_peak_ = 0;
   bool swap_limited_ = false;
+  std::uint64_t swap_limit_bytes_ = 0;
   int procs_fd_ = -1;  // cgroup.procs, O_WRONLY (EnterSelf)
   int usage_fd_ = -1;
   int peak_fd_ = -1;           // -1 where the kernel keeps no peak (v2 before 5.19)
   int events_fd_ = -1;         // v1 memory.oom_control, v2 memory.events
   int failcnt_fd_ = -1;        // v1 memory.failcnt
   int memsw_failcnt_fd_ = -1;  // v1 memory.memsw.failcnt: with swap limited, memsw meets it first
+  int swap_fd_ = -1;           // v1 memory.memsw.usage_in_bytes, v2 memory.swap.current
 };
 
 // Removes the children of `parent_dir` named <prefix>-<pid>-<start>-<n> whose creator no longer

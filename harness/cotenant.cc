@@ -89,6 +89,29 @@ std::string_view KvAllocationName(KvAllocation a) {
   return a == KvAllocation::kAtLoad ? "at_load" : "per_request";
 }
 
+std::string_view CotenantWeightsName(CotenantWeights w) {
+  switch (w) {
+    case CotenantWeights::kPinned:
+      return "pinned";
+    case CotenantWeights::kMmap:
+      return "mmap";
+    case CotenantWeights::kRead:
+      return "read";
+  }
+  return "pinned";
+}
+
+bool ParseCotenantWeights(std::string_view text, CotenantWeights* out) {
+  for (CotenantWeights w :
+       {CotenantWeights::kPinned, CotenantWeights::kMmap, CotenantWeights::kRead}) {
+    if (text == CotenantWeightsName(w)) {
+      *out = w;
+      return true;
+    }
+  }
+  return false;
+}
+
 std::string_view WeightsLoadName(WeightsLoad w) {
   return w == WeightsLoad::kRead ? "read" : "mmap";
 }
@@ -279,6 +302,8 @@ Status CotenantReportBuilder::AddEvent(const nlohmann::json& e) {
     sizes();
     r_.weights_path = Str(e, "weights_path");
     r_.weights_load = Str(e, "weights_load");
+    r_.weights = e.contains("weights") ? Str(e, "weights") : r_.weights_load;
+    r_.lock_error = e.contains("mlock_error") ? Str(e, "mlock_error") : std::string();
     r_.kv_allocation = Str(e, "kv_allocation");
     r_.file_backed = Bool(e, "file_backed");
     r_.evictable = Bool(e, "evictable");
@@ -375,6 +400,8 @@ nlohmann::json ToJson(const CotenantResult& r) {
       {"request_kv_bytes", r.request_kv_bytes},
       {"context_tokens", r.context_tokens},
       {"weights_path", r.weights_path},
+      {"weights", r.weights},
+      {"weights_lock_error", r.lock_error},
       {"weights_load", r.weights_load},
       {"kv_allocation", r.kv_allocation},
       {"file_backed", r.file_backed},

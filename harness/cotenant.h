@@ -148,7 +148,11 @@ struct CotenantResult {
   std::uint64_t request_kv_bytes = 0;   // scaled KV cache of one request
   std::uint32_t context_tokens = 0;
   std::string weights_path;
-  std::string weights_load;   // "mmap" | "read"
+  // pinned | pinned_refused (the lock was refused: the memory is ordinary anonymous memory) |
+  // mmap | read: where the last start's weights and KV cache lived.
+  std::string weights;
+  std::string lock_error;     // why a pinned start's mlock was refused (empty otherwise)
+  std::string weights_load;   // the mechanism: "mmap" | "read"
   std::string kv_allocation;  // "per_request" | "at_load"
   bool file_backed = false;
   bool evictable = false;

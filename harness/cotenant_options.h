@@ -21,7 +21,25 @@ enum class KvAllocation {
 };
 [[nodiscard]] std::string_view KvAllocationName(KvAllocation a);  // "per_request", "at_load"
 
-// How the weights reach memory.
+// Where the stand-in's weights and KV cache live: the profile's one choice ([cotenant] weights).
+enum class CotenantWeights {
+  // GPU offload on unified memory (llama.cpp with its layers on the GPU, the Jetson; all the
+  // paper's models): the weights are copied once into CUDA/NvMap allocations in the shared DRAM
+  // (llama.cpp#13856), which the kernel never reclaims. Here: read once into anonymous memory and
+  // mlock'ed; the KV cache reserved for n_ctx and locked at load likewise (kv_allocation does not
+  // apply). A refused lock is reported ("pinned_refused"), never silent.
+  kPinned,
+  // CPU backend (llama.cpp's default loader): the file mapped read-only and shared: page cache,
+  // evictable, refaulted from the file.
+  kMmap,
+  // Read into anonymous memory, not locked (Ollama's own engine on the CPU): swappable.
+  kRead,
+};
+[[nodiscard]] std::string_view CotenantWeightsName(CotenantWeights w);  // "pinned", "mmap", "read"
+// False when `text` names none of them.
+[[nodiscard]] bool ParseCotenantWeights(std::string_view text, CotenantWeights* out);
+
+// How the weights reach memory: the mechanism behind CotenantWeights (harness/weights_file.h).
 enum class WeightsLoad {
   kMmap,  // llama.cpp's default: the file mapped read-only and shared (page cache, evictable)
   kRead,  // Ollama's own engine and GPU offload: read into process memory (anonymous, not
@@ -41,11 +59,10 @@ struct CotenantOptions {
   double restart_delay_s = 3.0;   // supervisor: restart after a death (Ollama's RestartSec=3)
   std::uint64_t kv_bytes_per_token = 0;  // 0 = the model table's (cotenant.h); for other models
   KvAllocation kv_allocation = KvAllocation::kPerRequest;
-  WeightsLoad weights_load = WeightsLoad::kMmap;
-  bool prefetch = true;     // MAP_POPULATE + MADV_WILLNEED at load, as llama.cpp's loader does
-  bool mlock = false;       // llama.cpp --mlock / Ollama use_mlock: off by default in both
-  bool cold_start = true;   // drop the file's clean pages first, so this process reads (and is
-                            // charged for) them, as after a boot
+  CotenantWeights weights = CotenantWeights::kPinned;  // the paper's models are GPU-offloaded
+  bool prefetch = true;    // mmap: MAP_POPULATE + MADV_WILLNEED at load, as llama.cpp's loader does
+  bool cold_start = true;  // drop the file's clean pages first, so this process reads (and is
+                           // charged for) them, as after a boot
   std::string weights_dir;  // cache directory of the weights file; empty = DefaultWeightsDir()
 };
 

@@ -47,13 +47,12 @@ std::vector<std::string> CotenantCommandLine(const CotenantConfig& c, bool serve
       "--period-s",       Num(o.request_period_s),
       "--watchdog-s",     Num(o.watchdog_s),
       "--kv-allocation",  std::string(KvAllocationName(o.kv_allocation)),
-      "--weights-load",   std::string(WeightsLoadName(o.weights_load)),
+      "--weights",        std::string(CotenantWeightsName(o.weights)),
       o.prefetch ? "--prefetch" : "--no-prefetch",
       o.cold_start ? "--cold-start" : "--no-cold-start",
       "--jsonl",
   };
   // clang-format on
-  if (o.mlock) a.emplace_back("--mlock");
   if (serve) a.emplace_back("--serve");
   if (c.weights_bytes != 0) a.insert(a.end(), {"--weights-bytes", std::to_string(c.weights_bytes)});
   if (o.kv_bytes_per_token != 0) {

@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <mutex>
 #include <optional>
@@ -96,9 +97,20 @@ class KvCache {
                ? seed
                : StreamPass(reinterpret_cast<const std::uint64_t*>(base_), touched_ / 8, seed);
   }
-  // Gives the pages back (MADV_DONTNEED: the next touch gets fresh zero pages).
+  // Pinned (CotenantWeights::kPinned): the whole reservation resident and locked, as a CUDA
+  // allocation made when the context is created. 0 or the errno of mlock.
+  int Lock() {
+    if (reserved_ == 0) return 0;
+    if (const int e = LockPages(base_, reserved_); e != 0) return e;
+    locked_ = true;
+    return 0;
+  }
+  // Gives the pages back (MADV_DONTNEED: the next touch gets fresh zero pages); a locked cache
+  // keeps them, as llama.cpp's device buffer does.
   void Release() {
-    if (touched_ > 0) madvise(base_, static_cast<std::size_t>(PageRound(touched_)), MADV_DONTNEED);
+    if (touched_ > 0 && !locked_) {
+      madvise(base_, static_cast<std::size_t>(PageRound(touched_)), MADV_DONTNEED);
+    }
     touched_ = 0;
   }
   // Bytes of the written part that are resident now (mincore).
@@ -119,6 +131,7 @@ class KvCache {
   unsigned char* base_ = nullptr;
   std::size_t reserved_ = 0;
   std::size_t touched_ = 0;
+  bool locked_ = false;
   std::vector<unsigned char> vec_;  // mincore's output, kept between requests
 };
 
@@ -277,8 +290,10 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   // granted to start; each request's KV cache is asked for per request.
   std::optional<DeviceLedger> ledger;
   LedgerTenant tenant;
-  const std::uint64_t base_grant =
-      sz.weights_bytes + (o.kv_allocation == KvAllocation::kAtLoad ? sz.kv_reserved_bytes : 0);
+  const std::uint64_t base_grant = sz.weights_bytes + (o.kv_allocation == KvAllocation::kAtLoad ||
+                                                               o.weights == CotenantWeights::kPinned
+                                                           ? sz.kv_reserved_bytes
+                                                           : 0);
   if (!config.ledger_path.empty()) {
     Result<DeviceLedger> opened =
         DeviceLedger::Open(config.ledger_path, config.ledger_device_bytes);
@@ -294,9 +309,10 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   Result<WeightsFileInfo> file = EnsureWeightsFile(o.weights_dir, sz.weights_bytes);
   if (!file.ok()) return fail("the weights could not be mapped: " + file.status().message(), &sz);
   WeightsMapOptions mo;
-  mo.load = o.weights_load;
+  const bool pinned = o.weights == CotenantWeights::kPinned;
+  mo.load = o.weights == CotenantWeights::kMmap ? WeightsLoad::kMmap : WeightsLoad::kRead;
   mo.prefetch = o.prefetch;
-  mo.mlock = o.mlock;
+  mo.mlock = pinned;
   mo.cold_start = o.cold_start;
   Result<MappedWeights> mapped = MappedWeights::Map(file->path, mo);
   if (!mapped.ok())
@@ -308,7 +324,24 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
                     " tokens of context): " + s.message(),
                 &sz);
   }
-  if (o.kv_allocation == KvAllocation::kAtLoad) kv.GrowTo(kv.reserved());  // cleared at load
+  // Pinned: the KV cache is a device buffer made with the context, resident and locked; else as
+  // kv_allocation says.
+  const KvAllocation kv_allocation = pinned ? KvAllocation::kAtLoad : o.kv_allocation;
+  std::string lock_error = weights.mlock_error();
+  if (pinned) {
+    if (const int e = kv.Lock(); e != 0 && lock_error.empty()) {
+      lock_error = "mlock of the " + FormatBytes(kv.reserved()) +
+                   " KV cache failed: " + std::strerror(e) + " (RLIMIT_MEMLOCK)";
+    }
+  }
+  if (kv_allocation == KvAllocation::kAtLoad) kv.GrowTo(kv.reserved());  // cleared at load
+  const std::string weights_mode = !pinned ? std::string(CotenantWeightsName(o.weights))
+                                   : lock_error.empty() ? std::string("pinned")
+                                                        : std::string("pinned_refused");
+  if (!lock_error.empty()) {
+    // Never silent: the weights are then ordinary anonymous memory the kernel may swap.
+    std::fprintf(stderr, "zonemap-cotenant: weights pinned_refused: %s\n", lock_error.c_str());
+  }
 
   em.Emit({{"event", "start"},
            {"note", std::string(kCotenantNote)},
@@ -319,20 +352,21 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
            {"weights_file_created", file->created},
            {"weights_create_ms", file->create_ms},
            {"weights_fs", file->fs_type},
-           {"weights_load", std::string(WeightsLoadName(o.weights_load))},
+           {"weights", weights_mode},
+           {"weights_load", std::string(WeightsLoadName(mo.load))},
            {"file_backed", weights.file_backed()},
            {"evictable", weights.file_backed() && file->evictable && !weights.locked()},
            {"prefetch", o.prefetch},
            {"cold_start", o.cold_start},
-           {"mlock", o.mlock},
+           {"mlock", pinned},
            {"mlocked", weights.locked()},
-           {"mlock_error", weights.mlock_error()},
+           {"mlock_error", lock_error},
            {"load_ms", weights.load_ms()},
            {"kv_bytes_per_token", sz.model.kv_bytes_per_token},
            {"kv_window_bytes_per_token", sz.model.window_bytes_per_token},
            {"kv_window_tokens", sz.model.window_tokens},
            {"kv_state_bytes", sz.model.state_bytes},
-           {"kv_allocation", std::string(KvAllocationName(o.kv_allocation))},
+           {"kv_allocation", std::string(KvAllocationName(kv_allocation))},
            {"context_tokens", o.context_tokens},
            {"kv_reserved_bytes", sz.kv_reserved_bytes},
            {"request_kv_bytes", sz.request_kv_bytes},
@@ -367,9 +401,9 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
   CotenantTicket ticket;
   while (!Stopped(stop) && next(ticket)) {
     ++served;
-    if (ledger && !tenant.TryUpdate(base_grant + (o.kv_allocation == KvAllocation::kPerRequest
-                                                      ? sz.request_kv_bytes
-                                                      : 0))) {
+    if (ledger &&
+        !tenant.TryUpdate(base_grant +
+                          (kv_allocation == KvAllocation::kPerRequest ? sz.request_kv_bytes : 0))) {
       em.Emit({{"event", "request_failed"},
                {"id", ticket.id},
                {"submitted_s", ticket.submitted_mono_s},
@@ -407,7 +441,7 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
     const rusage u1 = ThreadUsage();
     const std::uint64_t kv_bytes = kv.touched();
     const std::uint64_t kv_resident = kv.ResidentBytes();
-    if (o.kv_allocation == KvAllocation::kPerRequest) kv.Release();
+    if (kv_allocation == KvAllocation::kPerRequest) kv.Release();
     if (ledger) (void)tenant.Update(base_grant);
     if (aborted) {
       em.Emit({{"event", "request_failed"},

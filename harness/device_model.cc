@@ -17,14 +17,19 @@ namespace {
 
 class CgroupDevice final : public DeviceModel {
  public:
-  explicit CgroupDevice(Cgroup cgroup) : cgroup_(std::move(cgroup)) {}
+  CgroupDevice(DeviceSwap swap, Cgroup cgroup)
+      : swap_(std::move(swap)), cgroup_(std::move(cgroup)) {}
+  ~CgroupDevice() override { (void)Remove(); }
 
   DeviceKind kind() const noexcept override { return DeviceKind::kCgroup; }
   std::uint64_t limit_bytes() const noexcept override { return cgroup_.limit_bytes(); }
   std::string Describe() const override {
     return "cgroup " + std::string(CgroupVersionName(cgroup_.version())) + " " + cgroup_.dir() +
            ", limit " + FormatBytes(cgroup_.limit_bytes()) +
-           (cgroup_.swap_limited() ? ", no swap" : ", swap not accounted by this kernel");
+           (!cgroup_.swap_limited() ? ", swap not accounted by this kernel"
+            : cgroup_.swap_limit_bytes() == 0
+                ? ", no swap: " + swap_.reason()
+                : ", swap " + FormatBytes(cgroup_.swap_limit_bytes()) + " on " + swap_.Describe());
   }
   Status AddProcess(pid_t pid) override { return cgroup_.AddProcess(pid); }
   int EnterSelf() const noexcept override { return cgroup_.EnterSelf(); }
@@ -35,14 +40,22 @@ class CgroupDevice final : public DeviceModel {
     s.peak_bytes = c.peak_bytes;
     s.oom_kills = c.oom_kills;
     s.limit_hits = c.limit_hits;
+    s.swap_bytes = c.swap_bytes;
     s.under_oom = c.under_oom;
     s.ok = c.ok;
     return s;
   }
-  Status Remove() override { return cgroup_.Remove(); }
+  // The cgroup first (its processes killed, their swap entries freed), then the swap.
+  Status Remove() override {
+    Status c = cgroup_.Remove();
+    Status w = swap_.Remove();
+    return !c.ok() ? c : w;
+  }
+  const DeviceSwap& swap() const noexcept override { return swap_; }
   Cgroup* cgroup() noexcept override { return &cgroup_; }
 
  private:
+  DeviceSwap swap_;  // declared first: destroyed after the cgroup
   Cgroup cgroup_;
 };
 
@@ -171,10 +184,23 @@ Result<std::unique_ptr<DeviceModel>> OpenDeviceModel(const DeviceModelOptions& o
   if (options.limit_bytes == 0) return InvalidArgument("device: limit_bytes is 0");
   std::string reason;
   if (options.kind == DeviceKind::kCgroup) {
+    // Stale cgroups first: a crashed run's processes may hold pages in its stale zram device,
+    // which swapoff would have to bring back into their cgroup.
+    if (options.cgroup.remove_stale) {
+      Result<CgroupLocation> parent = options.cgroup.parent_dir.empty()
+                                          ? LocateOwnMemoryCgroup()
+                                          : Result<CgroupLocation>(CgroupLocation{
+                                                CgroupVersion::kV1, options.cgroup.parent_dir});
+      if (parent.ok()) (void)RemoveStaleCgroups(parent->dir, options.cgroup.prefix);
+    }
+    DeviceSwap swap = OpenDeviceSwap(options.swap);
     CgroupOptions co = options.cgroup;
     co.limit_bytes = options.limit_bytes;
+    co.swap_bytes = swap.bytes();
     auto cg = Cgroup::Create(co);
-    if (cg.ok()) return std::unique_ptr<DeviceModel>(new CgroupDevice(std::move(cg).value()));
+    if (cg.ok()) {
+      return std::unique_ptr<DeviceModel>(new CgroupDevice(std::move(swap), std::move(cg).value()));
+    }
     if (!options.fall_back_to_ledger) return cg.status();
     reason = cg.status().message();
   }

@@ -28,6 +28,7 @@
 #include "common/status.h"
 #include "harness/cgroup.h"
 #include "harness/device_ledger.h"
+#include "harness/swap_device.h"
 
 namespace zm {
 
@@ -42,6 +43,7 @@ struct DeviceSample {
   std::uint64_t usage_bytes = 0;
   std::uint64_t peak_bytes = 0;
   std::uint64_t oom_kills = 0;
+  std::uint64_t swap_bytes = 0;  // the device's pages in swap now (cgroup; 0 for the ledger)
   std::uint64_t limit_hits = 0;  // times usage met the limit (cgroup failcnt / events max)
   bool under_oom = false;
   bool ok = false;
@@ -72,12 +74,20 @@ class DeviceModel {
   // removes its file). Idempotent.
   [[nodiscard]] virtual Status Remove() = 0;
 
+  // The device's swap (kind none for the ledger, and where none could be had: reason() says why).
+  [[nodiscard]] virtual const DeviceSwap& swap() const noexcept { return no_swap_; }
+  // Allocation-free: the zram device's mm_stat (ok = false unless the swap is a zram of this run).
+  [[nodiscard]] ZramSample SampleZram() const noexcept { return swap().Sample(); }
+
   // The implementation behind it, for what only one has (nullptr for the other).
   [[nodiscard]] virtual Cgroup* cgroup() noexcept { return nullptr; }
   [[nodiscard]] virtual DeviceLedger* ledger() noexcept { return nullptr; }
 
  protected:
   std::string fallback_reason_;  // set by the implementation that stands in
+
+ private:
+  DeviceSwap no_swap_;  // kind none: what a device without swap (the ledger) reports
 };
 
 struct DeviceModelOptions {
@@ -86,8 +96,10 @@ struct DeviceModelOptions {
   // or the error (false: --device cgroup given explicitly).
   bool fall_back_to_ledger = true;
   std::uint64_t limit_bytes = 0;  // DeviceLimitBytes() of the (scaled) device; > 0
-  CgroupOptions cgroup;           // prefix and parent; its limit_bytes is set from the above
-  std::string ledger_path;        // "" = DeviceLedger::DefaultLedgerPath() + "-<pid>"
+  CgroupOptions cgroup;           // prefix, parent, swappiness; limit and swap set from here
+  // The device's swap (cgroup only: made before the cgroup, whose swap limit is its size).
+  SwapOptions swap;
+  std::string ledger_path;  // "" = DeviceLedger::DefaultLedgerPath() + "-<pid>"
 };
 
 [[nodiscard]] Result<std::unique_ptr<DeviceModel>> OpenDeviceModel(

@@ -4,9 +4,11 @@
 #include <poll.h>
 #include <signal.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cmath>
@@ -38,7 +40,30 @@ struct SharedReadings {
   std::atomic<std::int64_t> cotenant_pid{-1};
 };
 
+// The device cgroup's swappiness: JetPack's. L4T (Ubuntu) sets no vm.swappiness of its own and
+// nvzramconfig only makes the zram devices, so it is the kernel default, 60 (check on a Jetson:
+// cat /proc/sys/vm/swappiness).
+constexpr int kJetPackSwappiness = 60;
+
 double NowS() { return MonotonicSeconds(); }
+
+// fsync + POSIX_FADV_DONTNEED on every regular file of `dir` (not recursive: a scenario's files
+// are at its top): their clean pages leave the page cache, so the map process's reads are
+// charged to the device it runs in. Returns the bytes of the files dropped.
+std::uint64_t DropFileCache(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::uint64_t bytes = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_regular_file(ec)) continue;
+    const int fd = open(e.path().c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) continue;
+    (void)fsync(fd);  // dirty pages cannot be dropped
+    if (posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED) == 0) bytes += e.file_size(ec);
+    close(fd);
+  }
+  return bytes;
+}
 
 void SleepS(double s) {
   timespec ts{static_cast<time_t>(s), static_cast<long>((s - std::floor(s)) * 1e9)};
@@ -121,7 +146,8 @@ bool ReadAll(int fd, void* p, std::size_t n) {
   };
   // The ledger's grant of the map process, and what a refusal does: the arena's free slots are
   // withheld (TickLoop::WithholdSlots) so no keyframe loads until a later grant succeeds.
-  run.on_tick = [&, extra = std::array<char, 512>{}](
+  std::uint64_t last_majflt = SampleRusage().self_major_faults;
+  run.on_tick = [&, extra = std::array<char, 640>{}](
                     TickLoop& l, const TickClock& clock) mutable -> std::string_view {
     if (tenant) {
       const Arena& arena = l.arena();
@@ -138,15 +164,23 @@ bool ReadAll(int fd, void* p, std::size_t n) {
     const DeviceSample d = device.Sample();
     const ProcessSample me = self.Sample();
     const RusageSample ru = SampleRusage();
+    // map_majflt is cumulative (getrusage); map_majflt_tick is this tick's share of it.
+    const std::uint64_t majflt_tick =
+        ru.self_major_faults - std::min(ru.self_major_faults, last_majflt);
+    last_majflt = ru.self_major_faults;
     const int n = std::snprintf(
         extra.data(), extra.size(),
-        "\"wall_s\":%.4f,\"device_usage_bytes\":%llu,\"map_rss_bytes\":%llu,"
-        "\"cotenant_rss_bytes\":%llu,\"map_majflt\":%llu,\"map_minflt\":%llu,\"oom_kills\":%llu,"
+        "\"wall_s\":%.4f,\"device_usage_bytes\":%llu,\"device_swap_bytes\":%llu,"
+        "\"map_rss_bytes\":%llu,\"map_swap_bytes\":%llu,\"cotenant_rss_bytes\":%llu,"
+        "\"map_majflt\":%llu,\"map_majflt_tick\":%llu,\"map_minflt\":%llu,\"oom_kills\":%llu,"
         "\"frames_dropped\":%llu,\"frames_arrived\":%llu,\"ledger_refusals\":%llu",
         clock.wall_s, static_cast<unsigned long long>(d.usage_bytes),
+        static_cast<unsigned long long>(d.swap_bytes),
         static_cast<unsigned long long>(me.rss_bytes),
+        static_cast<unsigned long long>(me.swap_bytes),
         static_cast<unsigned long long>(shared->cotenant_rss_bytes.load()),
         static_cast<unsigned long long>(ru.self_major_faults),
+        static_cast<unsigned long long>(majflt_tick),
         static_cast<unsigned long long>(ru.self_minor_faults),
         static_cast<unsigned long long>(d.oom_kills),
         static_cast<unsigned long long>(clock.frames_dropped),
@@ -319,11 +353,31 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   dopt.fall_back_to_ledger = !request.device_explicit;
   dopt.limit_bytes = limit;
   dopt.cgroup = request.cgroup;
+  dopt.swap.requested = loop.device.swap;
+  dopt.swap.bytes = loop.device.swap_bytes;  // scaled with the device
+  dopt.swap.system = request.swap_system;
+  if (loop.device.swap != "none" && dopt.cgroup.swappiness < 0) {
+    dopt.cgroup.swappiness = kJetPackSwappiness;
+  }
+  // The map's files: every read of the run lands in the device (cold), or not (warm).
+  const std::uint64_t dropped_file_bytes =
+      request.cold_files ? DropFileCache(request.scenario_dir) : 0;
   dopt.ledger_path = !request.ledger_path.empty()
                          ? request.ledger_path
                          : request.out_dir + "/.ledger-" + std::to_string(getpid());
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<DeviceModel> device, OpenDeviceModel(dopt));
   if (request.on_device) request.on_device(*device);
+  const std::string swap_kind(device->cgroup() != nullptr ? SwapKindName(device->swap().kind())
+                                                          : "none");
+  const std::string swap_reason = device->cgroup() != nullptr
+                                      ? device->swap().reason()
+                                      : std::string("the ledger simulates no swap");
+  const std::uint64_t swap_limit =
+      device->cgroup() != nullptr ? device->cgroup()->swap_limit_bytes() : 0;
+  if (loop.device.swap != "none" && swap_kind == "none") {
+    // Never silent: the device asked for swap and has none.
+    std::fprintf(stderr, "device swap: none: %s\n", swap_reason.c_str());
+  }
 
   auto* shared = static_cast<SharedReadings*>(mmap(
       nullptr, sizeof(SharedReadings), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
@@ -413,9 +467,21 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   ProcessSampler co_sampler;
   pid_t co_pid = -1;
   int status = 0;
+  rusage map_usage{};
+  std::uint64_t swap_peak = 0, zram_mem_used_peak = 0, zram_orig_peak = 0, zram_compr_peak = 0;
+  const auto sample_swap = [&](const DeviceSample& d) {
+    if (d.ok) swap_peak = std::max(swap_peak, d.swap_bytes);
+    const ZramSample z = device->SampleZram();
+    if (z.ok) {
+      zram_mem_used_peak = std::max(zram_mem_used_peak, z.mem_used_bytes);
+      zram_orig_peak = std::max(zram_orig_peak, z.orig_data_bytes);
+      zram_compr_peak = std::max(zram_compr_peak, z.compr_data_bytes);
+    }
+  };
   bool sent_term = false;
   for (;;) {
-    const pid_t w = waitpid(map_pid, &status, WNOHANG);
+    // wait4: the map process's own rusage (its major faults) when it is reaped.
+    const pid_t w = wait4(map_pid, &status, WNOHANG, &map_usage);
     if (w == map_pid) break;
     if (w < 0 && errno != EINTR) return Internal(std::string("waitpid: ") + std::strerror(errno));
     if (stop != nullptr && stop->load() && !sent_term) {
@@ -424,6 +490,7 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
     }
     last = device->Sample();
     if (last.ok) peak = std::max({peak, last.peak_bytes, last.usage_bytes});
+    sample_swap(last);
     const ProcessSample m = map_sampler.Sample();
     if (m.alive) map_peak_rss = std::max(map_peak_rss, m.rss_bytes);
     if (cotenant_started) {
@@ -485,6 +552,7 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
 
   const DeviceSample final_sample = device->Sample();
   if (final_sample.ok) peak = std::max(peak, final_sample.peak_bytes);
+  sample_swap(final_sample);
 
   // The map process's summary, or what its ticks say.
   nlohmann::json s;
@@ -508,7 +576,12 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
               {"pid", map_pid},
               {"exit_code", exit.exited ? exit.code : -1},
               {"signal", exit.signaled ? exit.signal : 0},
-              {"peak_rss_bytes", map_peak_rss}};
+              {"peak_rss_bytes", map_peak_rss},
+              {"major_faults", static_cast<std::uint64_t>(map_usage.ru_majflt)},
+              {"arena_locked", s.value("arena_locked", false)},
+              {"lock_arena_requested", loop.map.lock_arena},
+              {"cold_files", request.cold_files},
+              {"files_dropped_bytes", dropped_file_bytes}};
   if (!map_error.empty()) s["map"]["error"] = map_error;
   s["time_compression"] = request.time_compression;
   s["device_scale"] = request.device_scale;
@@ -525,7 +598,19 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
                  {"memory_bytes", loop.device.memory_bytes},
                  {"os_reserve_bytes", loop.device.os_reserve_bytes},
                  {"map_peak_rss_bytes", map_peak_rss},
-                 {"cotenant_peak_rss_bytes", cotenant_peak_rss}};
+                 {"cotenant_peak_rss_bytes", cotenant_peak_rss},
+                 {"swap",
+                  {{"kind", swap_kind},
+                   {"requested", loop.device.swap},
+                   {"reason", swap_reason},
+                   {"description", device->swap().Describe()},
+                   {"limit_bytes", swap_limit},
+                   {"peak_bytes", swap_peak},
+                   {"swappiness", dopt.cgroup.swappiness},
+                   {"comp_algorithm", device->swap().comp_algorithm()},
+                   {"zram_orig_peak_bytes", zram_orig_peak},
+                   {"zram_compr_peak_bytes", zram_compr_peak},
+                   {"zram_mem_used_peak_bytes", zram_mem_used_peak}}}};
   s["oom_events"] = final_sample.oom_kills;  // the memory table's column (simulated for the ledger)
   if (!cotenant.is_null()) s["cotenant"] = cotenant;
   {

@@ -18,6 +18,11 @@
 // and the first frame arrives at the co-tenant supervisor's origin: the one clock (CLOCK_MONOTONIC
 // seconds since it) of ticks.jsonl's wall_s and the co-tenant's per-request times.
 //
+// Swap: the profile's device.swap (JetPack: zram of half the memory, scaled) is made for the run
+// and removed after it (harness/swap_device.h); the device cgroup may swap that much, at JetPack's
+// swappiness. Where it cannot be had the run says why in one line and summary.json's
+// device.swap.kind is "none".
+//
 // Whichever process inside is killed, the runner writes summary.json: map.outcome says whether
 // the map process completed or was killed, with the metrics over the ticks it managed.
 #pragma once
@@ -56,8 +61,13 @@ struct DeviceRunRequest {
   // After the map process ends, how long (wall s) requests still in flight may finish.
   double cotenant_drain_s = 30.0;
   bool verify_checksums = false;
+  // Before the run, fsync and drop (POSIX_FADV_DONTNEED) the page cache of every file of the
+  // scenario directory (map.db, frames.bin, ...), so every read the map process makes is charged
+  // to the device. false: a warm start (whatever is cached stays, charged where it was read).
+  bool cold_files = true;
   // Tests and tools: where the device is made.
   CgroupOptions cgroup;             // prefix, parent (limit_bytes is set from the profile)
+  SwapSystem swap_system;           // where the device's zram is made (tests: a fake sysfs)
   std::string ledger_path;          // "" = RUNDIR/.ledger-<pid>
   std::string cotenant_executable;  // "" = FindCotenantExecutable()
   // Runs in the map process, inside the device, before its loop is built (tests: make it

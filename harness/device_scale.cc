@@ -26,9 +26,9 @@ std::uint64_t ScaleBytes(std::uint64_t bytes, double scale) noexcept {
 
 Status ApplyDeviceScale(double scale, DeviceOptions& device, ModelOptions& model, MapOptions& map) {
   ZM_RETURN_IF_ERROR(ValidateDeviceScale(scale));
-  for (std::uint64_t* bytes :
-       {&device.memory_bytes, &device.os_reserve_bytes, &model.weights_bytes, &model.kv_cache_bytes,
-        &map.map_share_bytes, &map.headroom_bytes, &map.overhead_bytes, &map.slot_bytes}) {
+  for (std::uint64_t* bytes : {&device.memory_bytes, &device.os_reserve_bytes, &device.swap_bytes,
+                               &model.weights_bytes, &model.kv_cache_bytes, &map.map_share_bytes,
+                               &map.headroom_bytes, &map.overhead_bytes, &map.slot_bytes}) {
     *bytes = ScaleBytes(*bytes, scale);
   }
   return Status::Ok();

@@ -21,11 +21,11 @@ namespace zm {
 // rounding rule for every byte quantity the experiment scales.
 [[nodiscard]] std::uint64_t ScaleBytes(std::uint64_t bytes, double scale) noexcept;
 
-// Scales every byte quantity of the memory split by `scale`: device memory and OS reserve; the
-// model's weights and KV cache; the map's explicit share, headroom, overhead and slot size.
-// Not scaled: keyframe counts (MemoryThr), and map.process_cap_bytes (an RLIMIT_AS cap counts
-// code, libraries and sanitizer shadow that do not shrink with the device). The keyframes the
-// map database holds are the scenario's: generate them with the same S as
+// Scales every byte quantity of the memory split by `scale`: device memory, OS reserve and swap;
+// the model's weights and KV cache; the map's explicit share, headroom, overhead and slot size. Not
+// scaled: keyframe counts (MemoryThr), and map.process_cap_bytes (an RLIMIT_AS cap counts code,
+// libraries and sanitizer shadow that do not shrink with the device). The keyframes the map
+// database holds are the scenario's: generate them with the same S as
 // sim::DenseOptions::footprint_scale (lib/sim/rgbd.h; it scales the image resolution, so the
 // footprint follows S approximately, not to the byte).
 [[nodiscard]] Status ApplyDeviceScale(double scale, DeviceOptions& device, ModelOptions& model,

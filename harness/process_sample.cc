@@ -93,6 +93,8 @@ Result<ProcessSampler> ProcessSampler::Open(pid_t pid) {
     return NotFound(std::string("process sampler: cannot open ") + path + ": " +
                     std::strerror(errno));
   }
+  std::snprintf(path, sizeof path, "/proc/%d/status", static_cast<int>(pid));
+  s.status_fd_ = open(path, O_RDONLY | O_CLOEXEC);  // -1 tolerated: swap then reads 0
   return s;
 }
 
@@ -102,7 +104,9 @@ ProcessSampler& ProcessSampler::operator=(ProcessSampler&& other) noexcept {
   if (this != &other) {
     if (stat_fd_ >= 0) close(stat_fd_);
     if (statm_fd_ >= 0) close(statm_fd_);
+    if (status_fd_ >= 0) close(status_fd_);
     pid_ = std::exchange(other.pid_, -1);
+    status_fd_ = std::exchange(other.status_fd_, -1);
     stat_fd_ = std::exchange(other.stat_fd_, -1);
     statm_fd_ = std::exchange(other.statm_fd_, -1);
     page_bytes_ = other.page_bytes_;
@@ -113,6 +117,7 @@ ProcessSampler& ProcessSampler::operator=(ProcessSampler&& other) noexcept {
 ProcessSampler::~ProcessSampler() {
   if (stat_fd_ >= 0) close(stat_fd_);
   if (statm_fd_ >= 0) close(statm_fd_);
+  if (status_fd_ >= 0) close(status_fd_);
 }
 
 ProcessSample ProcessSampler::Sample() const noexcept {
@@ -137,6 +142,16 @@ ProcessSample ProcessSampler::Sample() const noexcept {
   s.rss_anon_bytes = resident > shared ? (resident - shared) * page_bytes_ : 0;
   s.minor_faults = st.minor_faults;
   s.major_faults = st.major_faults;
+  // "VmSwap:\t    1234 kB" (absent for kernel threads).
+  char status[4096];
+  const std::string_view text = PreadAll(status_fd_, status, sizeof status);
+  const std::size_t at = text.find("VmSwap:");
+  if (at != std::string_view::npos) {
+    std::size_t p = at + 7;
+    while (p < text.size() && (text[p] == ' ' || text[p] == '\t')) ++p;
+    std::uint64_t kib = 0;
+    if (NextNumber(text, &p, &kib)) s.swap_bytes = kib * 1024;
+  }
   return s;
 }
 

@@ -42,12 +42,13 @@ struct ProcessSample {
   std::uint64_t rss_anon_bytes = 0;  // resident - shared: heap, arena, KV cache
   std::uint64_t rss_file_bytes = 0;  // statm shared: file-backed and shmem pages (mmap'ed weights)
   std::uint64_t minor_faults = 0;    // since the process started
-  std::uint64_t major_faults = 0;    // faults that read from disk (e.g. evicted weights)
+  std::uint64_t major_faults = 0;    // faults that read from disk or swap (e.g. evicted weights)
+  std::uint64_t swap_bytes = 0;      // swapped out (/proc/<pid>/status VmSwap)
 };
 
 class ProcessSampler {
  public:
-  // Opens /proc/<pid>/stat and statm. NotFound when the process does not exist.
+  // Opens /proc/<pid>/stat, statm and status. NotFound when the process does not exist.
   [[nodiscard]] static Result<ProcessSampler> Open(pid_t pid);
 
   ProcessSampler() = default;
@@ -65,6 +66,7 @@ class ProcessSampler {
   pid_t pid_ = -1;
   int stat_fd_ = -1;
   int statm_fd_ = -1;
+  int status_fd_ = -1;  // /proc/<pid>/status, for VmSwap
   std::uint64_t page_bytes_ = 4096;
 };
 

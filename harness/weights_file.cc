@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <sys/statfs.h>
 #include <sys/statvfs.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -250,6 +251,10 @@ void MappedWeights::Release() noexcept {
   bytes_ = 0;
 }
 
+int LockPages(const void* addr, std::size_t bytes) noexcept {
+  return syscall(SYS_mlock, addr, bytes) == 0 ? 0 : errno;
+}
+
 Result<MappedWeights> MappedWeights::Map(const std::string& path,
                                          const WeightsMapOptions& options) {
   const auto t0 = Clock::now();
@@ -305,15 +310,22 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path,
   if (options.mlock) {
     // As llama_mlock: on failure raise the soft RLIMIT_MEMLOCK to the hard one and try again;
     // still failing is a warning, not an error.
-    if (mlock(w.addr_, w.bytes_) != 0) {
+    if (LockPages(w.addr_, w.bytes_) != 0) {
       struct rlimit rl {};
       if (getrlimit(RLIMIT_MEMLOCK, &rl) == 0 && rl.rlim_cur < rl.rlim_max) {
         rl.rlim_cur = rl.rlim_max;
         (void)setrlimit(RLIMIT_MEMLOCK, &rl);
       }
-      if (mlock(w.addr_, w.bytes_) != 0) {
-        w.mlock_error_ =
-            "mlock of " + FormatBytes(bytes) + " failed: " + Errno(errno) + " (RLIMIT_MEMLOCK)";
+      if (const int err = LockPages(w.addr_, w.bytes_); err != 0) {
+        struct rlimit now {};
+        (void)getrlimit(RLIMIT_MEMLOCK, &now);
+        const auto limit = [](rlim_t v) {
+          return v == RLIM_INFINITY ? std::string("unlimited")
+                                    : FormatBytes(static_cast<std::uint64_t>(v));
+        };
+        w.mlock_error_ = "mlock of " + FormatBytes(bytes) + " failed: " + Errno(err) +
+                         " (RLIMIT_MEMLOCK " + limit(now.rlim_cur) + ", hard " +
+                         limit(now.rlim_max) + ")";
       }
     }
     w.locked_ = w.mlock_error_.empty();

@@ -49,6 +49,10 @@ struct WeightsFileInfo {
 [[nodiscard]] Result<WeightsFileInfo> EnsureWeightsFile(const std::string& dir,
                                                         std::uint64_t bytes);
 
+// mlock(2) through the system call itself: 0 or an errno. The sanitizers intercept mlock() as a
+// no-op that returns 0, which would report memory as pinned that is not (and hide a refusal).
+[[nodiscard]] int LockPages(const void* addr, std::size_t bytes) noexcept;
+
 struct WeightsMapOptions {
   WeightsLoad load = WeightsLoad::kMmap;
   bool prefetch = true;

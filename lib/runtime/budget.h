@@ -33,13 +33,18 @@ struct DeviceOptions {
   std::string power_mode;              // reports only ("15W", "MAXN SUPER")
   std::uint64_t memory_bytes = 0;      // device (unified) memory; 0 = unknown (no byte budget)
   std::uint64_t os_reserve_bytes = 0;  // OS + JetPack/CUDA baseline, never available to us
+  // The swap the device's OS gives its processes: "none", or "zram" of swap_bytes (JetPack's
+  // nvzramconfig: half the memory). Never part of a budget (a swapped keyframe is not resident);
+  // the evaluation harness builds it for the device under test (docs/harness.md).
+  std::string swap = "none";
+  std::uint64_t swap_bytes = 0;
 };
 
 // The AI model (VLM/LLM) the map shares the device with: what the map must leave free for it.
 struct ModelOptions {
-  std::string name;                   // reports only ("qwen3-vl-2b")
-  std::uint64_t weights_bytes = 0;    // model weights as loaded
-  std::uint64_t kv_cache_bytes = 0;   // KV cache + activations at the context the robot uses
+  std::string name;                  // reports only ("qwen3-vl-2b")
+  std::uint64_t weights_bytes = 0;   // model weights as loaded
+  std::uint64_t kv_cache_bytes = 0;  // KV cache + activations at the context the robot uses
 };
 
 // The map process's budget and arena.
@@ -49,9 +54,11 @@ struct MapOptions {
   std::uint64_t headroom_bytes = 0;        // left free when deriving the share (page cache, bursts)
   std::uint64_t overhead_bytes = 0;        // map process memory besides keyframe slots
   std::uint64_t slot_bytes = 0;            // 0 = the database's largest resident keyframe
-  bool lock_arena = false;                 // mlock the arena (needs RLIMIT_MEMLOCK)
-  bool prefault_arena = false;             // MAP_POPULATE: the budget is resident from the start
-  std::uint64_t process_cap_bytes = 0;     // setrlimit cap of the map process; 0 = none
+  // mlock a bounded policy's arena (needs RLIMIT_MEMLOCK; the systemd unit sets LimitMEMLOCK).
+  // Basic's and unbounded's arena is RTAB-Map's growing heap, which nobody locks: ignored there.
+  bool lock_arena = false;
+  bool prefault_arena = false;          // MAP_POPULATE: the budget is resident from the start
+  std::uint64_t process_cap_bytes = 0;  // setrlimit cap of the map process; 0 = none
 };
 
 struct BudgetInputs {
@@ -65,12 +72,12 @@ struct BudgetInputs {
 };
 
 struct Budget {
-  std::uint64_t map_share_bytes = 0;      // 0 = no byte limit
-  std::uint64_t keyframe_bytes = 0;       // map share - overhead; 0 = no byte limit
+  std::uint64_t map_share_bytes = 0;  // 0 = no byte limit
+  std::uint64_t keyframe_bytes = 0;   // map share - overhead; 0 = no byte limit
   std::uint64_t slot_bytes = 0;
-  std::uint32_t k_max = 0;                // MemoryThr in keyframes (>= 1)
-  std::uint32_t arena_slots = 0;          // what the arena reserves
-  bool bounded = true;                    // the arena caps residency at k_max
+  std::uint32_t k_max = 0;        // MemoryThr in keyframes (>= 1)
+  std::uint32_t arena_slots = 0;  // what the arena reserves
+  bool bounded = true;            // the arena caps residency at k_max
 };
 
 // The map share alone (map.map_share_bytes, or derived); 0 when the device memory is unknown

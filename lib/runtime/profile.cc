@@ -10,9 +10,9 @@ namespace zm {
 Status ValidateMemorySplit(const Profile& p) {
   const std::string& f = p.source;
   if (p.device.memory_bytes != 0 && p.device.os_reserve_bytes >= p.device.memory_bytes) {
-    return InvalidArgument(f + ": device.os_reserve_bytes (" + FormatBytes(p.device.os_reserve_bytes) +
-                           ") must be below device.memory_bytes (" +
-                           FormatBytes(p.device.memory_bytes) + ")");
+    return InvalidArgument(
+        f + ": device.os_reserve_bytes (" + FormatBytes(p.device.os_reserve_bytes) +
+        ") must be below device.memory_bytes (" + FormatBytes(p.device.memory_bytes) + ")");
   }
   Result<std::uint64_t> share = MapShareBytes(p);
   if (!share.ok()) return share.status().Annotate(f);
@@ -39,6 +39,16 @@ Result<Profile> ReadProfile(ProfileDocument& doc) {
   device.String("power_mode", p.device.power_mode);
   device.Bytes("memory_bytes", p.device.memory_bytes);
   device.Bytes("os_reserve_bytes", p.device.os_reserve_bytes);
+  device.String("swap", p.device.swap);
+  device.Bytes("swap_bytes", p.device.swap_bytes);
+  if (p.device.swap != "none" && p.device.swap != "zram") {
+    device.FailKey("swap", "must be \"none\" or \"zram\", not \"" + p.device.swap + "\"");
+  } else if (p.device.swap == "zram" && p.device.swap_bytes == 0) {
+    device.FailKey("swap_bytes", "must be > 0 with swap = \"zram\"");
+  } else if (p.device.swap == "none" && p.device.swap_bytes != 0) {
+    device.FailKey("swap_bytes",
+                   "must be 0 with swap = \"none\", not " + FormatBytes(p.device.swap_bytes));
+  }
   device.Finish();
 
   TableReader model = top.Sub("model");
@@ -180,9 +190,8 @@ Result<MemoryThr> ParseMemoryThr(std::string_view text) {
     text = comma == std::string_view::npos ? std::string_view() : text.substr(comma + 1);
     while (!part.empty() && part.front() == ' ') part.remove_prefix(1);
     while (!part.empty() && part.back() == ' ') part.remove_suffix(1);
-    const bool plain = !part.empty() && std::all_of(part.begin(), part.end(), [](char c) {
-      return c >= '0' && c <= '9';
-    });
+    const bool plain = !part.empty() && std::all_of(part.begin(), part.end(),
+                                                    [](char c) { return c >= '0' && c <= '9'; });
     if (plain) {
       std::uint64_t v = 0;
       const auto [ptr, ec] = std::from_chars(part.data(), part.data() + part.size(), v);
@@ -227,6 +236,12 @@ Status ApplyOverrides(const ProfileOverrides& o, Profile& profile) {
     } else {
       ZM_ASSIGN_OR_RETURN(profile.map.process_cap_bytes, ParseBytes(*o.process_cap));
     }
+  }
+  if (o.lock_arena) {
+    if (*o.lock_arena != "on" && *o.lock_arena != "off") {
+      return InvalidArgument("--lock-arena '" + *o.lock_arena + "': expected on or off");
+    }
+    profile.map.lock_arena = *o.lock_arena == "on";
   }
   return ValidateMemorySplit(profile).Annotate("after command-line overrides");
 }

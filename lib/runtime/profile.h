@@ -39,7 +39,7 @@ namespace zm {
 // zones, localizer, loop) plus what only the process around the loop reads (telemetry, the
 // input gate, the pose lines to the robot).
 struct Profile : LoopConfig {
-  std::string source;          // the file it was read from
+  std::string source;  // the file it was read from
   std::string description;
   TelemetryOptions telemetry;  // [loop] telemetry_flush_ticks
   InputOptions input;          // [input]: the input gate (input_gate.h)
@@ -83,6 +83,7 @@ struct ProfileOverrides {
   std::optional<std::string> memory_thr;   // --memory-thr N|BYTES|N,BYTES
   std::optional<double> rate_hz;           // --rate-hz
   std::optional<std::string> process_cap;  // --process-cap BYTES ("0" = none)
+  std::optional<std::string> lock_arena;   // --lock-arena on|off (map.lock_arena)
 };
 // Applies overrides and re-validates. A count from --memory-thr replaces the count and keeps the
 // profile's byte share; bytes replace the share and keep the count.

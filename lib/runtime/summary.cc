@@ -11,6 +11,7 @@ nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
   s["slot_bytes"] = loop.slot_bytes();
   s["arena_slots"] = loop.arena().capacity();
   s["arena_bytes_reserved"] = loop.arena().stats().bytes_reserved;
+  s["arena_locked"] = loop.arena().locked();
   s["map_share_bytes"] = loop.budget().map_share_bytes;
   s["ticks"] = t.ticks;
   s["interrupted"] = interrupted;

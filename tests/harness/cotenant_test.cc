@@ -7,8 +7,11 @@
 #include "harness/cotenant.h"
 
 #include <doctest/doctest.h>
+#include <linux/capability.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -16,6 +19,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -159,6 +163,70 @@ TEST_CASE("alone it completes, and every request streams a line that parses back
   CHECK(j["device_scale"] == 0.002);
   CHECK(j["per_request"].size() == 2);
   CHECK(j["requests_detail"][1]["id"] == 1);
+}
+
+TEST_CASE("pinned weights: read once into locked anonymous memory, the KV cache locked too") {
+  CotenantConfig c = SmallCotenant();
+  c.options.weights = CotenantWeights::kPinned;
+  const Run run = RunAndKeep(c);
+  REQUIRE(run.result.outcome == CotenantOutcome::kCompleted);
+  CHECK_FALSE(run.result.file_backed);
+  CHECK_FALSE(run.result.evictable);
+  CHECK(run.result.weights_load == "read");
+  const nlohmann::json& start = run.events.front();
+  REQUIRE(start["event"] == "start");
+  CHECK(start["kv_allocation"] == "at_load");  // a device buffer made with the context
+  if (run.result.weights == "pinned_refused") {
+    MESSAGE("SKIPPED: mlock is refused here: " << run.result.lock_error);
+    CHECK_FALSE(run.result.lock_error.empty());
+    return;
+  }
+  CHECK(run.result.weights == "pinned");
+  CHECK(start["mlocked"] == true);
+  CHECK(ToJson(run.result)["weights"] == "pinned");
+}
+
+// Drops CAP_IPC_LOCK (root's exemption from RLIMIT_MEMLOCK) from the calling process.
+bool DropIpcLock() {
+  __user_cap_header_struct header{_LINUX_CAPABILITY_VERSION_3, 0};
+  __user_cap_data_struct data[2]{};
+  if (syscall(SYS_capget, &header, data) != 0) return false;
+  const unsigned word = CAP_IPC_LOCK / 32, bit = 1U << (CAP_IPC_LOCK % 32);
+  data[word].effective &= ~bit;
+  data[word].permitted &= ~bit;
+  data[word].inheritable &= ~bit;
+  return syscall(SYS_capset, &header, data) == 0;
+}
+
+TEST_CASE("a locked-memory limit too small: pinned_refused, one line, the co-tenant still serves") {
+  if (test::EmulatorLauncher::active()) {
+    MESSAGE("SKIPPED: under qemu-user the capability and rlimit calls are the emulator's");
+    return;
+  }
+  CotenantConfig c = SmallCotenant();
+  c.options.weights = CotenantWeights::kPinned;
+  const pid_t pid = fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    // 64 KiB of locked memory for 3.8 MB of weights: refused, as with a default RLIMIT_MEMLOCK
+    // and a full-size model.
+    const rlimit small{64 * 1024, 64 * 1024};
+    if (!DropIpcLock() || setrlimit(RLIMIT_MEMLOCK, &small) != 0) _exit(3);
+    const Run run = RunAndKeep(c);
+    const bool refused = run.result.weights == "pinned_refused" &&
+                         run.result.lock_error.find("RLIMIT_MEMLOCK 65536 B") != std::string::npos;
+    if (!refused || run.result.outcome != CotenantOutcome::kCompleted) {
+      std::fprintf(stderr, "weights %s, lock error '%s', outcome %s\n", run.result.weights.c_str(),
+                   run.result.lock_error.c_str(),
+                   std::string(CotenantOutcomeName(run.result.outcome)).c_str());
+      _exit(1);
+    }
+    _exit(0);
+  }
+  int status = 0;
+  REQUIRE(waitpid(pid, &status, 0) == pid);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
 }
 
 TEST_CASE("the same bytes give the same checksum") {

@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "harness/cgroup.h"
+#include "harness/device_scale.h"
+#include "harness/swap_device.h"
 #include "sim/building.h"
 #include "sim/scenario.h"
 #include "tests/support/cotenant_test_support.h"
@@ -127,8 +129,9 @@ bool CgroupOrSkip() {
 }
 
 const std::vector<std::string> kTickKeys = {
-    "wall_s",     "device_usage_bytes", "map_rss_bytes",  "cotenant_rss_bytes", "map_majflt",
-    "map_minflt", "oom_kills",          "frames_dropped", "frames_arrived"};
+    "wall_s",         "device_usage_bytes", "map_rss_bytes",  "cotenant_rss_bytes",
+    "map_majflt",     "map_minflt",         "oom_kills",      "frames_dropped",
+    "frames_arrived", "device_swap_bytes",  "map_swap_bytes", "map_majflt_tick"};
 
 TEST_CASE(
     "device run (ledger): simulated in the summary, frames dropped on an overrun, every key") {
@@ -215,6 +218,27 @@ TEST_CASE("device run (cgroup): the map's residency is visible in the cgroup") {
     CHECK(j["device"]["kind"] == "cgroup");
     CHECK(j["device"]["simulated"] == false);
     CHECK(j["map"]["outcome"] == "completed");
+    // The device's swap (JetPack's zram, scaled) and what the run reports of it.
+    const nlohmann::json& sw = j["device"]["swap"];
+    const std::string kind = sw["kind"];
+    CHECK((kind == "zram" || kind == "existing" || kind == "none"));
+    if (kind == "none") {
+      MESSAGE("SKIPPED (swap): the device has no swap here: " << sw["reason"]);
+    } else {
+      CHECK(sw["limit_bytes"].get<std::uint64_t>() ==
+            ScaleBytes(3886ULL << 20, 1.0 / 16) / 4096 * 4096);
+    }
+    if (kind == "zram") {
+      // Removed after the run: no swap of ours remains.
+      std::ifstream swaps("/proc/swaps");
+      std::string line, all;
+      while (std::getline(swaps, line)) all += line + "\n";
+      CHECK(ParseProcSwaps(all).count == 0);
+    }
+    CHECK(j["map"].contains("major_faults"));
+    CHECK(j["map"]["arena_locked"] == false);  // the profile's lock_arena = false
+    CHECK(j["map"]["cold_files"] == true);
+    CHECK(j["map"]["files_dropped_bytes"].get<std::uint64_t>() > 0);
     const auto t = Ticks(r.out_dir);
     REQUIRE(t.size() > 3);
     std::uint64_t max_usage = 0;
@@ -327,6 +351,9 @@ TEST_CASE("device run (cgroup): the co-tenant OOM-killed and restarted inside th
   c.kv_bytes_per_token = 256ULL << 20;  // x 1/32 = 8 MiB per token
   c.watchdog_s = 0.0;
   c.restart_delay_s = 0.2;
+  // The per-request KV growth is what kills it: not a pinned n_ctx cache (which would fail at
+  // start-up).
+  c.weights = CotenantWeights::kMmap;
   // The victim must be the co-tenant for this test: the map process is protected.
   r.map_child_hook = [] { std::ofstream("/proc/self/oom_score_adj") << "-1000\n"; };
   auto s = RunOnDevice(r);

@@ -21,6 +21,12 @@ TEST_CASE("every shipped profile loads with its harness sections") {
     Result<ExperimentProfile> p = LoadExperimentProfile(entry.path().string());
     REQUIRE_MESSAGE(p.ok(), p.status().ToString());
     CHECK(p->cotenant.answer_tokens > 0);
+    // The Jetson profiles: GPU-offloaded weights pinned, JetPack's zram of half the memory.
+    if (entry.path().filename().string().rfind("orin-nano-8gb", 0) == 0) {
+      CHECK(p->cotenant.weights == CotenantWeights::kPinned);
+      CHECK(p->core.device.swap == "zram");
+      CHECK(p->core.device.swap_bytes == 3886ULL * 1024 * 1024);
+    }
     ++loaded;
   }
   CHECK(loaded >= 3);
@@ -45,24 +51,33 @@ TEST_CASE("[cotenant] keys are checked like the core's") {
 
 TEST_CASE("[cotenant]'s co-tenant keys: enums by name, the context holds a request") {
   Result<ExperimentProfile> p = ParseExperimentProfile(
-      "[cotenant]\nkv_allocation = \"at_load\"\nweights_load = \"read\"\nprefetch = false\n"
-      "watchdog_s = 2.5\nrestart_delay_s = 0\ncontext_tokens = 1024\nkv_bytes_per_token = \"1KiB\"\n",
+      "[cotenant]\nkv_allocation = \"at_load\"\nweights = \"read\"\nprefetch = false\n"
+      "watchdog_s = 2.5\nrestart_delay_s = 0\ncontext_tokens = 1024\nkv_bytes_per_token = "
+      "\"1KiB\"\n",
       "co.toml");
   REQUIRE_MESSAGE(p.ok(), p.status().ToString());
   CHECK(p->cotenant.kv_allocation == KvAllocation::kAtLoad);
-  CHECK(p->cotenant.weights_load == WeightsLoad::kRead);
+  CHECK(p->cotenant.weights == CotenantWeights::kRead);
+  CHECK(ParseExperimentProfile("", "empty.toml")->cotenant.weights == CotenantWeights::kPinned);
   CHECK_FALSE(p->cotenant.prefetch);
   CHECK(p->cotenant.watchdog_s == 2.5);
   CHECK(p->cotenant.restart_delay_s == 0.0);
   CHECK(p->cotenant.context_tokens == 1024);
   CHECK(p->cotenant.kv_bytes_per_token == 1024);
-  CHECK(ParseExperimentProfile("", "empty.toml")->cotenant.kv_allocation == KvAllocation::kPerRequest);
-  Result<ExperimentProfile> bad = ParseExperimentProfile("[cotenant]\nkv_allocation = \"lazy\"\n", "bad.toml");
+  CHECK(ParseExperimentProfile("", "empty.toml")->cotenant.kv_allocation ==
+        KvAllocation::kPerRequest);
+  Result<ExperimentProfile> bad =
+      ParseExperimentProfile("[cotenant]\nkv_allocation = \"lazy\"\n", "bad.toml");
   REQUIRE_FALSE(bad.ok());
   CHECK(Contains(bad.status().message(), "'cotenant.kv_allocation'"));
-  bad = ParseExperimentProfile("[cotenant]\nweights_load = \"swap\"\n", "bad.toml");
+  bad = ParseExperimentProfile("[cotenant]\nweights = \"swap\"\n", "bad.toml");
   REQUIRE_FALSE(bad.ok());
-  CHECK(Contains(bad.status().message(), "'cotenant.weights_load'"));
+  CHECK(Contains(bad.status().message(), "'cotenant.weights'"));
+  // One key: the old pair is gone (weights = "pinned" is mlock + read).
+  for (const char* old : {"weights_load = \"read\"", "mlock = true"}) {
+    bad = ParseExperimentProfile(std::string("[cotenant]\n") + old + "\n", "bad.toml");
+    CHECK_FALSE(bad.ok());
+  }
   bad = ParseExperimentProfile("[cotenant]\ncontext_tokens = 100\n", "bad.toml");
   REQUIRE_FALSE(bad.ok());
   CHECK(Contains(bad.status().message(), "'cotenant.context_tokens'"));

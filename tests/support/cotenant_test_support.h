@@ -33,6 +33,8 @@ inline CotenantConfig SmallCotenant() {
   c.options.context_tokens = 256;
   c.options.watchdog_s = 0.0;
   c.options.weights_dir = TestWeightsDir();
+  // The file-mapping behaviours these tests check; pinned has its own cases (cotenant_test.cc).
+  c.options.weights = CotenantWeights::kMmap;
   c.requests = 2;
   return c;
 }
