@@ -24,13 +24,14 @@
 #include <sstream>
 
 #include "commands.h"
+#include "runtime/stop_signal.h"
 #include "harness/cotenant.h"
 #include "harness/device_run.h"
 #include "harness/experiment_profile.h"
-#include "runtime/stop_signal.h"
 #include "sim/scenario.h"
 
 namespace zm::app {
+
 
 namespace {
 
@@ -55,8 +56,8 @@ std::string SelfExe() {
 std::string Quote(const std::string& s) { return "'" + s + "'"; }
 
 // Generates a scenario with this very program (`zonemap sim ...`) unless it is already there.
-Status EnsureScenario(const std::string& spec, const std::string& dir,
-                      const std::string& floorplans, bool quick) {
+Status EnsureScenario(const std::string& spec, const std::string& dir, const std::string& floorplans,
+                      bool quick) {
   if (fs::exists(dir + "/scenario.json") && fs::exists(dir + "/map.db")) return Status::Ok();
   if (spec.rfind("dir:", 0) == 0) {  // an existing scenario directory: used as it is
     return NotFound("scenario directory '" + spec.substr(4) +
@@ -71,8 +72,7 @@ Status EnsureScenario(const std::string& spec, const std::string& dir,
     const std::string map = floorplans + "/" + name + "_map.png";
     const std::string gt = floorplans + "/" + name + "_gt.png";
     if (!fs::exists(map)) return NotFound("floor plan '" + map + "' does not exist");
-    cmd +=
-        "floorplan " + Quote(map) + " --gt " + Quote(gt) + " --seed 1 --quiet --out " + Quote(dir);
+    cmd += "floorplan " + Quote(map) + " --gt " + Quote(gt) + " --seed 1 --quiet --out " + Quote(dir);
     if (quick) cmd += " --tasks 8";
   } else {
     return InvalidArgument("unknown scenario '" + spec + "' (hospital or floorplan:NAME)");
@@ -169,37 +169,27 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     std::string lock_arena;  // --lock-arena on|off: passed to every run ("" = the profile's)
   };
   auto o = std::make_shared<Opts>();
-  auto* cmd = app.add_subcommand(
-      "bench", "Run the evaluation matrix and write the paper's tables and figures");
+  auto* cmd = app.add_subcommand("bench", "Run the evaluation matrix and write the paper's tables and figures");
   cmd->add_option("--out", o->out, "output directory")->required();
   cmd->add_flag("--quick", o->quick, "the short default of `make demo`");
   cmd->add_option("--profile", o->profile, "device profile (default orin-nano-8gb)");
-  cmd->add_option("--scenarios", o->scenarios,
-                  "comma list: hospital, floorplan:NAME, dir:PATH (an existing scenario)");
-  cmd->add_option(
-      "--policies", o->policies,
-      "comma list of policies; NAME:unsliced = loads inside the tick (as before issue 14)");
+  cmd->add_option("--scenarios", o->scenarios, "comma list: hospital, floorplan:NAME, dir:PATH (an existing scenario)");
+  cmd->add_option("--policies", o->policies, "comma list of policies; NAME:unsliced = loads inside the tick (as before issue 14)");
   cmd->add_option("--models", o->models, "comma list of co-tenant models ('none' = without)");
-  cmd->add_option("--budgets", o->budgets,
-                  "comma list of MemoryThr as fractions of the map (e.g. 1,0.5,0.25), 'two-zones' "
-                  "or a count 'Nkf'");
+  cmd->add_option("--budgets", o->budgets, "comma list of MemoryThr as fractions of the map (e.g. 1,0.5,0.25), 'two-zones' or a count 'Nkf'");
   cmd->add_option("--floorplans", o->floorplans, "folder with <name>_map.png and <name>_gt.png");
-  auto* device_opt = cmd->add_option(
-      "--device", o->device,
-      "cgroup (default; the ledger, labelled simulated, where none can be made) or ledger");
-  cmd->add_option(
-      "--device-scale", o->device_scale,
-      "0 < S <= 1: device memory, OS reserve, weights, KV cache and keyframe bytes x S");
+  auto* device_opt = cmd->add_option("--device", o->device,
+                  "cgroup (default; the ledger, labelled simulated, where none can be made) or ledger");
+  cmd->add_option("--device-scale", o->device_scale,
+                  "0 < S <= 1: device memory, OS reserve, weights, KV cache and keyframe bytes x S");
   cmd->add_option("--time-compression", o->time_compression,
                   "every run's frames arrive at the profile's rate, X times faster than real time "
                   "(1 = real time; 0 = every frame as fast as possible, no drops)");
   cmd->add_option("--cotenant-requests", o->cotenant_requests,
                   "co-tenant requests per run, spread over the patrol (default 30)");
   cmd->add_option("--repeat", o->repeat, "runs per cell; timings are medians over them");
-  cmd->add_option("--prompt-tokens", o->prompt_tokens,
-                  "co-tenant prompt length (default: profile; --quick: 128)");
-  cmd->add_option("--answer-tokens", o->answer_tokens,
-                  "co-tenant answer length (default: profile; --quick: 32)");
+  cmd->add_option("--prompt-tokens", o->prompt_tokens, "co-tenant prompt length (default: profile; --quick: 128)");
+  cmd->add_option("--answer-tokens", o->answer_tokens, "co-tenant answer length (default: profile; --quick: 32)");
   cmd->add_option("--pace", o->time_compression, "old name of --time-compression");
   cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
   cmd->add_option("--lock-arena", o->lock_arena,
@@ -212,18 +202,15 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     if (!device_kind.ok()) return ctx.Fail("bench", device_kind.status());
     const bool q = o->quick;
     const auto scenarios = Split(!o->scenarios.empty() ? o->scenarios
-                                 : q                   ? "hospital"
+                                 : q ? "hospital"
                                      : "hospital,floorplan:freiburg_building52,floorplan:map15");
     const auto policies = Split(!o->policies.empty() ? o->policies
-                                : q                  ? "unbounded,basic,semantic,predictive,oracle"
+                                : q ? "unbounded,basic,semantic,predictive,oracle"
                                     : "unbounded,basic,radius,semantic,predictive,oracle");
-    const auto models =
-        Split(!o->models.empty() ? o->models
-              : q                ? "none,qwen3-vl-2b"
-                  : "none,qwen3-vl-2b,qwen3-vl-4b,qwen3.5-0.8b,qwen3.5-2b,gemma3-4b");
-    const auto budgets = Split(!o->budgets.empty() ? o->budgets
-                               : q                 ? "0.3"
-                                                   : "1,0.5,0.3,two-zones");
+    const auto models = Split(!o->models.empty() ? o->models
+                              : q ? "none,qwen3-vl-2b"
+                                  : "none,qwen3-vl-2b,qwen3-vl-4b,qwen3.5-0.8b,qwen3.5-2b,gemma3-4b");
+    const auto budgets = Split(!o->budgets.empty() ? o->budgets : q ? "0.3" : "1,0.5,0.3,two-zones");
     fs::create_directories(o->out);
     nlohmann::json all = nlohmann::json::array();
 
@@ -233,11 +220,9 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       if (spec.rfind("dir:", 0) == 0) {
         sdir = spec.substr(4);
         name = fs::path(sdir).lexically_normal().filename().string();
-        if (name.empty())
-          name = fs::path(sdir).lexically_normal().parent_path().filename().string();
+        if (name.empty()) name = fs::path(sdir).lexically_normal().parent_path().filename().string();
       }
-      if (Status s = EnsureScenario(spec, sdir, o->floorplans, q); !s.ok())
-        return ctx.Fail("bench", s);
+      if (Status s = EnsureScenario(spec, sdir, o->floorplans, q); !s.ok()) return ctx.Fail("bench", s);
       auto info = sim::LoadScenario(sdir);
       if (!info.ok()) return ctx.Fail("bench", info.status());
       // Budget sweep from metadata: a fraction of the map, or the two largest zones.
@@ -256,8 +241,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
         } else if (b.size() > 2 && b.substr(b.size() - 2) == "kf") {  // "400kf": a count
           k = std::strtoull(b.c_str(), nullptr, 10);
         } else {
-          k = static_cast<std::uint64_t>(
-              std::llround(std::atof(b.c_str()) * static_cast<double>(n)));
+          k = static_cast<std::uint64_t>(std::llround(std::atof(b.c_str()) * static_cast<double>(n)));
         }
         k = std::clamp<std::uint64_t>(k, zs.empty() ? 1 : zs[0], n);
         for (const std::string& model : models) {
@@ -277,8 +261,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               ov.policy = policy;
               ov.memory_thr = std::to_string(k);
               if (!o->lock_arena.empty()) ov.lock_arena = o->lock_arena;
-              if (Status s = ApplyOverrides(ov, profile->core); !s.ok())
-                return ctx.Fail("bench", s);
+              if (Status s = ApplyOverrides(ov, profile->core); !s.ok()) return ctx.Fail("bench", s);
               if (variant->unsliced) profile->core.loads.sliced = false;
               if (model != "none") {
                 if (Status s = ApplyModelOverride(model, profile.value()); !s.ok()) {
@@ -287,10 +270,8 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               }
               // Shorter requests in --quick so that several complete within one replay; the
               // decode rate (tokens/s) does not depend on the request length.
-              if (o->prompt_tokens != 0 || q)
-                profile->cotenant.prompt_tokens = o->prompt_tokens ? o->prompt_tokens : 128;
-              if (o->answer_tokens != 0 || q)
-                profile->cotenant.answer_tokens = o->answer_tokens ? o->answer_tokens : 32;
+              if (o->prompt_tokens != 0 || q) profile->cotenant.prompt_tokens = o->prompt_tokens ? o->prompt_tokens : 128;
+              if (o->answer_tokens != 0 || q) profile->cotenant.answer_tokens = o->answer_tokens ? o->answer_tokens : 32;
               DeviceRunRequest req;
               req.scenario_dir = sdir;
               req.out_dir = o->out + "/runs/" + name + "/" + run_name;
@@ -302,8 +283,8 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
               // Every run, alone and with the co-tenant, on the same frames' clock (issue 17 §4).
               req.time_compression = o->time_compression;
               req.cotenant_requests = o->cotenant_requests;
-              std::fprintf(stderr, "bench: %s %s (%d/%d)\n", name.c_str(), run_name.c_str(),
-                           rep + 1, std::max(1, o->repeat));
+              std::fprintf(stderr, "bench: %s %s (%d/%d)\n", name.c_str(), run_name.c_str(), rep + 1,
+                           std::max(1, o->repeat));
               auto r = RunOnDevice(req, StopFlag());
               if (!r.ok()) return ctx.Fail("bench", r.status().Annotate(run_name));
               last = r.value();
@@ -326,25 +307,21 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     // Table I analogue, Table II analogue, memory and churn.
     Table t1{{"scenario", "K_max", "policy", "co-tenant", "map process", "update rate (Hz)",
               "frames dropped / arrived", "loop closures", "avg tick (ms)", "p99 tick (ms)",
-              "ATE RMSE (m)", "RPE trans RMSE (m)", "RPE rot RMSE (deg)"},
-             {}};
+              "ATE RMSE (m)", "RPE trans RMSE (m)", "RPE rot RMSE (deg)"}, {}};
     Table t2{{"scenario", "K_max", "model (stand-in)", "policy", "outcome", "requests", "restarts",
-              "TPS", "latency p50 (ms)"},
-             {}};
-    Table t6{
-        {"scenario", "K_max", "policy", "co-tenant", "device", "limit (MiB)", "peak (MiB)",
-         "OOM kills", "map peak RSS (MiB)", "co-tenant peak RSS (MiB)", "map process", "co-tenant"},
-        {}};
+              "TPS", "latency p50 (ms)"}, {}};
+    Table t6{{"scenario", "K_max", "policy", "co-tenant", "device", "limit (MiB)", "peak (MiB)",
+              "OOM kills", "map peak RSS (MiB)", "co-tenant peak RSS (MiB)", "map process",
+              "co-tenant"}, {}};
     Table t3{{"scenario", "K_max", "policy", "co-tenant", "peak resident kf", "peak resident MB",
               "over-budget ticks", "max excess kf", "OOM events", "kf loaded", "kf unloaded",
               "DB statements start-up / steady", "DB transactions start-up / steady",
-              "DB blob reads start-up / steady", "DB MB read", "zone loads", "zone loads / oracle"},
-             {}};
+              "DB blob reads start-up / steady", "DB MB read", "zone loads", "zone loads / oracle"}, {}};
     std::map<std::string, double> oracle_loads;
     for (const auto& r : all) {
       if (r["policy"] == "oracle") {
-        oracle_loads[r["scenario_name"].get<std::string>() + "/" +
-                     std::to_string(r["k_max"].get<int>())] = r["zone_loads"].get<double>();
+        oracle_loads[r["scenario_name"].get<std::string>() + "/" + std::to_string(r["k_max"].get<int>())] =
+            r["zone_loads"].get<double>();
       }
     }
     for (const auto& r : all) {
@@ -367,17 +344,14 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       if (r.contains("cotenant")) {
         const auto& c = r["cotenant"];
         const double tps = c.contains("tokens_per_s") && c["tokens_per_s"].is_number()
-                               ? c["tokens_per_s"].get<double>()
-                               : std::nan("");
+                               ? c["tokens_per_s"].get<double>() : std::nan("");
         const double lat = c.contains("latency_ms") && c["latency_ms"].is_object()
-                               ? Num(c["latency_ms"], "p50")
-                               : std::nan("");
-        t2.rows.push_back(
-            {sc, k, c.value("model", model), pol,
-             c.value("symbol", std::string("?")) + " " + c.value("outcome", std::string()),
-             std::to_string(c.value("requests_completed", 0U)) + " / " +
-                 std::to_string(c.value("requests_planned", 0U)),
-             std::to_string(c.value("restarts", 0U)), Fmt(tps, 2), Fmt(lat, 0)});
+                               ? Num(c["latency_ms"], "p50") : std::nan("");
+        t2.rows.push_back({sc, k, c.value("model", model), pol,
+                           c.value("symbol", std::string("?")) + " " + c.value("outcome", std::string()),
+                           std::to_string(c.value("requests_completed", 0U)) + " / " +
+                               std::to_string(c.value("requests_planned", 0U)),
+                           std::to_string(c.value("restarts", 0U)), Fmt(tps, 2), Fmt(lat, 0)});
       }
       const auto mib = [&dev](const char* key) { return Fmt(Num(dev, key) / 1048576.0, 1); };
       t6.rows.push_back({sc, k, pol, model,
@@ -390,29 +364,26 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                                                 : std::string("–")});
       const auto ok = oracle_loads.find(sc + "/" + k);
       const double zl = r["zone_loads"].get<double>();
-      t3.rows.push_back(
-          {sc, k, pol, model, std::to_string(r["peak_resident_keyframes"].get<std::uint64_t>()),
-           Fmt(r["peak_resident_bytes"].get<double>() / 1e6, 1),
-           std::to_string(r["over_budget_ticks"].get<std::uint64_t>()),
-           std::to_string(r["max_over_budget_keyframes"].get<std::uint64_t>()),
-           std::to_string(r.value("oom_events", std::uint64_t{0})),
-           std::to_string(r["keyframes_loaded"].get<std::uint64_t>()),
-           std::to_string(r["keyframes_unloaded"].get<std::uint64_t>()),
-           // Database work in one unit for every policy (basic's searches included),
-           // the start-up load apart from the rest of the run.
-           split("db_queries"), split("db_transactions"), split("db_blob_reads"),
-           Fmt(r["db_bytes_read"].get<double>() / 1e6, 1), Fmt(zl, 0),
-           ok != oracle_loads.end() && ok->second > 0 && zl > 0 ? Fmt(zl / ok->second, 2) : "–"});
+      t3.rows.push_back({sc, k, pol, model,
+                         std::to_string(r["peak_resident_keyframes"].get<std::uint64_t>()),
+                         Fmt(r["peak_resident_bytes"].get<double>() / 1e6, 1),
+                         std::to_string(r["over_budget_ticks"].get<std::uint64_t>()),
+                         std::to_string(r["max_over_budget_keyframes"].get<std::uint64_t>()),
+                         std::to_string(r.value("oom_events", std::uint64_t{0})),
+                         std::to_string(r["keyframes_loaded"].get<std::uint64_t>()),
+                         std::to_string(r["keyframes_unloaded"].get<std::uint64_t>()),
+                         // Database work in one unit for every policy (basic's searches included),
+                         // the start-up load apart from the rest of the run.
+                         split("db_queries"), split("db_transactions"), split("db_blob_reads"),
+                         Fmt(r["db_bytes_read"].get<double>() / 1e6, 1), Fmt(zl, 0),
+                         ok != oracle_loads.end() && ok->second > 0 && zl > 0 ? Fmt(zl / ok->second, 2) : "–"});
     }
     // Ratios measured side by side in this run (same scenario, budget and co-tenant).
     Table t4{{"scenario", "K_max", "co-tenant", "ratio", "avg tick", "kf loaded", "DB transactions",
-              "DB bytes read", "ATE"},
-             {}};
-    auto find = [&](const std::string& sc, int k, const std::string& model,
-                    const std::string& pol) {
+              "DB bytes read", "ATE"}, {}};
+    auto find = [&](const std::string& sc, int k, const std::string& model, const std::string& pol) {
       for (const auto& r : all) {
-        if (r["scenario_name"] == sc && r["k_max"] == k && r["model"] == model && Label(r) == pol)
-          return &r;
+        if (r["scenario_name"] == sc && r["k_max"] == k && r["model"] == model && Label(r) == pol) return &r;
       }
       return static_cast<const nlohmann::json*>(nullptr);
     };
@@ -421,35 +392,30 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       if (Label(r) != "semantic") continue;
       const std::string sc = r["scenario_name"], model = r["model"];
       const int k = r["k_max"];
-      for (auto [num, den] :
-           {std::pair{"semantic", "basic"}, std::pair{"predictive", "semantic"}}) {
+      for (auto [num, den] : {std::pair{"semantic", "basic"}, std::pair{"predictive", "semantic"}}) {
         const auto* a = find(sc, k, model, num);
         const auto* b = find(sc, k, model, den);
         if (a == nullptr || b == nullptr) continue;
-        t4.rows.push_back(
-            {sc, std::to_string(k), model, std::string(num) + "/" + den,
-             ratio((*a)["tick_ms_mean_median_of_repeats"], (*b)["tick_ms_mean_median_of_repeats"]),
-             ratio((*a)["keyframes_loaded"], (*b)["keyframes_loaded"]),
-             ratio((*a)["db_transactions"], (*b)["db_transactions"]),
-             ratio((*a)["db_bytes_read"], (*b)["db_bytes_read"]),
-             ratio(Num(*a, "ate_rmse_m"), Num(*b, "ate_rmse_m"))});
+        t4.rows.push_back({sc, std::to_string(k), model, std::string(num) + "/" + den,
+                           ratio((*a)["tick_ms_mean_median_of_repeats"], (*b)["tick_ms_mean_median_of_repeats"]),
+                           ratio((*a)["keyframes_loaded"], (*b)["keyframes_loaded"]),
+                           ratio((*a)["db_transactions"], (*b)["db_transactions"]),
+                           ratio((*a)["db_bytes_read"], (*b)["db_bytes_read"]),
+                           ratio(Num(*a, "ate_rmse_m"), Num(*b, "ate_rmse_m"))});
       }
     }
     // Tick latency per policy (issue 14): steady-state ticks (after the start-up tick), each
     // against unbounded's in the same scenario and co-tenant setting (no loads at all: the
     // floor); the start-up load apart.
-    Table t5{
-        {"scenario", "K_max", "policy", "co-tenant", "ticks", "tick p50 (ms)", "tick p99 (ms)",
-         "tick max (ms)", "p99 / unbounded", "max / unbounded", "start-up tick (ms)", "start-up kf",
-         "start-up MB", "idle load (ms)", "late ticks", "loop closures", "ATE RMSE (m)"},
-        {}};
+    Table t5{{"scenario", "K_max", "policy", "co-tenant", "ticks", "tick p50 (ms)", "tick p99 (ms)",
+              "tick max (ms)", "p99 / unbounded", "max / unbounded", "start-up tick (ms)",
+              "start-up kf", "start-up MB", "idle load (ms)", "late ticks", "loop closures", "ATE RMSE (m)"}, {}};
     for (const auto& r : all) {
       const std::string sc = r["scenario_name"], model = r["model"];
       const auto& tm = r["tick_ms"];
       const nlohmann::json* floor = nullptr;
       for (const auto& u : all) {
-        if (u["scenario_name"] == sc && u["model"] == model && u["policy"] == "unbounded")
-          floor = &u;
+        if (u["scenario_name"] == sc && u["model"] == model && u["policy"] == "unbounded") floor = &u;
       }
       const auto vs = [&](const char* key) {
         if (floor == nullptr) return std::string("–");
@@ -458,15 +424,17 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       };
       const nlohmann::json st = r.value("startup", nlohmann::json::object());
       const nlohmann::json ld = r.value("loads", nlohmann::json::object());
-      t5.rows.push_back(
-          {sc, std::to_string(r["k_max"].get<int>()), Label(r), model,
-           std::to_string(tm.value("count", std::uint64_t{0})), Fmt(tm["p50"].get<double>(), 2),
-           Fmt(tm["p99"].get<double>(), 2), Fmt(tm["max"].get<double>(), 1), vs("p99"), vs("max"),
-           Fmt(st.value("tick_ms", std::nan("")), 1),
-           std::to_string(st.value("keyframes_loaded", std::uint64_t{0})),
-           Fmt(st.value("bytes_read", 0.0) / 1e6, 1), Fmt(ld.value("idle_load_ms_total", 0.0), 0),
-           std::to_string(ld.value("late_ticks", std::uint64_t{0})),
-           std::to_string(r["loop_closures"].get<std::uint64_t>()), Fmt(Num(r, "ate_rmse_m"), 4)});
+      t5.rows.push_back({sc, std::to_string(r["k_max"].get<int>()), Label(r), model,
+                         std::to_string(tm.value("count", std::uint64_t{0})),
+                         Fmt(tm["p50"].get<double>(), 2), Fmt(tm["p99"].get<double>(), 2),
+                         Fmt(tm["max"].get<double>(), 1), vs("p99"), vs("max"),
+                         Fmt(st.value("tick_ms", std::nan("")), 1),
+                         std::to_string(st.value("keyframes_loaded", std::uint64_t{0})),
+                         Fmt(st.value("bytes_read", 0.0) / 1e6, 1),
+                         Fmt(ld.value("idle_load_ms_total", 0.0), 0),
+                         std::to_string(ld.value("late_ticks", std::uint64_t{0})),
+                         std::to_string(r["loop_closures"].get<std::uint64_t>()),
+                         Fmt(Num(r, "ate_rmse_m"), 4)});
     }
     // Every table states the device (and "simulated" for the ledger), its scale and the clock.
     std::string device_used = "cgroup";
@@ -482,8 +450,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     t1.Write(o->out + "/table1", "Table I analogue: SLAM with and without the co-tenant" + stated);
     t6.Write(o->out + "/device", "The device: memory, OOM kills, outcomes" + stated);
     t5.Write(o->out + "/latency", "Tick latency (steady state; start-up apart)" + stated);
-    t2.Write(o->out + "/table2",
-             "Table II analogue: the co-tenant beside SLAM (stand-in for VLM decoding)" + stated);
+    t2.Write(o->out + "/table2", "Table II analogue: the co-tenant beside SLAM (stand-in for VLM decoding)" + stated);
     t3.Write(o->out + "/memory", "Memory and churn" + stated);
     t4.Write(o->out + "/ratios", "Ratios measured side by side in this run" + stated);
     {
@@ -502,13 +469,10 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       // Debian's interpreter has python3-matplotlib; a python3 earlier on PATH may not.
       const std::string py = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
       const std::string c = py + " " + Quote(plots) + " " + Quote(o->out);
-      if (std::system(c.c_str()) != 0)
-        std::fprintf(stderr, "bench: figures failed (%s)\n", c.c_str());
+      if (std::system(c.c_str()) != 0) std::fprintf(stderr, "bench: figures failed (%s)\n", c.c_str());
     }
-    std::printf(
-        "bench: wrote %s/{table1,table2,device,memory,ratios,latency}.{md,csv}, results.json, "
-        "figures/\n",
-        o->out.c_str());
+    std::printf("bench: wrote %s/{table1,table2,device,memory,ratios,latency}.{md,csv}, results.json, figures/\n",
+                o->out.c_str());
   });
 }
 

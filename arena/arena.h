@@ -58,29 +58,29 @@ struct ArenaConfig {
 };
 
 struct ArenaStats {
-  std::uint32_t capacity = 0;          // slots (K_max)
-  std::uint32_t in_use = 0;            // slots acquired and not released
-  std::uint32_t available = 0;         // capacity - in_use - withheld: what TryAcquire can give
-  std::uint32_t withheld = 0;          // free slots held back (Withhold)
-  std::uint32_t high_water = 0;        // largest in_use ever seen
-  std::uint64_t refused = 0;           // TryAcquire() calls that found the arena full
-  std::uint64_t bad_releases = 0;      // Release() of a slot not in use (programmer error)
-  std::uint64_t slot_bytes = 0;        // bytes per slot (64-aligned)
-  std::uint64_t bytes_reserved = 0;    // capacity * slot_bytes (+ bookkeeping)
-  std::uint64_t released_to_os = 0;    // Release() calls that gave the slot's pages back
+  std::uint32_t capacity = 0;         // slots (K_max)
+  std::uint32_t in_use = 0;           // slots acquired and not released
+  std::uint32_t available = 0;        // capacity - in_use - withheld: what TryAcquire can give
+  std::uint32_t withheld = 0;         // free slots held back (Withhold)
+  std::uint32_t high_water = 0;       // largest in_use ever seen
+  std::uint64_t refused = 0;          // TryAcquire() calls that found the arena full
+  std::uint64_t bad_releases = 0;     // Release() of a slot not in use (programmer error)
+  std::uint64_t slot_bytes = 0;       // bytes per slot (64-aligned)
+  std::uint64_t bytes_reserved = 0;   // capacity * slot_bytes (+ bookkeeping)
+  std::uint64_t released_to_os = 0;   // Release() calls that gave the slot's pages back
   std::uint64_t release_failures = 0;  // madvise refusals (the pages stayed resident)
-  bool release_to_os = false;          // the arena's configuration, for reports
+  bool release_to_os = false;         // the arena's configuration, for reports
 };
 
 enum class ArenaErrorCode {
-  kZeroSlots,      // the budget allows no slot at all
-  kZeroSlotBytes,  // slot_bytes == 0
+  kZeroSlots,         // the budget allows no slot at all
+  kZeroSlotBytes,     // slot_bytes == 0
   kSlotLargerThanBudget,
-  kNoBudget,            // neither a keyframe count nor a byte budget was given
-  kTooManySlots,        // more slots than a 32-bit SlotIndex can name
-  kExceedsMachine,      // reservation larger than physical memory or RLIMIT_AS
-  kReserveFailed,       // mmap refused
-  kLockFailed,          // mlock refused (RLIMIT_MEMLOCK)
+  kNoBudget,          // neither a keyframe count nor a byte budget was given
+  kTooManySlots,      // more slots than a 32-bit SlotIndex can name
+  kExceedsMachine,    // reservation larger than physical memory or RLIMIT_AS
+  kReserveFailed,     // mmap refused
+  kLockFailed,        // mlock refused (RLIMIT_MEMLOCK)
   kConflictingOptions,  // lock with release_to_os: locked pages cannot be given back
 };
 
@@ -132,7 +132,9 @@ class Arena {
 
   [[nodiscard]] std::uint32_t capacity() const noexcept { return capacity_; }
   [[nodiscard]] std::uint32_t in_use() const noexcept { return in_use_; }
-  [[nodiscard]] std::uint32_t available() const noexcept { return capacity_ - in_use_ - withheld_; }
+  [[nodiscard]] std::uint32_t available() const noexcept {
+    return capacity_ - in_use_ - withheld_;
+  }
   [[nodiscard]] std::uint32_t withheld() const noexcept { return withheld_; }
   [[nodiscard]] std::uint64_t slot_bytes() const noexcept { return slot_bytes_; }
   [[nodiscard]] bool poisoning() const noexcept { return poison_; }
@@ -146,14 +148,14 @@ class Arena {
   Arena() = default;
   void Unmap() noexcept;
 
-  std::byte* base_ = nullptr;             // slot memory, capacity_ * slot_bytes_
-  std::size_t mapping_bytes_ = 0;         // whole mapping incl. bookkeeping
-  std::uint32_t* free_stack_ = nullptr;   // capacity_ entries; top at free_top_
+  std::byte* base_ = nullptr;         // slot memory, capacity_ * slot_bytes_
+  std::size_t mapping_bytes_ = 0;     // whole mapping incl. bookkeeping
+  std::uint32_t* free_stack_ = nullptr;  // capacity_ entries; top at free_top_
   std::uint8_t* in_use_flags_ = nullptr;  // one byte per slot
-  std::uint32_t free_top_ = 0;            // number of free entries on the stack
+  std::uint32_t free_top_ = 0;        // number of free entries on the stack
   std::uint32_t capacity_ = 0;
   std::uint32_t in_use_ = 0;
-  std::uint32_t withheld_ = 0;  // <= free_top_ (Withhold)
+  std::uint32_t withheld_ = 0;        // <= free_top_ (Withhold)
   std::uint32_t high_water_ = 0;
   std::uint64_t slot_bytes_ = 0;
   std::uint64_t refused_ = 0;
@@ -163,7 +165,7 @@ class Arena {
   bool locked_ = false;
   bool poison_ = false;
   bool release_to_os_ = false;
-  bool prefault_slots_ = false;      // release_to_os + prefault: fault each slot in on acquire
+  bool prefault_slots_ = false;  // release_to_os + prefault: fault each slot in on acquire
   std::uint32_t page_bytes_ = 4096;  // the kernel's page size (release_to_os granularity)
 };
 

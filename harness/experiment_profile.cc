@@ -21,11 +21,9 @@ Result<ExperimentProfile> Read(ProfileDocument& doc) {
   std::string kv_allocation(KvAllocationName(c.kv_allocation));
   co.String("kv_allocation", kv_allocation);
   if (kv_allocation == "per_request" || kv_allocation == "at_load") {
-    c.kv_allocation =
-        kv_allocation == "at_load" ? KvAllocation::kAtLoad : KvAllocation::kPerRequest;
+    c.kv_allocation = kv_allocation == "at_load" ? KvAllocation::kAtLoad : KvAllocation::kPerRequest;
   } else {
-    co.FailKey("kv_allocation",
-               "must be \"per_request\" or \"at_load\", not \"" + kv_allocation + "\"");
+    co.FailKey("kv_allocation", "must be \"per_request\" or \"at_load\", not \"" + kv_allocation + "\"");
   }
   std::string weights(CotenantWeightsName(c.weights));
   co.String("weights", weights);
@@ -36,10 +34,9 @@ Result<ExperimentProfile> Read(ProfileDocument& doc) {
   co.Bool("cold_start", c.cold_start);
   co.String("weights_dir", c.weights_dir);
   if (std::uint64_t{c.prompt_tokens} + c.answer_tokens > c.context_tokens) {
-    co.FailKey("context_tokens",
-               "must hold prompt_tokens + answer_tokens (" +
-                   std::to_string(std::uint64_t{c.prompt_tokens} + c.answer_tokens) +
-                   " tokens), not " + std::to_string(c.context_tokens));
+    co.FailKey("context_tokens", "must hold prompt_tokens + answer_tokens (" +
+                                     std::to_string(std::uint64_t{c.prompt_tokens} + c.answer_tokens) +
+                                     " tokens), not " + std::to_string(c.context_tokens));
   }
   co.Finish();
   ZM_RETURN_IF_ERROR(doc.Finish());

@@ -42,9 +42,9 @@ struct DeviceOptions {
 
 // The AI model (VLM/LLM) the map shares the device with: what the map must leave free for it.
 struct ModelOptions {
-  std::string name;                  // reports only ("qwen3-vl-2b")
-  std::uint64_t weights_bytes = 0;   // model weights as loaded
-  std::uint64_t kv_cache_bytes = 0;  // KV cache + activations at the context the robot uses
+  std::string name;                   // reports only ("qwen3-vl-2b")
+  std::uint64_t weights_bytes = 0;    // model weights as loaded
+  std::uint64_t kv_cache_bytes = 0;   // KV cache + activations at the context the robot uses
 };
 
 // The map process's budget and arena.
@@ -72,12 +72,12 @@ struct BudgetInputs {
 };
 
 struct Budget {
-  std::uint64_t map_share_bytes = 0;  // 0 = no byte limit
-  std::uint64_t keyframe_bytes = 0;   // map share - overhead; 0 = no byte limit
+  std::uint64_t map_share_bytes = 0;      // 0 = no byte limit
+  std::uint64_t keyframe_bytes = 0;       // map share - overhead; 0 = no byte limit
   std::uint64_t slot_bytes = 0;
-  std::uint32_t k_max = 0;        // MemoryThr in keyframes (>= 1)
-  std::uint32_t arena_slots = 0;  // what the arena reserves
-  bool bounded = true;            // the arena caps residency at k_max
+  std::uint32_t k_max = 0;                // MemoryThr in keyframes (>= 1)
+  std::uint32_t arena_slots = 0;          // what the arena reserves
+  bool bounded = true;                    // the arena caps residency at k_max
 };
 
 // The map share alone (map.map_share_bytes, or derived); 0 when the device memory is unknown

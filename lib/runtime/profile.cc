@@ -10,9 +10,9 @@ namespace zm {
 Status ValidateMemorySplit(const Profile& p) {
   const std::string& f = p.source;
   if (p.device.memory_bytes != 0 && p.device.os_reserve_bytes >= p.device.memory_bytes) {
-    return InvalidArgument(
-        f + ": device.os_reserve_bytes (" + FormatBytes(p.device.os_reserve_bytes) +
-        ") must be below device.memory_bytes (" + FormatBytes(p.device.memory_bytes) + ")");
+    return InvalidArgument(f + ": device.os_reserve_bytes (" + FormatBytes(p.device.os_reserve_bytes) +
+                           ") must be below device.memory_bytes (" +
+                           FormatBytes(p.device.memory_bytes) + ")");
   }
   Result<std::uint64_t> share = MapShareBytes(p);
   if (!share.ok()) return share.status().Annotate(f);
@@ -190,8 +190,9 @@ Result<MemoryThr> ParseMemoryThr(std::string_view text) {
     text = comma == std::string_view::npos ? std::string_view() : text.substr(comma + 1);
     while (!part.empty() && part.front() == ' ') part.remove_prefix(1);
     while (!part.empty() && part.back() == ' ') part.remove_suffix(1);
-    const bool plain = !part.empty() && std::all_of(part.begin(), part.end(),
-                                                    [](char c) { return c >= '0' && c <= '9'; });
+    const bool plain = !part.empty() && std::all_of(part.begin(), part.end(), [](char c) {
+      return c >= '0' && c <= '9';
+    });
     if (plain) {
       std::uint64_t v = 0;
       const auto [ptr, ec] = std::from_chars(part.data(), part.data() + part.size(), v);

@@ -39,7 +39,7 @@ namespace zm {
 // zones, localizer, loop) plus what only the process around the loop reads (telemetry, the
 // input gate, the pose lines to the robot).
 struct Profile : LoopConfig {
-  std::string source;  // the file it was read from
+  std::string source;          // the file it was read from
   std::string description;
   TelemetryOptions telemetry;  // [loop] telemetry_flush_ticks
   InputOptions input;          // [input]: the input gate (input_gate.h)

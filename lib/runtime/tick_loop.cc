@@ -49,10 +49,11 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   ZM_ASSIGN_OR_RETURN(MapIndex index, BuildPolicyIndex(keyframes, links, zone_set, members));
 
   // The one derivation of K_max and the arena (budget.h).
-  ZM_ASSIGN_OR_RETURN(
-      const Budget budget,
-      DeriveBudget(BudgetInputsFor(config.device, config.model, config.map, config.policy.policy,
-                                   meta.largest_payload_bytes, meta.keyframe_count)));
+  ZM_ASSIGN_OR_RETURN(const Budget budget,
+                      DeriveBudget(BudgetInputsFor(config.device, config.model, config.map,
+                                                   config.policy.policy,
+                                                   meta.largest_payload_bytes,
+                                                   meta.keyframe_count)));
 
   // The bounded policies get an arena of exactly K_max slots: exceeding the budget is then
   // physically impossible. basic and unbounded model RTAB-Map's heap, which grows: their arena
@@ -79,13 +80,14 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   if (StartsFromLastWorkingMemory(config.policy)) {
     ZM_ASSIGN_OR_RETURN(recorded, map.LastWorkingMemory());
   }
-  PolicyOptions popt =
-      PolicyOptionsFor(config, budget, keyframes, std::move(plan_inputs.oracle_future), &recorded);
+  PolicyOptions popt = PolicyOptionsFor(config, budget, keyframes,
+                                        std::move(plan_inputs.oracle_future), &recorded);
   // basic reads the long-term-memory nodes its graph searches admit from the map database.
   loop->ltm_graph_ = std::make_unique<SourceLtmGraph>(loop->map_index_, map);
   ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt, loop->ltm_graph_.get()));
-  loop->working_set_ = std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map,
-                                                    budget.k_max, config.loads.sliced);
+  loop->working_set_ =
+      std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map,
+                                                     budget.k_max, config.loads.sliced);
 
   LocalizerConfig lc = config.localizer;
   lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes, budget.arena_slots);
@@ -329,8 +331,7 @@ TickLoop::IdleReport TickLoop::Idle(Clock::time_point frame_due) {
   const Clock::time_point start = Clock::now();
   const LoadSliceOptions& lo = config_.loads;
   const auto ms = [](double v) {
-    return std::chrono::duration_cast<Clock::duration>(
-        std::chrono::duration<double, std::milli>(v));
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(v));
   };
   if (frame_due == Clock::time_point{}) {
     frame_due = tick_start_ + ms(frame_period_s_ * 1000.0);  // the frames' clock
@@ -360,8 +361,7 @@ TickLoop::IdleReport TickLoop::Idle(Clock::time_point frame_due) {
   const Clock::time_point due = std::max(frame_due, start);
   report.late_ms = end > due ? std::chrono::duration<double, std::milli>(end - due).count() : 0.0;
   Account(t);
-  totals_.peak_resident_bytes =
-      std::max(totals_.peak_resident_bytes, working_set_->resident_bytes());
+  totals_.peak_resident_bytes = std::max(totals_.peak_resident_bytes, working_set_->resident_bytes());
   totals_.idle_load_ms += report.ms;
   totals_.idle_keyframes_loaded += t.keyframes_loaded;
   idle_ms_ += report.ms;
@@ -373,14 +373,10 @@ TickLoop::IdleReport TickLoop::Idle(Clock::time_point frame_due) {
 
 const char* BudgetOutcomeName(BudgetChange::Outcome outcome) {
   switch (outcome) {
-    case BudgetChange::Outcome::kApplied:
-      return "ok";
-    case BudgetChange::Outcome::kClamped:
-      return "clamped";
-    case BudgetChange::Outcome::kIgnored:
-      return "ignored";
-    case BudgetChange::Outcome::kRefused:
-      return "refused";
+    case BudgetChange::Outcome::kApplied: return "ok";
+    case BudgetChange::Outcome::kClamped: return "clamped";
+    case BudgetChange::Outcome::kIgnored: return "ignored";
+    case BudgetChange::Outcome::kRefused: return "refused";
   }
   return "refused";
 }
