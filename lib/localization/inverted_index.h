@@ -25,8 +25,9 @@
 //   - Score accumulates into a per-slot array with a list of touched slots (reset after), then
 //     keeps the top k by a bounded insertion (ties: larger keyframe id first, as RTAB-Map's
 //     argmax and the localizer's), so the result does not depend on posting order.
-// Memory: about 8 bytes per posting in blocks + 8 per direct entry + 12 per slot + 12 per word;
-// memory_bytes() reports it (e.g. K_max 4096, M 500, W 10^4: ~36 MB).
+// Memory: ~8 bytes per posting in blocks + 8 per direct entry (K_max x M of each, M rounded up to
+// a power of two for the direct table) + ~280 per word (its spare block) + 16 per slot;
+// memory_bytes() reports it (K_max 3200, M 500, W 10^4: 29 MB, bench/localization_bench.cc).
 //
 // Slots are the arena's slot indices (dense, < K_max): the runtime adds a keyframe when its zone
 // is loaded into slots and removes it when evicted. Not thread-safe (one tick thread).

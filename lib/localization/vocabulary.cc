@@ -291,6 +291,8 @@ Result<Vocabulary> Vocabulary::Train(std::span<const Descriptor256> descriptors,
       queue.push_back(Pending{first + c, p.begin + start[c], p.begin + start[c + 1], p.level + 1});
     }
   }
+  v.nodes_.shrink_to_fit();  // memory_bytes() then reports what the tree needs, not growth slack
+  v.centres_.shrink_to_fit();
   std::uint32_t words = 0;
   for (Node& node : v.nodes_) {
     if (node.child_count == 0) node.word = words++;

@@ -23,7 +23,8 @@
 // training descriptors at 500 words per keyframe, so ~100 per word (enough for stable majority
 // centres), while 10^4 words against 500 per keyframe keeps a word in a few % of keyframes: the
 // posting lists of inverted_index.h stay short. L = 6 (ORB-SLAM's 10^6 words) needs far more
-// training data than one building's map has. The tree takes ~0.4 MB (memory_bytes()).
+// training data than one building's map has. The tree takes ~0.5 MB (memory_bytes(): 44 bytes per
+// node, 4 per word).
 //
 // Serialisation: ToBlob()/FromBlob() (little-endian, versioned header, CRC-32C of the body);
 // FromBlob checks every size against the header and the limits before copying anything, then
