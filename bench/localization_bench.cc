@@ -181,23 +181,26 @@ BENCHMARK(BM_Quantize)->Unit(benchmark::kNanosecond);
 BENCHMARK(BM_Transform)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Score)->Arg(100)->Arg(400)->Arg(1600)->Arg(3200)->Unit(benchmark::kMicrosecond);
 
-// Console output as usual, and the (resident, CPU time) points of BM_Score for the slope.
+// Console output as usual, and the (resident, CPU time) points of BM_Score for the slope: the
+// median aggregate when the run is repeated (--benchmark_repetitions), else the single run.
 class SlopeReporter : public benchmark::ConsoleReporter {
  public:
   void ReportRuns(const std::vector<Run>& runs) override {
     for (const Run& run : runs) {
-      if (run.run_type != Run::RT_Iteration) continue;
       auto it = run.counters.find("resident");
-      if (run.run_name.function_name == "BM_Score" && it != run.counters.end()) {
-        points_[it->second.value] = run.GetAdjustedCPUTime();  // microseconds (the unit)
+      if (run.run_name.function_name != "BM_Score" || it == run.counters.end()) continue;
+      if (run.run_type == Run::RT_Aggregate && run.aggregate_name == "median") {
+        median_[it->second.value] = run.GetAdjustedCPUTime();  // microseconds (the unit)
+      } else if (run.run_type == Run::RT_Iteration) {
+        single_[it->second.value] = run.GetAdjustedCPUTime();
       }
     }
     ConsoleReporter::ReportRuns(runs);
   }
-  const std::map<double, double>& points() const { return points_; }
+  const std::map<double, double>& points() const { return median_.empty() ? single_ : median_; }
 
  private:
-  std::map<double, double> points_;
+  std::map<double, double> median_, single_;
 };
 
 }  // namespace

@@ -116,6 +116,11 @@ TEST_CASE("vocabulary: training is deterministic for a seed") {
   CHECK(a.ToBlob() == b.ToBlob());
   CHECK(a.word_count() > 25);
   CHECK(a.word_count() <= 125);
+  // Training ends each split on an assignment to the final centres, so the descriptors that made
+  // a leaf quantize to it: every word is reached by the training set.
+  std::set<std::uint32_t> reached;
+  for (const Descriptor256& d : set) reached.insert(a.Quantize(d.data()).value);
+  CHECK(reached.size() == a.word_count());
   o.seed += 1;
   const Vocabulary c = TrainRandom(set, 20, o);
   CHECK(c.ToBlob() != a.ToBlob());  // the seed matters (k-means++ draws)
