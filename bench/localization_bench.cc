@@ -39,7 +39,8 @@ cv::Mat TexturedBgr(std::uint32_t seed) {
     return lo + static_cast<int>(rng() % static_cast<unsigned>(hi - lo));
   };
   cv::Mat low(30, 40, CV_8UC3);
-  cv::randu(low, cv::Scalar::all(60), cv::Scalar::all(200));
+  cv::RNG noise(seed);  // not cv::randu: it draws from OpenCV's global generator
+  noise.fill(low, cv::RNG::UNIFORM, cv::Scalar::all(60), cv::Scalar::all(200));
   cv::Mat img;
   cv::resize(low, img, cv::Size(kW, kH), 0, 0, cv::INTER_LINEAR);
   for (int i = 0; i < 300; ++i) {
