@@ -181,8 +181,8 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
     const cv::KeyPoint& kp = keypoints_[src];
     std::memcpy(out->descriptors[i].data(), descriptors_.ptr<std::uint8_t>(static_cast<int>(src)),
                 kDescriptorBytes);
-    out->keypoints[2 * i] = kp.pt.x;
-    out->keypoints[2 * i + 1] = kp.pt.y;
+    out->keypoints[2 * std::size_t{i}] = kp.pt.x;
+    out->keypoints[2 * std::size_t{i} + 1] = kp.pt.y;
     out->responses[i] = kp.response;
     double z = 0.0;
     if (has_depth) {

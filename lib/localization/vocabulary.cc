@@ -88,8 +88,9 @@ std::uint32_t Cluster(std::span<const Descriptor256> descriptors, const std::uin
     for (std::uint32_t i = 0; i < n; ++i) s->nearest_d[i] = Distance(desc(i), centres);
     while (count < k) {
       std::uint64_t total = 0;
-      for (std::uint32_t i = 0; i < n; ++i)
+      for (std::uint32_t i = 0; i < n; ++i) {
         total += std::uint64_t{s->nearest_d[i]} * s->nearest_d[i];
+      }
       if (total == 0) break;  // every descriptor is a centre already: fewer clusters
       const std::uint64_t r = rng->Below(total);
       std::uint64_t acc = 0;
@@ -123,8 +124,9 @@ std::uint32_t Cluster(std::span<const Descriptor256> descriptors, const std::uin
         ++s->members[c];
         std::uint32_t* bits = s->bit_counts.data() + std::size_t{c} * 256;
         const std::uint8_t* d = desc(i);
-        for (std::uint32_t b = 0; b < 256; ++b)
+        for (std::uint32_t b = 0; b < 256; ++b) {
           bits[b] += (static_cast<std::uint32_t>(d[b >> 3]) >> (b & 7u)) & 1u;
+        }
       }
       for (std::uint32_t c = 0; c < count; ++c) {
         if (s->members[c] == 0) continue;  // an emptied cluster keeps its centre
@@ -132,8 +134,9 @@ std::uint32_t Cluster(std::span<const Descriptor256> descriptors, const std::uin
         std::uint8_t* centre = centres + c * kDescriptorBytes;
         std::memset(centre, 0, kDescriptorBytes);
         for (std::uint32_t b = 0; b < 256; ++b) {
-          if (2 * bits[b] > s->members[c])
+          if (2 * bits[b] > s->members[c]) {
             centre[b >> 3] |= static_cast<std::uint8_t>(1u << (b & 7u));
+          }
         }
       }
       bool changed = false;
@@ -286,8 +289,8 @@ Result<Vocabulary> Vocabulary::Train(std::span<const Descriptor256> descriptors,
     v.nodes_[p.node].child_count = clusters;
     for (std::uint32_t c = 0; c < clusters; ++c) {
       v.nodes_.push_back(Node{});
-      v.centres_.insert(v.centres_.end(), s.centres.begin() + c * kDescriptorBytes,
-                        s.centres.begin() + (c + 1) * kDescriptorBytes);
+      const std::uint8_t* centre = s.centres.data() + std::size_t{c} * kDescriptorBytes;
+      v.centres_.insert(v.centres_.end(), centre, centre + kDescriptorBytes);
       queue.push_back(Pending{first + c, p.begin + start[c], p.begin + start[c + 1], p.level + 1});
     }
   }
