@@ -1,0 +1,214 @@
+// ORB adapter over OpenCV (see orb_extractor.h). OpenCV exceptions stop here.
+#include "localization/orb_extractor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <limits>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+
+namespace zm {
+namespace {
+
+constexpr std::uint32_t kMaxOrbFeatures = 1u << 16;
+
+std::string TypeName(int type) { return cv::typeToString(type); }
+
+std::string Size(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
+
+}  // namespace
+
+Status ValidateOrbOptions(const OrbOptions& o) {
+  if (o.max_features < 1 || o.max_features > kMaxOrbFeatures) {
+    return InvalidArgument("orb max_features " + std::to_string(o.max_features) + " outside [1, " +
+                           std::to_string(kMaxOrbFeatures) + "]");
+  }
+  if (o.word_features < 1 || o.word_features > o.max_features) {
+    return InvalidArgument("orb word_features " + std::to_string(o.word_features) +
+                           " outside [1, max_features " + std::to_string(o.max_features) + "]");
+  }
+  if (!(o.scale_factor > 1.0f && o.scale_factor <= 4.0f)) {
+    return InvalidArgument("orb scale_factor " + std::to_string(o.scale_factor) +
+                           " outside (1, 4]");
+  }
+  if (o.levels < 1 || o.levels > 16) {
+    return InvalidArgument("orb levels " + std::to_string(o.levels) + " outside [1, 16]");
+  }
+  if (o.patch_size < 2 || o.patch_size > 255 || o.edge_threshold > 255) {
+    return InvalidArgument("orb patch_size " + std::to_string(o.patch_size) +
+                           " outside [2, 255] or edge_threshold " +
+                           std::to_string(o.edge_threshold) + " > 255");
+  }
+  if (o.fast_threshold < 1 || o.fast_threshold > 254) {
+    return InvalidArgument("orb fast_threshold " + std::to_string(o.fast_threshold) +
+                           " outside [1, 254]");
+  }
+  if (!(o.min_depth_m >= 0.0) || !std::isfinite(o.min_depth_m) ||
+      !(o.max_depth_m == 0.0 || (std::isfinite(o.max_depth_m) && o.max_depth_m > o.min_depth_m))) {
+    return InvalidArgument("orb depth range [" + std::to_string(o.min_depth_m) + ", " +
+                           std::to_string(o.max_depth_m) +
+                           "] m: need min >= 0 and max 0 (no limit) or > min");
+  }
+  return Status::Ok();
+}
+
+Result<OrbExtractor> OrbExtractor::Create(const OrbOptions& options,
+                                          const CameraIntrinsics& camera) {
+  ZM_RETURN_IF_ERROR(ValidateOrbOptions(options));
+  if (!(camera.fx > 0.0 && camera.fy > 0.0 && std::isfinite(camera.fx) &&
+        std::isfinite(camera.fy) && std::isfinite(camera.cx) && std::isfinite(camera.cy)) ||
+      camera.width == 0 || camera.height == 0 || camera.width > kMaxDenseSide ||
+      camera.height > kMaxDenseSide) {
+    return InvalidArgument("orb camera fx " + std::to_string(camera.fx) + " fy " +
+                           std::to_string(camera.fy) + " size " +
+                           Size(static_cast<int>(camera.width), static_cast<int>(camera.height)) +
+                           ": need finite positive focal lengths and sides in [1, " +
+                           std::to_string(kMaxDenseSide) + "]");
+  }
+  try {
+    // Process-wide: OpenCV's parallel loops run on the calling thread (see the header).
+    cv::setNumThreads(0);
+    cv::Ptr<cv::ORB> orb = cv::ORB::create(
+        static_cast<int>(options.max_features), options.scale_factor,
+        static_cast<int>(options.levels), static_cast<int>(options.edge_threshold),
+        /*firstLevel=*/0, /*WTA_K=*/2, cv::ORB::HARRIS_SCORE, static_cast<int>(options.patch_size),
+        static_cast<int>(options.fast_threshold));
+    return OrbExtractor(options, camera, std::move(orb));
+  } catch (const std::exception& e) {
+    return Internal(std::string("cv::ORB::create failed: ") + e.what());
+  }
+}
+
+OrbExtractor::OrbExtractor(const OrbOptions& options, const CameraIntrinsics& camera,
+                           cv::Ptr<cv::ORB> orb)
+    : options_(options),
+      camera_(camera),
+      orb_(std::move(orb)),
+      grey_(static_cast<int>(camera.height), static_cast<int>(camera.width), CV_8UC1),
+      order_(2 * std::size_t{options.max_features}) {
+  keypoints_.reserve(2 * std::size_t{options.max_features});
+  descriptors_.create(static_cast<int>(options.max_features), static_cast<int>(kDescriptorBytes),
+                      CV_8UC1);
+}
+
+Status OrbExtractor::CheckInputs(const cv::Mat& colour, const DepthImage& depth,
+                                 const OrbFeatures& out) const {
+  const int w = static_cast<int>(camera_.width);
+  const int h = static_cast<int>(camera_.height);
+  if (colour.empty()) return InvalidArgument("colour image is empty");
+  const int type = colour.type();
+  if (type != CV_8UC1 && type != CV_8UC3 && type != CV_8UC4) {
+    return InvalidArgument("colour image type " + TypeName(type) +
+                           " not supported (8UC1 grey, 8UC3 BGR or 8UC4 BGRA)");
+  }
+  if (colour.cols != w || colour.rows != h) {
+    return InvalidArgument("colour image " + Size(colour.cols, colour.rows) + " != camera " +
+                           Size(w, h));
+  }
+  if (!depth.image.empty()) {
+    const int dtype = depth.image.type();
+    if (dtype != CV_16UC1 && dtype != CV_32FC1) {
+      return InvalidArgument("depth image type " + TypeName(dtype) +
+                             " not supported (16UC1 with units_per_m, or 32FC1 metres)");
+    }
+    if (depth.image.cols != w || depth.image.rows != h) {
+      return InvalidArgument("depth image " + Size(depth.image.cols, depth.image.rows) +
+                             " != colour " + Size(w, h));
+    }
+    if (dtype == CV_16UC1 && !(depth.units_per_m > 0.0 && std::isfinite(depth.units_per_m))) {
+      return InvalidArgument("depth units_per_m " + std::to_string(depth.units_per_m) +
+                             " not finite and > 0");
+    }
+  }
+  if (out.capacity() < options_.max_features) {
+    return InvalidArgument("feature buffer capacity " + std::to_string(out.capacity()) +
+                           " < max_features " + std::to_string(options_.max_features));
+  }
+  return Status::Ok();
+}
+
+Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, OrbFeatures* out) {
+  out->count = 0;
+  out->word_count = 0;
+  out->with_point = 0;
+  ZM_RETURN_IF_ERROR(CheckInputs(colour, depth, *out));
+
+  try {
+    const cv::Mat* grey = &colour;  // grey input is read in place, never written
+    if (colour.type() != CV_8UC1) {
+      cv::cvtColor(colour, grey_,
+                   colour.type() == CV_8UC3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
+      grey = &grey_;
+    }
+    orb_->detectAndCompute(*grey, cv::noArray(), keypoints_, descriptors_);
+  } catch (const std::exception& e) {
+    return Internal(std::string("ORB extraction failed: ") + e.what());
+  }
+  const auto detected = static_cast<std::uint32_t>(keypoints_.size());
+  if (detected == 0) return Status::Ok();
+  if (descriptors_.rows != static_cast<int>(detected) ||
+      descriptors_.cols != static_cast<int>(kDescriptorBytes) || descriptors_.type() != CV_8UC1) {
+    return Internal("ORB returned " + std::to_string(descriptors_.rows) + "x" +
+                    std::to_string(descriptors_.cols) + " descriptors for " +
+                    std::to_string(detected) + " keypoints");
+  }
+
+  // Strongest first; ties broken by position so the order never depends on OpenCV's.
+  if (order_.size() < detected) order_.resize(detected);  // only if ORB exceeded 2x max_features
+  for (std::uint32_t i = 0; i < detected; ++i) order_[i] = i;
+  std::sort(order_.begin(), order_.begin() + detected, [&](std::uint32_t a, std::uint32_t b) {
+    const cv::KeyPoint& ka = keypoints_[a];
+    const cv::KeyPoint& kb = keypoints_[b];
+    if (ka.response != kb.response) return ka.response > kb.response;
+    if (ka.pt.y != kb.pt.y) return ka.pt.y < kb.pt.y;
+    if (ka.pt.x != kb.pt.x) return ka.pt.x < kb.pt.x;
+    return a < b;
+  });
+  const std::uint32_t n = std::min(detected, options_.max_features);
+
+  const bool has_depth = !depth.image.empty();
+  const bool depth16 = has_depth && depth.image.type() == CV_16UC1;
+  const double inv_units = depth16 ? 1.0 / depth.units_per_m : 1.0;
+  const int w = static_cast<int>(camera_.width);
+  const int h = static_cast<int>(camera_.height);
+  constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+  std::uint32_t with_point = 0;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t src = order_[i];
+    const cv::KeyPoint& kp = keypoints_[src];
+    std::memcpy(out->descriptors[i].data(), descriptors_.ptr<std::uint8_t>(static_cast<int>(src)),
+                kDescriptorBytes);
+    out->keypoints[2 * std::size_t{i}] = kp.pt.x;
+    out->keypoints[2 * std::size_t{i} + 1] = kp.pt.y;
+    out->responses[i] = kp.response;
+    double z = 0.0;
+    if (has_depth) {
+      // Nearest pixel: (u, v) are continuous coordinates with pixel centres at integers (OpenCV).
+      const int x = std::clamp(static_cast<int>(std::lround(kp.pt.x)), 0, w - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(kp.pt.y)), 0, h - 1);
+      z = depth16 ? depth.image.at<std::uint16_t>(y, x) * inv_units
+                  : static_cast<double>(depth.image.at<float>(y, x));
+    }
+    const bool valid = has_depth && std::isfinite(z) && z > 0.0 && z >= options_.min_depth_m &&
+                       (options_.max_depth_m == 0.0 || z <= options_.max_depth_m);
+    out->has_point[i] = valid ? 1 : 0;
+    float* p = &out->points[3 * std::size_t{i}];
+    if (valid) {
+      p[0] = static_cast<float>((static_cast<double>(kp.pt.x) - camera_.cx) * z / camera_.fx);
+      p[1] = static_cast<float>((static_cast<double>(kp.pt.y) - camera_.cy) * z / camera_.fy);
+      p[2] = static_cast<float>(z);
+      ++with_point;
+    } else {
+      p[0] = p[1] = p[2] = kNan;
+    }
+  }
+  out->count = n;
+  out->word_count = std::min(n, options_.word_features);
+  out->with_point = with_point;
+  return Status::Ok();
+}
+
+}  // namespace zm
