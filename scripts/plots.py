@@ -82,8 +82,8 @@ def footnote(fig, run, group=None):
     reps = ""
     shown = [r for r in (group or [run]) if r is not None and r.n > 1]
     if shown:
-        reps = "; " + ", ".join(f"{r.label}: repeat {r.representative + 1} of {r.n}"
-                                for r in shown) + " (mean tick time nearest the median)"
+        reps = "; repeat shown (mean tick time nearest the median): " + ", ".join(
+            f"{r.label} {r.representative + 1}/{r.n}" for r in shown)
     fig.text(0.005, 0.005, R.device_text(run) + "; co-tenant: a stand-in for VLM decoding" + reps,
              fontsize=7, color="#555555", ha="left", va="bottom")
 
