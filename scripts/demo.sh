@@ -26,9 +26,10 @@
 # scale a request is ~9 s of decode on an idle core, longer beside Basic), so the co-tenant is
 # busy for the patrol and the drain after it stays short. The map is the same 2,429 keyframes (the
 # arithmetic below does not depend on the patrol); the robot visits fewer zones and Basic's
-# start-up load is a larger part of each run. The distributions come from the 3 repeats
-# together (about 3 x 4 requests a configuration). README, "Results of make demo", gives the
-# measured wall time.
+# start-up load is a larger part of each run. Measured (a 2-core machine at load 7-12): 2-4 of
+# the 4 requests completed per co-tenant run (7 of 12 beside Basic, 9 of 12 beside Semantic over
+# the 3 repeats), 675 s from the start of this script to the last table, the build not included.
+# README, "Results of make demo", gives the measured wall time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 t0=$(date +%s)
