@@ -112,7 +112,8 @@ int main(int argc, char** argv) {
   app.add_option("--period-s", flags.options.request_period_s,
                  "self-paced: a request every S seconds");
   app.add_option("--watchdog-s", flags.options.watchdog_s,
-                 "no token for this long inside a request = a stall (0 = no watchdog)");
+                 "no token for this long inside a request = a stall, at full size: times "
+                 "--device-scale (0 = no watchdog)");
   app.add_option("--kv-bytes-per-token", kv_text,
                  "KV cache bytes per token of context (0 = the model's)");
   app.add_option("--kv-allocation", kv_allocation,

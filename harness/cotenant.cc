@@ -185,6 +185,7 @@ Result<CotenantSizes> ResolveCotenantSizes(const CotenantConfig& c) {
   s.kv_reserved_bytes = RoundUpPages(ScaledKvBytes(s, c.device_scale, o.context_tokens));
   s.request_kv_bytes =
       ScaledKvBytes(s, c.device_scale, std::uint64_t{o.prompt_tokens} + o.answer_tokens);
+  s.watchdog_s = o.watchdog_s * c.device_scale;
   return s;
 }
 
@@ -320,6 +321,7 @@ Status CotenantReportBuilder::AddEvent(const nlohmann::json& e) {
     ++r_.requests;
     r_.tokens_generated += U64(e, "answer_tokens");
     r_.major_faults += U64(e, "major_faults");
+    r_.decode_ms_total += Num(e, "decode_ms");
     tps_.Add(Num(e, "tokens_per_s"));
     prefill_tps_.Add(Num(e, "prefill_tokens_per_s"));
     latency_.Add(Num(e, "latency_ms"));
@@ -357,6 +359,10 @@ CotenantResult CotenantReportBuilder::Report() const {
   r.prefill_tokens_per_s = prefill_tps_.Quantile(0.5);
   r.latency_ms_p50 = latency_.Quantile(0.5);
   r.latency_ms_p95 = latency_.Quantile(0.95);
+  r.latency_ms_mean = latency_.mean();
+  r.tokens_per_s_aggregate =
+      r.decode_ms_total > 0.0 ? static_cast<double>(r.tokens_generated) * 1000.0 / r.decode_ms_total
+                              : 0.0;
   OutcomeDecision d = DecideCotenantOutcome(r);
   r.outcome = d.outcome;
   r.reason = std::move(d.reason);
@@ -426,9 +432,13 @@ nlohmann::json ToJson(const CotenantResult& r) {
       {"tokens_generated", r.tokens_generated},
       {"major_faults", r.major_faults},
       {"tokens_per_s", have_rates ? json(r.tokens_per_s) : json(nullptr)},
+      {"tokens_per_s_aggregate", have_rates ? json(r.tokens_per_s_aggregate) : json(nullptr)},
+      {"decode_ms_total", r.decode_ms_total},
       {"prefill_tokens_per_s", have_rates ? json(r.prefill_tokens_per_s) : json(nullptr)},
       {"latency_ms",
-       have_rates ? json{{"p50", r.latency_ms_p50}, {"p95", r.latency_ms_p95}} : json(nullptr)},
+       have_rates
+           ? json{{"p50", r.latency_ms_p50}, {"p95", r.latency_ms_p95}, {"mean", r.latency_ms_mean}}
+           : json(nullptr)},
       {"checksum", r.checksum},
   };
   // Built element by element: converting a vector of arrays in one go trips GCC 12's -O3

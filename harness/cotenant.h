@@ -106,6 +106,10 @@ struct CotenantSizes {
   std::uint64_t weights_bytes = 0;        // scaled, whole pages
   std::uint64_t kv_reserved_bytes = 0;    // scaled KV cache for context_tokens
   std::uint64_t request_kv_bytes = 0;     // scaled KV cache for prompt + answer
+  // The watchdog at this scale: options.watchdog_s x device_scale. A pass streams the weights,
+  // which scale with S, so a token takes S times as long as at full size and a gap of W seconds
+  // at full size is a gap of W x S seconds here: the same number of token times (docs/harness.md).
+  double watchdog_s = 0.0;
 };
 // Errors: unknown model without a kv_bytes_per_token override, device scale outside (0, 1],
 // zero answer or batch tokens, prompt + answer above context_tokens.
@@ -175,8 +179,13 @@ struct CotenantResult {
   std::uint32_t requests_failed = 0;      // refused, lost to a death, or the service was down
   std::uint32_t requests_unfinished = 0;  // in flight when the run was stopped
   std::uint64_t tokens_generated = 0;
-  std::uint64_t major_faults = 0;     // over completed requests
-  double tokens_per_s = 0.0;          // median decode rate over completed requests
+  std::uint64_t major_faults = 0;  // over completed requests
+  double decode_ms_total = 0.0;    // decode wall time summed over completed requests
+  double tokens_per_s = 0.0;       // median decode rate over completed requests
+  // Every completed request's answer tokens over their decode time together (tokens_generated /
+  // decode_ms_total): slow requests weigh by how long they took, as a user waiting sees them.
+  double tokens_per_s_aggregate = 0.0;
+  double latency_ms_mean = 0.0;
   double prefill_tokens_per_s = 0.0;  // median
   double latency_ms_p50 = 0.0;
   double latency_ms_p95 = 0.0;
@@ -234,9 +243,9 @@ struct CotenantHooks {
                                          CotenantHooks hooks = {});
 
 // {"stand_in": true, "note", "model", "device_scale", "weights_bytes", "tokens_per_s",
-// "latency_ms": {"p50", "p95"}, "requests", "outcome", "outcome_symbol", "per_request": [[end s,
-// tokens/s, latency ms]...], "requests_detail": [...], ...}; rates are null without a completed
-// request.
+// "tokens_per_s_aggregate", "decode_ms_total", "latency_ms": {"p50", "p95", "mean"}, "requests",
+// "outcome", "outcome_symbol", "per_request": [[end s, tokens/s, latency ms]...],
+// "requests_detail": [...], ...}; rates are null without a completed request.
 [[nodiscard]] nlohmann::json ToJson(const CotenantResult& result);
 [[nodiscard]] nlohmann::json ToJson(const CotenantRequestRecord& record);
 

@@ -373,11 +373,12 @@ CotenantResult RunCotenant(const CotenantConfig& config, const std::atomic<bool>
            {"prompt_tokens", o.prompt_tokens},
            {"answer_tokens", o.answer_tokens},
            {"prompt_batch_tokens", o.prompt_batch_tokens},
-           {"watchdog_s", o.watchdog_s}});
+           {"watchdog_s", sz.watchdog_s},
+           {"watchdog_full_size_s", o.watchdog_s}});
 
-  Watchdog watchdog(o.watchdog_s, [&](std::uint64_t id, double gap_s) {
+  Watchdog watchdog(sz.watchdog_s, [&](std::uint64_t id, double gap_s) {
     em.Emit(
-        {{"event", "stall"}, {"id", id}, {"since_token_s", gap_s}, {"watchdog_s", o.watchdog_s}});
+        {{"event", "stall"}, {"id", id}, {"since_token_s", gap_s}, {"watchdog_s", sz.watchdog_s}});
   });
 
   std::uint32_t served = 0;

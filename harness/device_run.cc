@@ -256,6 +256,8 @@ Result<nlohmann::json> SummarizePartialRun(const std::string& scenario_dir,
   std::uint64_t ticks = 0, closures = 0, loaded = 0, unloaded = 0, over = 0, bytes_read = 0;
   std::uint64_t peak_kf = 0, peak_bytes = 0, dropped = 0, arrived = 0, tx = 0, q = 0;
   double wall_s = 0.0;
+  double late_ms = 0.0, idle_load_ms = 0.0, startup_tick_ms = 0.0;
+  bool has_startup = false;
   if (std::ifstream in(out_dir + "/ticks.jsonl"); in) {
     std::string line;
     while (std::getline(in, line)) {
@@ -266,7 +268,14 @@ Result<nlohmann::json> SummarizePartialRun(const std::string& scenario_dir,
         break;  // a line cut by the kill
       }
       ++ticks;
-      if (!t.value("startup", false)) tick_ms.Add(t.value("tick_ms", 0.0));
+      if (t.value("startup", false)) {
+        has_startup = true;
+        startup_tick_ms = t.value("tick_ms", 0.0);
+      } else {
+        tick_ms.Add(t.value("tick_ms", 0.0));
+        late_ms += t.value("late_ms", 0.0);
+      }
+      idle_load_ms += t.value("idle_load_ms", 0.0);
       if (t.value("loop_closure", false)) ++closures;
       loaded += t.value("loaded", 0ULL) + t.value("idle_loaded", 0ULL);
       unloaded += t.value("unloaded", 0ULL);
@@ -301,6 +310,14 @@ Result<nlohmann::json> SummarizePartialRun(const std::string& scenario_dir,
                   {"p99", tick_ms.Quantile(0.99)},
                   {"max", tick_ms.max()},
                   {"count", tick_ms.count()}};
+  s["time_total_ms"] = TimeTotalJson({.steady_mean_ms = tick_ms.mean(),
+                                      .steady_ticks = tick_ms.count(),
+                                      .has_startup = has_startup,
+                                      .startup_tick_ms = startup_tick_ms,
+                                      .late_ms = late_ms,
+                                      .idle_load_ms = idle_load_ms});
+  if (has_startup && !s["startup"].is_object()) s["startup"] = nlohmann::json::object();
+  if (has_startup) s["startup"]["tick_ms"] = startup_tick_ms;
   s["update_rate_hz"] = nullptr;
   if (time_compression > 0 && wall_s > 0) {
     s["update_rate_hz"] = static_cast<double>(ticks) / (wall_s * time_compression);

@@ -3,8 +3,11 @@
 paper's own numbers beside ours (../shared/docs/evaluation.md).
 
 Table I: one row per metric, one column per configuration (Basic only, Basic + VLM, Semantic
-only, Semantic + VLM); each cell "ours (paper)". Table II: one row per model, Basic's and
-Semantic's outcome, tokens/s and latency (○ completed, △ stalled, × failed to start, † killed).
+only, Semantic + VLM); each cell "ours (paper)". Table II: one row per model and policy: outcome,
+requests completed, median and aggregate tokens/s, latency p50 / mean / p95 (○ completed, △
+stalled, × failed to start, † killed). With repeats (`zonemap bench --repeat N`) every number of
+ours is mean ± 95 % CI over the cell's runs, from results.json (computed there once; formatted
+here by runs.fmt_stat).
 Above both: the device (memory cgroup, or the ledger: "simulated"), its limit and scale, and the
 time compression, which every report states.
 
@@ -16,6 +19,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import runs as R  # noqa: E402
+from runs import fmt_stat  # noqa: E402
 
 # ../shared/docs/evaluation.md, Table I (Jetson Orin Nano 8 GB, RTAB-Map, qwen3-vl 2B).
 PAPER_T1 = {
@@ -46,74 +50,108 @@ def fmt(v, decimals):
     return f"{v:,.{decimals}f}"
 
 
-def t1_values(run):
-    """Our value of each Table I metric for one run (None where the run has none)."""
-    s = run.s
-    tm = s.get("tick_ms") or {}
-    return [s.get("update_rate_hz"), s.get("loop_closures"), tm.get("mean"), s.get("ate_rmse_m"),
-            s.get("rpe_trans_rmse_m"), s.get("rpe_rot_rmse_deg")]
+# Table I's metrics: (row, the summary.json pointer of ours, decimals). TimeTotal is the mean
+# tick time after the start-up tick (time_total_ms.steady; tick_ms.mean before issue 27).
+T1_METRICS = [("/update_rate_hz", 2), ("/loop_closures", 0), ("/time_total_ms/steady", 1),
+              ("/ate_rmse_m", 3), ("/rpe_trans_rmse_m", 3), ("/rpe_rot_rmse_deg", 2)]
+# TimeTotal the other ways (lib/runtime/summary.h, TimeTotalJson); the paper has one number.
+T1_TIME_TOTAL = [
+    ("avg TimeTotal incl. the start-up tick (ms)", "/time_total_ms/with_startup"),
+    ("avg TimeTotal without the idle-time loads (ms)", "/time_total_ms/without_idle_loads"),
+    ("avg TimeTotal with the idle-time loads (ms)", "/time_total_ms/with_idle_loads"),
+]
 
 
-DECIMALS = [2, 0, 1, 3, 3, 2]
+def stat_or_legacy(run, pointer):
+    """The cell's statistic; for an output before issue 27, TimeTotal is tick_ms.mean."""
+    st = run.stat(pointer)
+    if st is None and pointer == "/time_total_ms/steady":
+        st = run.stat("/tick_ms/mean")
+    return st
+
+
+def header_n(cols):
+    """Each column's n as its header states it: "(1 run)" or "(n = 3)"."""
+    return [(f" (1 run)" if c.n == 1 else f" (n = {c.n})") if c else "" for c in cols]
+
+
+def tally_text(run, pointer, symbols=True):
+    """An outcome over the repeats: "○ completed" when all agree, else "○ completed 2, † killed 1"."""
+    parts = []
+    tally = run.tally(pointer)
+    for v, k in tally:
+        if v is None:
+            continue
+        sym = SYMBOL.get(v, "") if symbols else ""
+        text = f"{sym} {v}".strip()
+        parts.append(text if len(tally) == 1 else f"{text} {k}")
+    return ", ".join(parts) or "–"
 
 
 def extra_rows(cols):
     """What the paper's table leaves implicit and ours must state: frames, device, outcomes."""
-    def get(run, f):
-        return f(run) if run is not None else None
+    def st(r, p, d, scale=1.0):
+        return fmt_stat(r.stat(p), d, scale, r.n) if r else "–"
 
     def frames(r):
-        a, d = r.s.get("frames_arrived"), r.s.get("frames_dropped")
-        return f"{a - d:,} of {a:,}" if a is not None and d is not None else fmt(r.s.get("ticks"), 0)
-
-    def oom(r):
-        d = r.s.get("device") or {}
-        v = d.get("oom_kills", r.s.get("oom_events"))
-        return fmt(v, 0) if v is not None else "–"
+        return f'{st(r, "/frames_dropped", 0)} of {st(r, "/frames_arrived", 0)}'
 
     def peak(r):
-        d = r.s.get("device") or {}
-        v = d.get("peak_bytes") or d.get("peak_sum_bytes")
-        return f"{v / 1e9:.2f} GB" if v else "–"
-
-    def map_outcome(r):
-        m = (r.s.get("map") or {}).get("outcome")
-        return f'{SYMBOL.get(m, "")} {m}'.strip() if m else "–"
+        p = "/device/peak_bytes" if r.stat("/device/peak_bytes") else "/device/peak_sum_bytes"
+        return st(r, p, 2, 1e-9) + " GB" if r.stat(p) else "–"
 
     def ct_outcome(r):
-        c = r.s.get("cotenant") or {}
-        o = c.get("outcome")
-        if not o:
+        if not r.with_vlm:
             return "–"
-        extra = f', {c["restarts"]} restarts' if c.get("restarts") else ""
-        return f'{SYMBOL.get(o, c.get("symbol", ""))} {o}{extra}'.strip()
+        text = tally_text(r, "/cotenant/outcome")
+        restarts = r.stat("/cotenant/restarts")
+        if restarts and restarts.get("max"):
+            text += f', restarts {fmt_stat(restarts, 1, 1.0, r.n)}'
+        return text
 
-    rows = [
-        ("frames processed / arrived", frames),
-        ("device OOM kills", oom),
+    rows = [(name, lambda r, p=p: st(r, p, 1)) for name, p in T1_TIME_TOTAL]
+    rows += [
+        ("frames dropped of arrived", frames),
+        ("device OOM kills", lambda r: st(r, "/device/oom_kills", 1)),
         ("device peak", peak),
-        ("map process outcome", map_outcome),
+        ("device swap peak (MB)", lambda r: st(r, "/device/swap/peak_bytes", 1, 1e-6)),
+        ("map major faults", lambda r: st(r, "/map/major_faults", 0)),
+        ("map process outcome", lambda r: tally_text(r, "/map/outcome")),
         ("co-tenant outcome", ct_outcome),
     ]
-    return [(name, [get(r, f) or "–" for r in cols]) for name, f in rows]
+    return [(name, [f(r) if r is not None else "–" for r in cols]) for name, f in rows]
 
 
 def table1(runs):
     cols = [R.pick(runs, p, v, None) for p, v in R.CONFIGS]
     if not any(cols):
         return None, cols
-    head = "| metric | " + " | ".join(R.config_name(p, v) for p, v in R.CONFIGS) + " |"
+    ns = header_n(cols)
+    head = "| metric | " + " | ".join(R.config_name(p, v) + n
+                                      for (p, v), n in zip(R.CONFIGS, ns)) + " |"
     lines = [head, "|---" * 5 + "|"]
-    ours = [t1_values(c) if c else [None] * 6 for c in cols]
     for i, (metric, paper) in enumerate(PAPER_T1.items()):
+        pointer, dec = T1_METRICS[i]
         cells = []
-        for j in range(4):
-            v = ours[j][i]
-            cells.append(f"{fmt(v, DECIMALS[i])} ({fmt(paper[j], DECIMALS[i] if i != 2 else 2)})")
+        for j, c in enumerate(cols):
+            ours = fmt_stat(stat_or_legacy(c, pointer), dec, 1.0, c.n) if c else "–"
+            cells.append(f"{ours} ({fmt(paper[j], dec if i != 2 else 2)})")
         lines.append(f"| {metric} | " + " | ".join(cells) + " |")
     for name, cells in extra_rows(cols):
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines), cols
+
+
+# Table II's columns of ours: (header, pointer, decimals).
+T2_COLUMNS = [
+    ("requests completed", "/cotenant/requests_completed", 1),
+    ("TPS median", "/cotenant/tokens_per_s", 2),
+    ("TPS aggregate", "/cotenant/tokens_per_s_aggregate", 2),
+    ("latency p50 (ms)", "/cotenant/latency_ms/p50", 0),
+    ("latency mean (ms)", "/cotenant/latency_ms/mean", 0),
+    ("latency p95 (ms)", "/cotenant/latency_ms/p95", 0),
+    ("major faults", "/cotenant/major_faults", 0),
+]
 
 
 def table2(runs):
@@ -123,23 +161,42 @@ def table2(runs):
             models.append(r.model)
     if not models:
         return None
-    lines = ["| model (stand-in) | Basic | TPS | latency ms | Semantic | TPS | latency ms |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| model (stand-in) | policy | runs | outcome | "
+             + " | ".join(h for h, _, _ in T2_COLUMNS) + " |",
+             "|---|---|---|---|" + "---|" * len(T2_COLUMNS)]
     for m in models:
-        cells = []
         for p in ("basic", "semantic"):
             r = R.pick(runs, p, True, m)
-            c = (r.s.get("cotenant") or {}) if r else {}
-            o = c.get("outcome")
-            sym = SYMBOL.get(o, c.get("symbol", "–")) if o else "–"
-            cells += [sym + (f" {o}" if o else ""), fmt(c.get("tokens_per_s"), 2),
-                      fmt(R.latency_p50(c), 0)]
-        lines.append(f"| {m} | " + " | ".join(cells) + " |")
-        p = PAPER_T2.get(m)
-        if p:
-            lines.append(f"| {m}: the paper | {p[0]} | {fmt(p[1], 2)} | {fmt(p[2], 0)} | {p[3]} | "
-                         f"{fmt(p[4], 2)} | {fmt(p[5], 0)} |")
+            if r is None:
+                continue
+            planned = r.stat("/cotenant/requests_planned")
+            cells = [fmt_stat(r.stat(ptr), d, 1.0, r.n) for _, ptr, d in T2_COLUMNS]
+            if planned and planned.get("n"):
+                cells[0] += f' of {fmt(int(planned["mean"]), 0)}'
+            lines.append(f"| {m} | {p.capitalize()} | {r.n} | "
+                         f"{tally_text(r, '/cotenant/outcome')} | " + " | ".join(cells) + " |")
+        paper = PAPER_T2.get(m)
+        if paper:
+            for name, (sym, tps, lat) in (("Basic", paper[:3]), ("Semantic", paper[3:])):
+                lines.append(f"| {m}: the paper | {name} | 1 | {sym} | | {fmt(tps, 2)} | – | "
+                             f"{fmt(lat, 0)} | – | – | – |")
     return "\n".join(lines)
+
+
+def weights_text(cols):
+    """How the co-tenant's weights were held (summary.json cotenant.weights, issue 27 §1)."""
+    ct = [c for c in cols if c and c.with_vlm]
+    kinds = sorted({v for c in ct for v, _ in c.tally("/cotenant/weights") if v})
+    return f" (weights {', '.join(kinds)})" if kinds else ""
+
+
+def repeats_text(cols):
+    ns = sorted({c.n for c in cols if c})
+    if ns == [1]:
+        return "One run per configuration."
+    return (f"{' or '.join(map(str, ns))} runs per configuration, interleaved (ABAB...); the "
+            "figures show each configuration's representative run (mean tick time nearest the "
+            "median).")
 
 
 def render(out):
@@ -157,20 +214,32 @@ def render(out):
                   f"{', '.join(f'{t:g}x' if t else 'unpaced' for t in tcs)})" if len(tcs) > 1 else "")
         parts.append(R.device_text(first) + differ +
                      (f"; MemoryThr (K_max) {', '.join(map(str, k))}" if k else "") +
-                     ". The co-tenant is a stand-in for VLM decoding. Each cell: ours (the "
-                     "paper's, Jetson Orin Nano 8 GB).\n")
+                     ". The co-tenant is a stand-in for VLM decoding" + weights_text(cols) +
+                     ". " + repeats_text(cols) + " Each cell: ours (the paper's, Jetson Orin "
+                     "Nano 8 GB).\n")
         if t1:
             parts.append("### Table I analogue: SLAM with and without the co-tenant\n")
             parts.append(t1 + "\n")
-            parts.append("avg TimeTotal = the mean tick time (RTAB-Map's TimeTotal is its "
-                         "per-frame processing time).\n")
+            parts.append("Each cell: ours, mean ± 95 % CI over the column's runs (Student's t, "
+                         "n − 1 dof; one run: its value), then (the paper's, one run). avg "
+                         "TimeTotal = the mean tick time after the start-up tick (RTAB-Map's "
+                         "TimeTotal is its per-frame processing time); incl. the start-up tick: "
+                         "the start-up load counted in; without the idle-time loads: the ticks' "
+                         "own steps, the waits on idle-time loads taken out; with the idle-time "
+                         "loads: every idle-time load's wall time charged to the ticks, as if "
+                         "loaded inside them (RTAB-Map's loads are).\n")
         t2 = table2(runs)
         if t2:
             parts.append("### Table II analogue: the co-tenant beside SLAM\n")
             parts.append(t2 + "\n")
             parts.append("○ completed, △ stalled (watchdog), × failed to start, † killed (OOM; "
-                         "restarted by the supervisor). TPS = median decode tokens/s, latency = "
-                         "median request latency.\n")
+                         "restarted by the supervisor). TPS median = the median request's decode "
+                         "tokens/s; TPS aggregate = all answer tokens ÷ all decode time (slow "
+                         "requests weigh by their length); latency = a request's start to its "
+                         "last token (prompt processing + decode); p50/p95 nearest rank over the "
+                         "run's completed requests. Each cell: mean ± 95 % CI over the runs "
+                         "(Student's t), a per-run figure averaged. The paper's Table II gives "
+                         "one run's median TPS and latency.\n")
     return "\n".join(parts)
 
 

@@ -17,12 +17,21 @@ OUT/figures/:
                                one curve per policy (stand-in co-tenant)
   cotenant_path_<scenario>.png (d) tokens/s and latency along the robot's path, one panel per
                                policy (each request placed where the robot was when it ended)
+  timeline_<scenario>.png      (e) per co-tenant run, each request's decode tokens/s and latency
+                               against the wall clock (a bar from its start to its end) over the
+                               device's usage and, where the run recorded it, its swap
+                               (ticks.jsonl's device_usage_bytes, device_swap_bytes,
+                               map_swap_bytes), the device limit, OOM kills and co-tenant deaths
   zones_<scenario>.png         the zone map with the route, coloured by the active zone
   latency_<scenario>.png       tick time per policy after start-up: CDF and tail (issue 14)
   trajectories_all_<scenario>.png  every policy's estimate apart (only when more policies ran
                                than the paper's two)
 
 Every figure states the device (cgroup or simulated ledger), its scale and the time compression.
+With repeats (`zonemap bench --repeat N`) each configuration is drawn from one representative
+repeat: the one whose mean tick time is nearest the median of its repeats (results.json's
+`representative_repeat`, chosen by the bench; rep0 when results.json is missing); the footnote
+says which.
 
 Usage: scripts/plots.py OUT      (OUT may also be one run directory)
 """
@@ -69,8 +78,13 @@ def savefig(fig, fig_dir, name):
     plt.close(fig)
 
 
-def footnote(fig, run):
-    fig.text(0.005, 0.005, R.device_text(run) + "; co-tenant: a stand-in for VLM decoding",
+def footnote(fig, run, group=None):
+    reps = ""
+    shown = [r for r in (group or [run]) if r is not None and r.n > 1]
+    if shown:
+        reps = "; repeat shown (mean tick time nearest the median): " + ", ".join(
+            f"{r.label} {r.representative + 1}/{r.n}" for r in shown)
+    fig.text(0.005, 0.005, R.device_text(run) + "; co-tenant: a stand-in for VLM decoding" + reps,
              fontsize=7, color="#555555", ha="left", va="bottom")
 
 
@@ -175,7 +189,7 @@ def plot_memory(scenario, runs, fig_dir):
     axes[0][0].set_ylabel("memory (GB)")
     fig.suptitle(f"{scenario}: memory over time", fontsize=11)
     fig.tight_layout(rect=(0, 0.03, 1, 1))
-    footnote(fig, group[0])
+    footnote(fig, group[0], group)
     savefig(fig, fig_dir, f"memory_{scenario}.png")
 
 
@@ -229,7 +243,7 @@ def plot_trajectories(out, scenario, runs, fig_dir):
     ax.grid(alpha=0.2)
     fig.tight_layout(rect=(0, 0.03, 1, 1))
     if chosen:
-        footnote(fig, chosen[0][0])
+        footnote(fig, chosen[0][0], [c[0] for c in chosen])
     savefig(fig, fig_dir, f"trajectories_{scenario}.png")
 
 
@@ -322,7 +336,7 @@ def plot_cotenant(scenario, runs, fig_dir):
     fig.suptitle(f"{scenario}: the co-tenant beside the map ({group[0].model}, stand-in)",
                  fontsize=11)
     fig.tight_layout(rect=(0, 0.03, 1, 1))
-    footnote(fig, group[0])
+    footnote(fig, group[0], group)
     savefig(fig, fig_dir, f"cotenant_{scenario}.png")
 
 
@@ -402,8 +416,97 @@ def plot_cotenant_path(out, scenario, runs, fig_dir):
     fig.suptitle(f"{scenario}: the co-tenant along the robot's path (each request where the "
                  f"robot was when it ended)", fontsize=11)
     fig.tight_layout(rect=(0, 0.03, 1, 1))
-    footnote(fig, group[0])
+    footnote(fig, group[0], group)
     savefig(fig, fig_dir, f"cotenant_path_{scenario}.png")
+
+
+# (e) the per-request timeline over the device's memory ----------------------------------------
+
+def plot_timeline(scenario, runs, fig_dir):
+    """Per co-tenant run: each request's decode tokens/s and latency on the wall clock (a bar
+    from its start to its end, so a request held up by pressure shows as a long bar), over the
+    device's usage and swap from the map process's ticks (the same clock, docs/harness.md)."""
+    group = [r for r in vlm_runs(runs) if r.requests() or r.ticks()]
+    if not group:
+        return
+    cols = len(group)
+    fig, axes = plt.subplots(2, cols, figsize=(7 * cols, 7.5), squeeze=False, sharex="col",
+                             gridspec_kw={"height_ratios": [1.2, 1]})
+    tps_max = max([q["tokens_per_s"] for r in group for q in r.requests()] or [1.0])
+    for c, run in enumerate(group):
+        top, bottom = axes[0][c], axes[1][c]
+        req = run.requests()
+        twin = top.twinx()
+        for i, q in enumerate(req):
+            start = q.get("started_wall_s")
+            if start is None:
+                start = q["wall_s"] - q["latency_ms"] / 1000.0
+            top.plot([start, q["wall_s"]], [q["tokens_per_s"]] * 2, color=style(run)["color"],
+                     lw=2.2, solid_capstyle="butt",
+                     label="decode tokens/s (bar: request start → end)" if i == 0 else None)
+        twin.plot([q["wall_s"] for q in req], [q["latency_ms"] / 1000.0 for q in req], "o",
+                  color="#555555", ms=4, label="latency (s), at the request's end")
+        top.set_ylim(0, tps_max * 1.15)
+        twin.set_ylim(bottom=0)
+        top.set_ylabel("decode tokens/s")
+        twin.set_ylabel("request latency (s)")
+        ct = run.s.get("cotenant") or {}
+        top.set_title(f'{run.label} ({run.model}): {len(req)} requests, '
+                      f'{ct.get("symbol", "")} {ct.get("outcome", "")}'.replace("  ", " "),
+                      fontsize=10)
+        h1, l1 = top.get_legend_handles_labels()
+        h2, l2 = twin.get_legend_handles_labels()
+        top.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper right")
+        top.grid(alpha=0.3)
+
+        ticks = run.ticks()
+        xs, xlabel = run.tick_times()
+        d = run.s.get("device") or {}
+
+        def series(key):
+            return [t[key] / GB if t.get(key) is not None else math.nan for t in ticks]
+
+        if any("device_usage_bytes" in t for t in ticks):
+            bottom.plot(xs, series("device_usage_bytes"), color="k", lw=1.1,
+                        label=f'device usage ({d.get("kind", "?")})')
+        if any("device_swap_bytes" in t for t in ticks):
+            bottom.plot(xs, series("device_swap_bytes"), color="#9467bd", lw=1.1,
+                        label="device swap (zram)")
+        if any("map_swap_bytes" in t for t in ticks):
+            bottom.plot(xs, series("map_swap_bytes"), color=style(run)["color"], lw=1.0, ls="--",
+                        label="map process swapped out")
+        limit = d.get("limit_bytes")
+        if limit:
+            bottom.axhline(limit / GB, color="k", ls=":", lw=1.0,
+                           label=f"device limit {limit / GB:.2f} GB")
+        prev = 0
+        for i, (x, t) in enumerate(zip(xs, ticks)):
+            k = t.get("oom_kills", 0) or 0
+            if k > prev:
+                for ax in (top, bottom):
+                    ax.axvline(x, color="#9467bd", lw=1.0, ls="-.",
+                               label="OOM kill" if ax is bottom and prev == 0 else None)
+            prev = max(prev, k)
+        for i, x in enumerate(run.cotenant_deaths()):
+            bottom.plot([x], [0.97], marker="v", color="#2ca02c", ms=8, ls="none",
+                        transform=bottom.get_xaxis_transform(),
+                        label="co-tenant killed" if i == 0 else None)
+        if ticks and ticks[0].get("startup") and xlabel == "wall clock (s)" and xs[0] > 0:
+            for ax in (top, bottom):
+                ax.axvspan(0, xs[0], color="#dddddd", alpha=0.6, zorder=0,
+                           label="map start-up load" if ax is bottom else None)
+        bottom.set_ylabel("memory (GB)")
+        bottom.set_xlabel(xlabel)
+        bottom.set_ylim(bottom=0)
+        bottom.grid(alpha=0.3)
+        if bottom.get_legend_handles_labels()[0]:
+            bottom.legend(fontsize=7, loc="lower right")
+        top.set_xlim(left=0)
+    fig.suptitle(f"{scenario}: the co-tenant's requests over the device's memory (wall clock)",
+                 fontsize=11)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    footnote(fig, group[0], group)
+    savefig(fig, fig_dir, f"timeline_{scenario}.png")
 
 
 # The zone map and the tick latency (kept from before issue 17) --------------------------------
@@ -495,6 +598,7 @@ def main():
         plot_trajectories_all(out, scenario, runs, fig_dir)
         plot_cotenant(scenario, runs, fig_dir)
         plot_cotenant_path(out, scenario, runs, fig_dir)
+        plot_timeline(scenario, runs, fig_dir)
         if not single:
             plot_zones(out, scenario, runs, fig_dir)
         plot_latency(scenario, runs, fig_dir)

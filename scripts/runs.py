@@ -5,6 +5,15 @@ Shared by scripts/plots.py (the figures), scripts/paper_tables.py (Table I/II in
 form) and scripts/sweep.py (where Basic breaks). Standard library only, so the tables print
 where matplotlib is missing.
 
+With repeats (`zonemap bench --repeat N`, issue 27 §4) a cell's runs are
+OUT/runs/<scenario>/<cell>/rep<r>/ and OUT/results.json holds, per cell, every repeat's summary
+and the statistics over them ({n, mean, ci95, median, ...} per JSON pointer of summary.json),
+computed once by the bench (harness/repeats.h); the scripts only format them (fmt_stat). A cell
+is one Run: its `s`, ticks and requests are the representative repeat's (results.json's
+`representative_repeat`: the repeat whose mean tick time is nearest the median; rep0 without
+results.json), `stat(pointer)` the cell's statistic. Without results.json (a single run, an
+older output) a statistic is the one run's value, n = 1.
+
 A run directory holds summary.json, ticks.jsonl (one line per tick), estimate.tum and, with a
 co-tenant, cotenant.jsonl (its event lines, docs/harness.md "Event lines") and cotenant.json
 (its report). Keys written before issue 17's experiment are read too (they lack the device and
@@ -58,15 +67,64 @@ def read_tum(path):
     return pts
 
 
-class Run:
-    """One run directory: its summary and, read on demand, its ticks and co-tenant lines."""
+def json_pointer(doc, pointer):
+    """The value at a JSON pointer ("/tick_ms/mean"), None where there is none."""
+    cur = doc
+    for part in pointer.split("/")[1:]:
+        part = part.replace("~1", "/").replace("~0", "~")
+        if not isinstance(cur, dict) or part not in cur:
+            return None
+        cur = cur[part]
+    return cur
 
-    def __init__(self, name, path, summary):
+
+class Run:
+    """One run directory (or one cell of repeats, shown by its representative repeat): its
+    summary and, read on demand, its ticks and co-tenant lines."""
+
+    def __init__(self, name, path, summary, cell=None, repeats=None, representative=0):
         self.name = name
         self.path = path
         self.s = summary
+        self.cell = cell  # results.json's entry (stats over the repeats), or None
+        self.repeats = repeats if repeats is not None else [self]
+        self.representative = representative
         self._ticks = None
         self._requests = None
+
+    @property
+    def n(self):
+        """Runs in the cell."""
+        return self.cell.get("repeats", len(self.repeats)) if self.cell else len(self.repeats)
+
+    def stat(self, pointer):
+        """The cell's statistic at a JSON pointer of summary.json ({n, mean, ci95, ...}), from
+        results.json; without it the one run's value as n = 1 (no statistic is computed here)."""
+        if self.cell is not None:
+            return (self.cell.get("stats") or {}).get(pointer)
+        v = json_pointer(self.s, pointer)
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            return None
+        return {"n": 1, "mean": v, "ci95": 0.0, "median": v, "values": [v]}
+
+    def mean(self, pointer):
+        st = self.stat(pointer)
+        return st["mean"] if st and st.get("n") else None
+
+    def tally(self, pointer):
+        """A string field over the repeats: [(value, count)] in first-seen order."""
+        out = {}
+        runs = (self.cell or {}).get("runs") or [r.s for r in self.repeats]
+        for s in runs:
+            v = json_pointer(s, pointer)
+            out[v] = out.get(v, 0) + 1
+        return list(out.items())
+
+    def representative_note(self):
+        if self.n <= 1:
+            return "1 run"
+        return (f"repeat {self.representative + 1} of {self.n} shown (mean tick time nearest "
+                f"the median)" if self.cell else f"repeat {self.representative + 1} of {self.n} shown")
 
     @property
     def policy(self):
@@ -145,14 +203,15 @@ class Run:
                 end = l["ended_s"] - origin
             else:
                 continue
+            start = l["started_s"] - origin if "started_s" in l and "wall_s" not in l else None
             out.append({"wall_s": end, "tokens_per_s": l.get("tokens_per_s"),
-                        "latency_ms": l.get("latency_ms")})
+                        "latency_ms": l.get("latency_ms"), "started_wall_s": start})
         if not out:
             per = report.get("per_request") or (self.s.get("cotenant") or {}).get("per_request") or []
             for end, tps, lat in per:
                 # per_request ends are monotonic seconds; relative to the origin when known.
                 out.append({"wall_s": end - (origin or 0.0) if end > 1e5 else end,
-                            "tokens_per_s": tps, "latency_ms": lat})
+                            "tokens_per_s": tps, "latency_ms": lat, "started_wall_s": None})
         out = [r for r in out if r["tokens_per_s"] is not None and r["latency_ms"] is not None]
         out.sort(key=lambda r: r["wall_s"])
         self._requests = out
@@ -175,9 +234,24 @@ class Run:
         return out
 
 
+def read_cells(out):
+    """results.json's cells by (scenario, cell directory name); {} without it (or an older,
+    pre-repeat results.json)."""
+    path = os.path.join(out, "results.json")
+    if not os.path.exists(path):
+        return {}
+    try:
+        cells = read_json(path)
+    except (OSError, json.JSONDecodeError):
+        return {}
+    return {(c["scenario_name"], c["cell"]): c for c in cells
+            if isinstance(c, dict) and "cell" in c and "stats" in c}
+
+
 def find_runs(out):
-    """{scenario: [Run]} for OUT/runs/<scenario>/<run>/summary.json, or a single run directory
-    (OUT/summary.json) as scenario "run"."""
+    """{scenario: [Run]} for OUT/runs/<scenario>/<cell>/rep<r>/summary.json (one Run per cell, its
+    repeats inside) or OUT/runs/<scenario>/<run>/summary.json (before repeats), or a single run
+    directory (OUT/summary.json) as scenario "run"."""
     if os.path.exists(os.path.join(out, "summary.json")):
         return {"run": [Run(os.path.basename(os.path.normpath(out)), out,
                             read_json(os.path.join(out, "summary.json")))]}
@@ -185,6 +259,7 @@ def find_runs(out):
     result = {}
     if not os.path.isdir(base):
         return result
+    cells = read_cells(out)
     for scenario in sorted(os.listdir(base)):
         sdir = os.path.join(base, scenario)
         if not os.path.isdir(sdir):
@@ -195,9 +270,46 @@ def find_runs(out):
             s = os.path.join(d, "summary.json")
             if os.path.exists(s):
                 runs.append(Run(name, d, read_json(s)))
+                continue
+            reps = sorted((e for e in os.listdir(d) if e.startswith("rep") and e[3:].isdigit()
+                           and os.path.exists(os.path.join(d, e, "summary.json"))),
+                          key=lambda e: int(e[3:])) if os.path.isdir(d) else []
+            if not reps:
+                continue
+            rep_runs = [Run(name, os.path.join(d, e), read_json(os.path.join(d, e, "summary.json")))
+                        for e in reps]
+            cell = cells.get((scenario, name))
+            i = cell.get("representative_repeat", 0) if cell else 0
+            i = i if 0 <= i < len(rep_runs) else 0
+            runs.append(Run(name, rep_runs[i].path, rep_runs[i].s, cell=cell, repeats=rep_runs,
+                            representative=i))
         if runs:
             result[scenario] = runs
     return result
+
+
+def fmt_num(v, decimals):
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "–"
+    return f"{v:,.{decimals}f}"
+
+
+def fmt_stat(st, decimals, scale=1.0, n_stated=None):
+    """A statistic as a table cell: "12.35 ± 0.41" (n >= 2), "12.35 (1 run)" (n = 1), "–" (none).
+    n_stated: the n a column's header already states; a cell with that n is not annotated
+    ("12.35" for one run), one with fewer gets "(n = k)" / "(1 run)"."""
+    if not st or not st.get("n"):
+        return "–"
+    n = st["n"]
+    mean = st["mean"] * scale
+    text = fmt_num(mean, decimals) if n == 1 else \
+        f"{fmt_num(mean, decimals)} ± {fmt_num(st.get('ci95', 0.0) * scale, decimals)}"
+    if n_stated is None or n < n_stated:
+        if n == 1:
+            text += " (1 run)"
+        elif n_stated is not None:
+            text += f" (n = {n})"
+    return text
 
 
 def pick(runs, policy, with_vlm, model=None):

@@ -23,6 +23,12 @@ nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
                   {"p99", t.tick_ms.Quantile(0.99)},
                   {"max", t.tick_ms.max()},
                   {"count", t.tick_ms.count()}};
+  s["time_total_ms"] = TimeTotalJson({.steady_mean_ms = t.tick_ms.mean(),
+                                      .steady_ticks = t.tick_ms.count(),
+                                      .has_startup = t.ticks > 0,
+                                      .startup_tick_ms = t.startup.tick_ms,
+                                      .late_ms = t.late_ms,
+                                      .idle_load_ms = t.idle_load_ms});
   s["startup"] = {{"tick_ms", t.startup.tick_ms},
                   {"load_ms", t.startup.load_ms},
                   {"keyframes_loaded", t.startup.keyframes_loaded},
@@ -71,9 +77,23 @@ nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
                 {"loads_preempted", t.loads_preempted},
                 {"max_pending_keyframes", t.max_pending_keyframes},
                 {"late_ticks", t.late_ticks},
-                {"max_late_ms", t.max_late_ms}};
+                {"max_late_ms", t.max_late_ms},
+                {"late_ms_total", t.late_ms}};
   s["malformed_lines"] = loop.malformed_lines();
   return s;
+}
+
+nlohmann::json TimeTotalJson(const TimeTotalInputs& in) {
+  const double n = static_cast<double>(in.steady_ticks);
+  const double steady = in.steady_ticks > 0 ? in.steady_mean_ms : 0.0;
+  const double with_startup =
+      in.has_startup ? (steady * n + in.startup_tick_ms) / (n + 1.0) : steady;
+  const double late = in.steady_ticks > 0 ? in.late_ms / n : 0.0;
+  const double idle = in.steady_ticks > 0 ? in.idle_load_ms / n : 0.0;
+  return {{"steady", steady},
+          {"with_startup", with_startup},
+          {"without_idle_loads", steady - late},
+          {"with_idle_loads", steady - late + idle}};
 }
 
 }  // namespace zm

@@ -319,6 +319,7 @@ Result<bool> TickLoop::Tick() {
     totals_.startup.tick_ms = record_.tick_ms;
   } else {
     totals_.tick_ms.Add(record_.tick_ms);
+    totals_.late_ms += record_.late_ms;
   }
   totals_.simulated_s += std::max(frame_period_s_, record_.tick_ms / 1000.0);
   ++totals_.ticks;

@@ -154,6 +154,7 @@ struct LoopTotals {
   std::uint32_t max_pending_keyframes = 0;   // longest load queue after a tick
   std::uint64_t late_ticks = 0;              // ticks whose frame waited on an idle part
   double max_late_ms = 0.0;
+  double late_ms = 0.0;  // summed over the steady ticks (each one's tick_ms includes its own)
   double simulated_s = 0.0;  // sum over ticks of max(frame period, tick time)
   StartupTotals startup;
   StreamingStats tick_ms;    // every tick after the first (the steady state)

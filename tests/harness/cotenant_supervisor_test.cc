@@ -137,7 +137,9 @@ TEST_CASE("a frozen co-tenant: the watchdog reports the stall, the request still
   // ten times as long, the test a second more.
   o.config.options.answer_tokens = 2000;
   o.config.options.context_tokens = 2304;
-  o.config.options.watchdog_s = 0.2;
+  // The watchdog is given at full size and scales with the device (ResolveCotenantSizes):
+  // 0.2 s at this test's scale.
+  o.config.options.watchdog_s = 0.2 / o.config.device_scale;
   o.events_path = events;
   CotenantSupervisor sup;
   REQUIRE(sup.Start(o).ok());

@@ -107,6 +107,9 @@ TEST_CASE(
   CHECK(eighth->weights_bytes == 237'500'000ULL / 4096 * 4096);
   CHECK(eighth->kv_reserved_bytes == 4096ULL * 114'688 / 8);
   CHECK(*CotenantKvReserveBytes(c) == full->kv_reserved_bytes);  // planned at scale 1
+  // The watchdog scales with the weights a token streams: 10 s at full size, 1.25 s at 1/8.
+  CHECK(full->watchdog_s == doctest::Approx(10.0));
+  CHECK(eighth->watchdog_s == doctest::Approx(1.25));
   for (double bad : {0.0, -1.0, 1.5}) {
     c.device_scale = bad;
     Result<CotenantSizes> r = ResolveCotenantSizes(c);
@@ -435,6 +438,42 @@ TEST_CASE("the outcome follows the counts, in one place") {
   CHECK(killed.reason.find("restarted 2 times") != std::string::npos);
   CHECK(CotenantOutcomeName(CotenantOutcome::kFailedToStart) == "failed_to_start");
   CHECK(CotenantOutcomeSymbol(CotenantOutcome::kKilled) == "\u2020");
+}
+
+TEST_CASE("the report's aggregate tokens/s, mean and p95 latency from a request log") {
+  // Ten requests of 100 answer tokens: nine decode in 1 s (100 tokens/s), one in 9 s (11.1): the
+  // median rate stays 100, the aggregate is 1,000 tokens over 18 s = 55.6 tokens/s.
+  CotenantReportBuilder b(1000.0);
+  REQUIRE(b.Add({{"event", "start"}, {"model", "qwen3-vl-2b"}}).ok());
+  for (int i = 0; i < 10; ++i) {
+    const double decode_ms = i == 9 ? 9000.0 : 1000.0;
+    const double latency_ms = decode_ms + 500.0;  // 500 ms of prompt processing each
+    REQUIRE(b.Add({{"event", "request"},
+                   {"id", i},
+                   {"started_s", 1000.0 + 10 * i},
+                   {"ended_s", 1000.0 + 10 * i + latency_ms / 1000.0},
+                   {"answer_tokens", 100},
+                   {"decode_ms", decode_ms},
+                   {"latency_ms", latency_ms},
+                   {"tokens_per_s", 100 * 1000.0 / decode_ms}})
+                .ok());
+  }
+  const CotenantResult r = b.Report();
+  CHECK(r.requests == 10);
+  CHECK(r.tokens_generated == 1000);
+  CHECK(r.decode_ms_total == doctest::Approx(18000.0));
+  CHECK(r.tokens_per_s_aggregate == doctest::Approx(1000.0 / 18.0));
+  CHECK(r.tokens_per_s == doctest::Approx(100.0).epsilon(0.005));  // median, StreamingStats
+  CHECK(r.latency_ms_mean == doctest::Approx((9 * 1500.0 + 9500.0) / 10));
+  // p95 nearest rank: the 10th of 10, the slow one.
+  CHECK(r.latency_ms_p95 == doctest::Approx(9500.0).epsilon(0.005));
+  CHECK(r.latency_ms_p50 == doctest::Approx(1500.0).epsilon(0.005));
+  const nlohmann::json j = ToJson(r);
+  CHECK(j["tokens_per_s_aggregate"].get<double>() == doctest::Approx(1000.0 / 18.0));
+  CHECK(j["latency_ms"]["mean"].get<double>() == doctest::Approx(2300.0));
+  CHECK(j["latency_ms"]["p95"].get<double>() == doctest::Approx(9500.0).epsilon(0.005));
+  // No completed request: no rates at all, not zeros.
+  CHECK(ToJson(CotenantReportBuilder(0.0).Report())["tokens_per_s_aggregate"].is_null());
 }
 
 TEST_CASE("a malformed line is an error, an unknown event is ignored") {

@@ -100,6 +100,9 @@ class Session {
   }
   ~Session() {
     if (feeder_.joinable()) feeder_.join();
+    // The daemon's loop uses the database to its end (a queued load yields its source in the
+    // working set's destructor): gone before db_, which is declared after it.
+    daemon.reset();
     CloseOutput();
     if (in_[0] >= 0) ::close(in_[0]);
   }

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Behaviour of scripts/paper_tables.py, scripts/sweep.py and scripts/plots.py on a tiny
 synthetic bench output (make_fixture.py): the cells the paper's tables must show, the sweep's
-arithmetic against numbers worked by hand and against the C++ tests' K_max, and the four
-figures written. Exit 77 (ctest: skipped, with the reason printed) when matplotlib is missing,
+arithmetic against numbers worked by hand and against the C++ tests' K_max, the five figures
+written; with repeats (make_fixture.py --repeats), the cells and their mean ± CI formatting. Exit 77 (ctest: skipped, with the reason printed) when matplotlib is missing,
 after the table and arithmetic checks have run.
 
 Usage: scripts_test.py SOURCE_DIR WORK_DIR
@@ -44,16 +44,52 @@ check(bv is not None and bv.cotenant_deaths() == [2.0], "the co-tenant's kill on
 text = paper_tables.render(WORK)
 check("memory cgroup" in text and "time compression 10x" in text and "device scale 0.125" in text,
       "the device kind, scale and time compression are stated")
-check("| metric | Basic only | Basic + VLM | Semantic only | Semantic + VLM |" in text,
+check("| metric | Basic only (1 run) | Basic + VLM (1 run) | Semantic only (1 run) | "
+      "Semantic + VLM (1 run) |" in text,
       "Table I has the paper's four columns in its order")
 check("| update rate (Hz) ↑ | 0.95 (0.96) | 0.65 (0.65) |" in text, "update rate: ours (paper)")
-check("| device OOM kills | 0 | 1 | 0 | 0 |" in text, "OOM kills per configuration")
+check("| metric | Basic only (1 run) | Basic + VLM (1 run) |" in text,
+      "one run: the header says so, the cells show the value")
+check("One run per configuration." in text, "one run stated above the tables")
+check("| device OOM kills | 0.0 | 1.0 | 0.0 | 0.0 |" in text, "OOM kills per configuration")
 check("| map process outcome | ○ completed | † killed |" in text, "Basic + VLM's map killed")
-check("| frames processed / arrived | 59 of 60 | 48 of 60 |" in text, "frames dropped shown")
-check("| qwen3-vl-2b | △ stalled | 1.50 | 10,600 | ○ completed | 4.60 | 2,300 |" in text,
-      "Table II row: outcome, median tokens/s and latency per policy")
-check("| qwen3-vl-2b: the paper | △ | 32.43 | 9,642 | ○ | 33.36 | 10,260 |" in text,
+check("| frames dropped of arrived | 1 of 60 | 12 of 60 |" in text, "frames dropped shown")
+check("| qwen3-vl-2b | Basic | 1 | △ stalled | 12.0 | 1.50 | – | 10,600 | – | 11,400 | – |" in text,
+      "Table II row: outcome, requests, median/aggregate tokens/s, latency p50/mean/p95")
+check("| qwen3-vl-2b | Semantic | 1 | ○ completed | 12.0 | 4.60 |" in text,
+      "Table II: Semantic's row")
+check("| qwen3-vl-2b: the paper | Basic | 1 | △ | | 32.43 | – | 9,642 |" in text,
       "Table II: the paper's row beside ours")
+
+# Repeats (zonemap bench --repeat 3): a cell per configuration, its representative repeat, the
+# statistics results.json carries formatted as mean ± 95 % CI; a statistic fewer runs had says
+# its n; one run says "1 run".
+REP = WORK + "-repeats"
+shutil.rmtree(REP, ignore_errors=True)
+subprocess.run([sys.executable, os.path.join(SRC, "tests/scripts/make_fixture.py"), REP,
+                "--repeats"], check=True)
+rfound = runs.find_runs(REP)
+check(len(rfound.get("tiny", [])) == 4, "repeats: four cells, not twelve runs")
+rb = runs.pick(rfound["tiny"], "basic", True)
+check(rb is not None and rb.n == 3 and len(rb.repeats) == 3 and rb.path.endswith("rep1"),
+      "repeats: the representative repeat (results.json's) is the one shown")
+check(rb is not None and rb.stat("/update_rate_hz")["n"] == 3, "repeats: the cell's statistic")
+rtext = paper_tables.render(REP)
+check("| metric | Basic only (n = 3) | Basic + VLM (n = 3) |" in rtext, "repeats: n in the header")
+check("| update rate (Hz) ↑ | 0.95 ± 0.12 (0.96) |" in rtext, "repeats: mean ± CI (paper)")
+check("3 runs per configuration, interleaved" in rtext, "repeats stated above the tables")
+check("(weights pinned)" in rtext, "the co-tenant's weights (cotenant.weights) stated")
+check("| 4.00 ± 12.71 (n = 2) |" in rtext, "a statistic two of three runs had says n = 2")
+check(runs.fmt_stat(RATE3 := {"n": 3, "mean": 0.95, "ci95": 0.124207}, 2) == "0.95 ± 0.12",
+      "fmt_stat: n = 3")
+check(runs.fmt_stat({"n": 1, "mean": 0.5, "ci95": 0.0}, 3) == "0.500 (1 run)",
+      "fmt_stat: n = 1 says so")
+check(runs.fmt_stat({"n": 1, "mean": 0.5}, 3, 1.0, 1) == "0.500",
+      "fmt_stat: n = 1 under a header that says 1 run")
+check(runs.fmt_stat({"n": 1, "mean": 0.5}, 3, 1.0, 3) == "0.500 (1 run)",
+      "fmt_stat: one run of three")
+check(runs.fmt_stat(None, 2) == "–" and runs.fmt_stat({"n": 0}, 2) == "–", "fmt_stat: none")
+check(runs.fmt_stat(RATE3, 1, 1000.0) == "950.0 ± 124.2", "fmt_stat: scaled")
 
 # Sweep arithmetic, worked by hand for orin-nano-8gb (8 GiB, 1.75 GiB OS, 1.9 GB weights,
 # 0.5 GiB headroom, 256 MiB overhead). The budget is the program's (`zonemap budget --stdin`,
@@ -105,6 +141,7 @@ except ImportError as e:
     sys.exit(1 if failures else 77)
 
 subprocess.run([sys.executable, os.path.join(SRC, "scripts/plots.py"), WORK], check=True)
+subprocess.run([sys.executable, os.path.join(SRC, "scripts/plots.py"), REP], check=True)
 
 
 def png_size(path):
@@ -115,9 +152,11 @@ def png_size(path):
     return struct.unpack(">II", head[16:24])
 
 
-for name in ("memory", "trajectories", "cotenant", "cotenant_path"):
-    size = png_size(os.path.join(WORK, "figures", f"{name}_tiny.png"))
-    check(size is not None and size[0] > 400 and size[1] > 300, f"figure {name}_tiny.png written")
+for base in (WORK, REP):
+    for name in ("memory", "trajectories", "cotenant", "cotenant_path", "timeline"):
+        size = png_size(os.path.join(base, "figures", f"{name}_tiny.png"))
+        check(size is not None and size[0] > 400 and size[1] > 300,
+              f"figure {name}_tiny.png written ({os.path.basename(base)})")
 out = os.path.join(WORK, "sweep")
 r = subprocess.run([sys.executable, os.path.join(SRC, "scripts/sweep.py"), "derive", "--out", out],
                    capture_output=True, text=True)
