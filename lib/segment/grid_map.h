@@ -27,9 +27,9 @@ inline constexpr std::uint8_t kCellFree = 255;
 inline constexpr double kDefaultGridResolutionM = 0.05;
 
 struct OccupancyGrid {
-  cv::Mat cells;                  // CV_8UC1, row 0 = top (largest y)
+  cv::Mat cells;                                  // CV_8UC1, row 0 = top (largest y)
   double resolution_m = kDefaultGridResolutionM;  // metres per cell
-  Eigen::Vector2d origin_m{0.0, 0.0};  // map-frame corner of the bottom-left cell
+  Eigen::Vector2d origin_m{0.0, 0.0};             // map-frame corner of the bottom-left cell
 
   [[nodiscard]] int rows() const { return cells.rows; }
   [[nodiscard]] int cols() const { return cells.cols; }
