@@ -188,7 +188,7 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
     if (!made.ok()) return ctx.Fail(kCmd, made.status());
     zones = std::move(made).value();
   }
-  if (Status w = WriteZonesGeoJson(o.out, zones); !w.ok()) return ctx.Fail(kCmd, w);
+  if (Status w = WriteZonesGeoJson(zones, o.out); !w.ok()) return ctx.Fail(kCmd, w);
   int rooms = 0, corridors = 0;
   for (const Zone& z : zones) (z.kind == "corridor" ? corridors : rooms) += 1;
   report["zones"] = zones.size();

@@ -190,6 +190,9 @@ Result<std::vector<Zone>> ZonesFromKeyframes(std::span<const Eigen::Vector2d> po
     z.id = ZoneId(static_cast<std::int32_t>(zones.size()));
     z.name = "area_" + std::to_string(zones.size() + 1);
     z.kind = "room";
+    const ZRange band = FloorZRange(z.floor);  // floor 0's, as the file meant without a range
+    z.z_min_m = band.min_m;
+    z.z_max_m = band.max_m;
     z.polygon = std::move(ring);
     zones.push_back(std::move(z));
   }

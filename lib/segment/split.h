@@ -25,7 +25,8 @@ namespace zm {
 // `cell_size_m`; a cell holding more than `max_keyframes` is split along the principal axis of
 // its keyframes at the median, recursively. Each part becomes one zone: the convex hull of its
 // keyframes grown by `margin_m`, clipped to its cell part, so zones never overlap and each
-// contains its keyframes. Zones are named "area_<n>", kind "room".
+// contains its keyframes. Zones are named "area_<n>", kind "room", floor 0 with floor 0's z
+// range (FloorZRange).
 struct KeyframeZoneOptions {
   double cell_size_m = 8.0;
   int max_keyframes = 200;

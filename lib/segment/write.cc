@@ -4,9 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <fstream>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -59,6 +57,9 @@ Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg, const Occ
       z.name = s.kind + "_" + std::to_string(++per_kind[s.kind]);
       z.kind = s.kind;
       z.floor = 0;
+      const ZRange band = FloorZRange(z.floor);
+      z.z_min_m = band.min_m;
+      z.z_max_m = band.max_m;
       z.polygon = std::move(ring);
       zones.push_back(std::move(z));
     }
@@ -66,29 +67,6 @@ Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg, const Occ
     return Internal(std::string("zone polygons: OpenCV failed: ") + e.what());
   }
   return zones;
-}
-
-std::string ZonesToGeoJson(std::span<const Zone> zones) {
-  nlohmann::json features = nlohmann::json::array();
-  for (const Zone& z : zones) {
-    nlohmann::json ring = nlohmann::json::array();
-    for (const auto& p : z.polygon) ring.push_back({p.x(), p.y()});
-    if (!z.polygon.empty()) ring.push_back({z.polygon.front().x(), z.polygon.front().y()});
-    features.push_back({{"type", "Feature"},
-                        {"properties", {{"name", z.name}, {"kind", z.kind}, {"floor", z.floor}}},
-                        {"geometry", {{"type", "Polygon"}, {"coordinates", {ring}}}}});
-  }
-  nlohmann::json doc = {{"type", "FeatureCollection"}, {"features", features}};
-  return doc.dump(1);
-}
-
-Status WriteZonesGeoJson(const std::string& path, std::span<const Zone> zones) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) return IoError(path + ": cannot open for writing");
-  out << ZonesToGeoJson(zones) << '\n';
-  out.flush();
-  if (!out) return IoError(path + ": write failed");
-  return Status::Ok();
 }
 
 Status WriteSegmentationPng(const std::string& path, const OccupancyGrid& grid,

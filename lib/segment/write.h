@@ -26,7 +26,8 @@ inline constexpr OptionField<OutlineOptions> kOutlineOptionFields[] = {
 
 // One polygon zone per segment (largest outer contour through the boundary cells' centres,
 // simplified, always a simple counter-clockwise ring, in map-frame metres), named
-// "<kind>_<n>", floor 0. Segments whose outline has < 3 vertices are skipped.
+// "<kind>_<n>", floor 0 with floor 0's z range (FloorZRange: what the zone file meant when it
+// gave no range). Segments whose outline has < 3 vertices are skipped.
 [[nodiscard]] Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg,
                                                             const OccupancyGrid& grid,
                                                             const OutlineOptions& options = {});
@@ -36,9 +37,7 @@ inline constexpr OptionField<OutlineOptions> kOutlineOptionFields[] = {
 [[nodiscard]] Status WriteSegmentationPng(const std::string& path, const OccupancyGrid& grid,
                                           const Segmentation& seg);
 
-// GeoJSON FeatureCollection of Polygon features (closed rings, metres) with properties name,
-// kind, floor: the zones module's zone file format.
-[[nodiscard]] std::string ZonesToGeoJson(std::span<const Zone> zones);
-[[nodiscard]] Status WriteZonesGeoJson(const std::string& path, std::span<const Zone> zones);
+// The zone file is written by the zones module's one GeoJSON writer (zones/zone_set.h,
+// WriteZonesGeoJson).
 
 }  // namespace zm

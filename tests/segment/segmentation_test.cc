@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -114,10 +115,16 @@ TEST_CASE("a synthetic floor of rooms joined by doors is segmented one segment p
   // The GeoJSON is accepted by the zones module's own loader.
   const auto dir = TempDir("synthetic");
   const std::string path = (dir / "zones.geojson").string();
-  REQUIRE(WriteZonesGeoJson(path, *zones).ok());
+  REQUIRE(WriteZonesGeoJson(*zones, path).ok());
   auto loaded = LoadZoneFile(path);
   REQUIRE_MESSAGE(loaded.ok(), loaded.status().ToString());
   CHECK(loaded->size() == 4);
+  // Written by the zones module's one writer: floor 0's z range, explicit.
+  CHECK(loaded->zones()[0].z_min_m == -0.5 * kDefaultFloorHeightM);
+  CHECK(loaded->zones()[0].z_max_m == 0.5 * kDefaultFloorHeightM);
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  CHECK(text.find("\"z_min\": -1.5") != std::string::npos);
 }
 
 // A floor drawn from rectangles at 0.05 m/px: everything unknown, an occupied block, free
