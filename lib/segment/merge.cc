@@ -18,6 +18,31 @@ namespace {
 
 std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
 
+// Merged labels 1..count as a forest (path halving): each merge hangs one root under another,
+// and Relabel gives every labelled cell its root.
+class Roots {
+ public:
+  explicit Roots(int count) : parent_(Idx(count) + 1) {
+    std::iota(parent_.begin(), parent_.end(), 0);
+  }
+  int Find(int x) {
+    while (parent_[Idx(x)] != x) x = parent_[Idx(x)] = parent_[Idx(parent_[Idx(x)])];
+    return x;
+  }
+  void Join(int root, int into) { parent_[Idx(root)] = into; }
+  void Relabel(cv::Mat* labels) {
+    for (int r = 0; r < labels->rows; ++r) {
+      int* l = labels->ptr<int>(r);
+      for (int c = 0; c < labels->cols; ++c) {
+        if (l[c] != 0) l[c] = Find(l[c]);
+      }
+    }
+  }
+
+ private:
+  std::vector<int> parent_;
+};
+
 // Merges neighbouring segments whose shared border is not a constriction: the widest point of
 // the border (the largest clearance on it, `saddle`) is at least `ratio` of the smaller of the
 // two segments' own largest clearance (`peak`). Doors are narrow against both rooms; a split
@@ -48,17 +73,12 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
       }
     }
   }
-  std::vector<int> parent(Idx(label_count) + 1);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int x) {
-    while (parent[Idx(x)] != x) x = parent[Idx(x)] = parent[Idx(parent[Idx(x)])];
-    return x;
-  };
+  Roots roots(label_count);
   for (;;) {
     // The most open border first; recompute over current roots.
     std::map<std::pair<int, int>, float> current;
     for (const auto& [key, s] : saddle) {
-      int a = find(key.first), b = find(key.second);
+      int a = roots.Find(key.first), b = roots.Find(key.second);
       if (a == b) continue;
       if (a > b) std::swap(a, b);
       float& v = current[{a, b}];
@@ -74,15 +94,10 @@ void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, doubl
       if ((open || same_space) && q > best) best = q, best_pair = key;
     }
     if (best_pair.first == 0) break;
-    parent[Idx(best_pair.second)] = best_pair.first;
+    roots.Join(best_pair.second, best_pair.first);
     peak[Idx(best_pair.first)] = std::max(peak[Idx(best_pair.first)], peak[Idx(best_pair.second)]);
   }
-  for (int r = 0; r < labels->rows; ++r) {
-    int* l = labels->ptr<int>(r);
-    for (int c = 0; c < labels->cols; ++c) {
-      if (l[c] != 0) l[c] = find(l[c]);
-    }
-  }
+  roots.Relabel(labels);
 }
 
 // Merges neighbours whose shared border runs through an opening (a wall continued across a gap,
@@ -157,16 +172,11 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     }
     local[key] = constriction(main_id);
   }
-  std::vector<int> parent(Idx(label_count) + 1);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int x) {
-    while (parent[Idx(x)] != x) x = parent[Idx(x)] = parent[Idx(parent[Idx(x)])];
-    return x;
-  };
+  Roots roots(label_count);
   for (;;) {
     std::map<std::pair<int, int>, std::pair<float, double>> current;
     for (const auto& [key, s] : saddle) {
-      int a = find(key.first), b = find(key.second);
+      int a = roots.Find(key.first), b = roots.Find(key.second);
       if (a == b) continue;
       if (a > b) std::swap(a, b);
       auto& v = current[{a, b}];
@@ -185,19 +195,14 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
       if (order > best) best = order, best_pair = key;
     }
     if (best_pair.first == 0) break;
-    parent[Idx(best_pair.second)] = best_pair.first;
+    roots.Join(best_pair.second, best_pair.first);
     // The merged space is at least as open as the opening it merged across: two strips cut
     // from one room by a wall's continuation are, together, the room again, and a wardrobe
     // off it is measured against the room, not against a strip.
     peak[Idx(best_pair.first)] = std::max(
         {peak[Idx(best_pair.first)], peak[Idx(best_pair.second)], current[best_pair].first});
   }
-  for (int r = 0; r < labels->rows; ++r) {
-    int* l = labels->ptr<int>(r);
-    for (int c = 0; c < labels->cols; ++c) {
-      if (l[c] != 0) l[c] = find(l[c]);
-    }
-  }
+  roots.Relabel(labels);
 }
 
 }  // namespace
