@@ -298,14 +298,18 @@ Status CheckCutOptions(const CutOptions& o) {
 }
 
 CutOptions LayoutPieceCut(const CutOptions& o) {
+  // Which option each layout_* option stands in for when the layout pieces are cut.
+  constexpr std::pair<double CutOptions::*, double CutOptions::*> kLayoutFor[] = {
+      {&CutOptions::opening_max_width_m, &CutOptions::layout_line_max_m},
+      {&CutOptions::facing_opening_max_width_m, &CutOptions::layout_line_max_m},
+      {&CutOptions::mouth_opening_max_width_m, &CutOptions::layout_mouth_max_m},
+      {&CutOptions::facade_opening_max_width_m, &CutOptions::layout_facade_max_m},
+      {&CutOptions::corner_opening_max_width_m, &CutOptions::layout_corner_max_m},
+      {&CutOptions::cap_opening_max_width_m, &CutOptions::layout_cap_max_m},
+      {&CutOptions::seedless_room_min_area_m2, &CutOptions::layout_seedless_min_area_m2},
+  };
   CutOptions p = o;
-  p.opening_max_width_m = o.layout_line_max_m;
-  p.facing_opening_max_width_m = o.layout_line_max_m;
-  p.mouth_opening_max_width_m = o.layout_mouth_max_m;
-  p.facade_opening_max_width_m = o.layout_facade_max_m;
-  p.corner_opening_max_width_m = o.layout_corner_max_m;
-  p.cap_opening_max_width_m = o.layout_cap_max_m;
-  p.seedless_room_min_area_m2 = o.layout_seedless_min_area_m2;
+  for (const auto& [field, layout] : kLayoutFor) p.*field = o.*layout;
   return p;
 }
 
