@@ -60,17 +60,7 @@ std::uint8_t Classify(double p, double occupied_thresh, double free_thresh) {
 
 // Reads an image as 8-bit grey plus an alpha mask (255 where opaque).
 Result<std::pair<cv::Mat, cv::Mat>> ReadGreyAndAlpha(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    return NotFound(path + ": no such file");
-  }
-  cv::Mat img;
-  try {
-    img = cv::imread(path, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    return InvalidArgument(path + ": OpenCV could not read it: " + e.what());
-  }
-  if (img.empty()) return InvalidArgument(path + ": not a readable image (PNG, PGM, ...)");
+  ZM_ASSIGN_OR_RETURN(cv::Mat img, ReadImageFile(path, cv::IMREAD_UNCHANGED));
   try {
     if (img.depth() == CV_16U) img.convertTo(img, CV_8U, 1.0 / 257.0);
     if (img.depth() != CV_8U) {
@@ -110,6 +100,19 @@ struct YamlMap {
 };
 
 }  // namespace
+
+Result<cv::Mat> ReadImageFile(const std::string& path, int imread_flags) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return NotFound(path + ": no such file");
+  cv::Mat img;
+  try {
+    img = cv::imread(path, imread_flags);
+  } catch (const cv::Exception& e) {
+    return InvalidArgument(path + ": OpenCV could not read it: " + e.what());
+  }
+  if (img.empty()) return InvalidArgument(path + ": not a readable image (PNG, PGM, ...)");
+  return img;
+}
 
 Eigen::Vector2d OccupancyGrid::CellToMetres(double col, double row) const {
   return {origin_m.x() + (col + 0.5) * resolution_m,

@@ -53,6 +53,11 @@ struct OccupancyGrid {
 [[nodiscard]] Result<OccupancyGrid> LoadGridImage(const std::string& image_path,
                                                   double resolution_m = kDefaultGridResolutionM);
 
+// An image file as cv::imread reads it with `imread_flags`: NotFound when there is no such file,
+// InvalidArgument naming the file when it is not a readable image. The one image reader of the
+// grid loaders and the ground truth (score.h).
+[[nodiscard]] Result<cv::Mat> ReadImageFile(const std::string& path, int imread_flags);
+
 // Dispatches on the extension: .yaml/.yml -> LoadGridYaml, .db -> LoadRtabmapGrid, else an
 // image. `resolution_m` > 0 overrides the resolution of an image or YAML.
 [[nodiscard]] Result<OccupancyGrid> LoadOccupancyGrid(const std::string& path,

@@ -3,12 +3,13 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <filesystem>
 #include <map>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <unordered_map>
 #include <vector>
+
+#include "segment/grid_map.h"
 
 namespace zm {
 namespace {
@@ -18,15 +19,7 @@ std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
 }  // namespace
 
 Result<cv::Mat> LoadGroundTruthLabels(const std::string& path, int min_room_cells) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) return NotFound(path + ": no such file");
-  cv::Mat img;
-  try {
-    img = cv::imread(path, cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    return InvalidArgument(path + ": OpenCV could not read it: " + e.what());
-  }
-  if (img.empty()) return NotFound(path + ": missing or not a readable image");
+  ZM_ASSIGN_OR_RETURN(const cv::Mat img, ReadImageFile(path, cv::IMREAD_COLOR));
   cv::Mat labels = cv::Mat::zeros(img.size(), CV_32S);
   std::unordered_map<std::uint32_t, int> ids;
   for (int r = 0; r < img.rows; ++r) {
