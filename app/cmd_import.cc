@@ -9,7 +9,7 @@
 #include <string>
 
 #include "commands.h"
-#include "mapdb/rtabmap_import.h"
+#include "import/rtabmap_import.h"
 
 namespace zm::app {
 namespace {

@@ -3,17 +3,22 @@
 // database's keyframes alone when no grid is given. Writes a GeoJSON zone file; optionally caps
 // the keyframes per zone (--db with --max-zone-keyframes) and scores against a ground-truth PNG.
 #include <chrono>
-#include <cstdlib>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "commands.h"
 #include "mapdb/map_db.h"
-#include "zones/grid_map.h"
-#include "zones/segmentation.h"
+#include "segment/grid_map.h"
+#include "segment/score.h"
+#include "segment/segmentation.h"
+#include "segment/split.h"
+#include "segment/write.h"
 
 namespace zm::app {
 namespace {
@@ -26,13 +31,57 @@ struct SegmentOpts {
   int max_zone_keyframes = 0;
   double resolution_m = 0.0;
   double cell_size_m = 8.0;
-  std::vector<std::string> params;  // KEY=VALUE overrides of SegmentOptions
+  std::vector<std::string> params;  // KEY=VALUE overrides of SegmentOptions (SetSegmentParam)
   std::string labels_png;
-  std::string merge_model;  // a layout merge model JSON instead of the compiled-in one
-  std::string merge_trace;  // CSV of every pair's features and --score's label, every step
+  std::string merge_model;    // a layout merge model JSON instead of the compiled-in one
+  std::string merge_trace;    // CSV of every pair's features and --score's label, every step
   bool merge_oracle = false;  // trace: merge by the ground truth instead of the model
   bool json = false;
 };
+
+// Sets `field` of `stage` when `key` names it in `fields`; true when it did.
+template <class Options, std::size_t N>
+bool SetField(const OptionField<Options> (&fields)[N], const std::string& key, double value,
+              Options* stage, std::string* known) {
+  for (const OptionField<Options>& f : fields) {
+    if (key == f.name) {
+      stage->*f.field = value;
+      return true;
+    }
+    *known += (known->empty() ? "" : ", ") + std::string(f.name);
+  }
+  return false;
+}
+
+// `--param KEY=VALUE`: KEY is an option's name in its stage's table (segment/cut.h, merge.h,
+// write.h), VALUE a number in the option's unit. An unknown key or a value that is not a finite
+// number is an InvalidArgument naming it, and so is a value out of its range. For evaluation
+// runs (leave-one-out parameter choice); the defaults are the product.
+Status SetSegmentParam(const std::string& key_value, SegmentOptions* options) {
+  const auto eq = key_value.find('=');
+  if (eq == std::string::npos) {
+    return InvalidArgument("segmentation option '" + key_value + "': expected KEY=VALUE");
+  }
+  const std::string key = key_value.substr(0, eq);
+  const std::string text = key_value.substr(eq + 1);
+  double value = 0.0;
+  try {
+    std::size_t used = 0;
+    value = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(value)) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    return InvalidArgument("segmentation option '" + key + "': '" + text + "' is not a number");
+  }
+  std::string known;
+  if (SetField(kCutOptionFields, key, value, &options->cut, &known) ||
+      SetField(kRuleMergeOptionFields, key, value, &options->rules, &known) ||
+      SetField(kKindOptionFields, key, value, &options->kinds, &known) ||
+      SetField(kOutlineOptionFields, key, value, &options->outline, &known) ||
+      SetField(kLearnedMergeOptionFields, key, value, &options->learned, &known)) {
+    return CheckSegmentOptions(*options);
+  }
+  return InvalidArgument("unknown segmentation option '" + key + "' (known: " + known + ")");
+}
 
 Result<std::vector<Eigen::Vector2d>> KeyframePositions(const std::string& db_path) {
   ZM_ASSIGN_OR_RETURN(auto db, MapDb::Open(db_path));
@@ -70,12 +119,13 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
     report["source"] = "keyframes";
     report["keyframes"] = keyframes.size();
   } else {
-    auto grid = LoadOccupancyGrid(o.map, o.resolution_m);
-    if (!grid.ok()) return ctx.Fail(kCmd, grid.status());
+    // The options first: a mistyped --param fails before any map is read.
     SegmentOptions options;
     for (const std::string& kv : o.params) {
-      if (Status st = SetSegmentOption(kv, &options); !st.ok()) return ctx.Fail(kCmd, st);
+      if (Status st = SetSegmentParam(kv, &options); !st.ok()) return ctx.Fail(kCmd, st);
     }
+    auto grid = LoadOccupancyGrid(o.map, o.resolution_m);
+    if (!grid.ok()) return ctx.Fail(kCmd, grid.status());
     LayoutMergeModel model = DefaultLayoutMergeModel();
     if (!o.merge_model.empty()) {
       auto loaded = LoadLayoutMergeModel(o.merge_model);
@@ -97,6 +147,9 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
       trace.ground_truth = &trace_gt;
       trace.csv = trace_file.get();
       trace.oracle = o.merge_oracle;
+      // What a model trained on this trace records (scripts/train_layout_merge.py reads it).
+      report["trained_with"] =
+          nlohmann::json::parse(LayoutMergeTrainedWithJson(options.cut, options.rules));
     } else if (o.merge_oracle) {
       return ctx.Fail(kCmd, "--merge-oracle needs --merge-trace");
     }
@@ -120,12 +173,9 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
       }
       auto score = ScoreSegmentation(seg->labels, *gt);
       if (!score.ok()) return ctx.Fail(kCmd, score.status());
-      report["score"] = {{"precision", score->precision},
-                         {"recall", score->recall},
-                         {"mean_iou", score->mean_iou},
-                         {"mean_iou_full", score->mean_iou_full},
-                         {"gt_rooms", score->gt_rooms},
-                         {"segments", score->predicted_segments}};
+      report["score"] = {{"precision", score->precision}, {"recall", score->recall},
+                         {"mean_iou", score->mean_iou},   {"mean_iou_full", score->mean_iou_full},
+                         {"gt_rooms", score->gt_rooms},   {"segments", score->predicted_segments}};
     }
     if (o.max_zone_keyframes > 0) {
       if (o.db.empty()) return ctx.Fail(kCmd, "--max-zone-keyframes needs --db MAP.db");
@@ -134,11 +184,11 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
       if (!split.ok()) return ctx.Fail(kCmd, split);
       report["split_added"] = seg->segments.size() - before;
     }
-    auto made = SegmentationToZones(*seg, *grid, options);
+    auto made = SegmentationToZones(*seg, *grid, options.outline);
     if (!made.ok()) return ctx.Fail(kCmd, made.status());
     zones = std::move(made).value();
   }
-  if (Status w = WriteZonesGeoJson(o.out, zones); !w.ok()) return ctx.Fail(kCmd, w);
+  if (Status w = WriteZonesGeoJson(zones, o.out); !w.ok()) return ctx.Fail(kCmd, w);
   int rooms = 0, corridors = 0;
   for (const Zone& z : zones) (z.kind == "corridor" ? corridors : rooms) += 1;
   report["zones"] = zones.size();
@@ -151,16 +201,16 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
     std::printf("%s\n", report.dump(2).c_str());
     return;
   }
-  std::printf("zones segment: %zu zones (%d rooms, %d corridors) -> %s in %.0f ms\n",
-              zones.size(), rooms, corridors, o.out.c_str(), report["total_ms"].get<double>());
+  std::printf("zones segment: %zu zones (%d rooms, %d corridors) -> %s in %.0f ms\n", zones.size(),
+              rooms, corridors, o.out.c_str(), report["total_ms"].get<double>());
   if (report.contains("score")) {
     const auto& s = report["score"];
-    std::printf("score: precision %.1f %% recall %.1f %% mean IoU %.1f %% (all cells %.1f %%) "
-                "(%d GT rooms, %d segments, segmentation %.0f ms)\n",
-                100.0 * s["precision"].get<double>(), 100.0 * s["recall"].get<double>(),
-                100.0 * s["mean_iou"].get<double>(), 100.0 * s["mean_iou_full"].get<double>(),
-                s["gt_rooms"].get<int>(),
-                s["segments"].get<int>(), report["segment_ms"].get<double>());
+    std::printf(
+        "score: precision %.1f %% recall %.1f %% mean IoU %.1f %% (all cells %.1f %%) "
+        "(%d GT rooms, %d segments, segmentation %.0f ms)\n",
+        100.0 * s["precision"].get<double>(), 100.0 * s["recall"].get<double>(),
+        100.0 * s["mean_iou"].get<double>(), 100.0 * s["mean_iou_full"].get<double>(),
+        s["gt_rooms"].get<int>(), s["segments"].get<int>(), report["segment_ms"].get<double>());
   }
 }
 

@@ -38,7 +38,8 @@ function(zm_assert_not_linked target)
   foreach(f ${A_FORBIDDEN})
     if(f IN_LIST closure)
       message(FATAL_ERROR "${target} must not link ${f} (the on-device core knows nothing of the "
-                          "simulator or the evaluation harness); its link closure: ${closure}")
+                          "simulator, the evaluation harness or the offline segmentation); its "
+                          "link closure: ${closure}")
     endif()
   endforeach()
 endfunction()

@@ -10,7 +10,7 @@
 #include <cstdlib>
 #include <span>
 
-#include "mapdb/rtabmap_import.h"
+#include "import/rtabmap_import.h"
 #include "mapdb/rvl.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Trains the layout merge model of `zonemap zones segment` (lib/zones/layout_merge.h, issue 16).
+"""Trains the layout merge model of `zonemap zones segment` (lib/segment/layout_merge.h, issue 16).
 
 The features are computed by zonemap itself (`--merge-trace`), never here, so training and the
 product share one definition of each. Training data, in two passes over every training map:
@@ -9,8 +9,10 @@ product share one definition of each. Training data, in two passes over every tr
      merges is written with its label (one round of DAgger: the model learns from the states its
      own decisions lead to, not only the ones a perfect merge passes through).
 The model is scikit-learn's GradientBoostingClassifier (200 trees of depth 4, fixed seed) on
-both; it is written as JSON (--json) and as lib/zones/layout_merge_model.inc (--inc), which is
-compiled in.
+both; it is written as JSON (--json) and as lib/segment/layout_merge_model.inc (--inc), which is
+compiled in. The model records the options its pieces were cut with ("trained_with": the cut
+and rule-merge options zonemap reports with --merge-trace), and zonemap refuses to merge pieces
+cut with other options.
 
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
@@ -19,8 +21,8 @@ Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout)
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
 prints the leave-one-out table instead: each map of DIR scored by a model trained without it.
---param K=V is passed to every `zones segment` run (SegmentOptions; the pieces' cutting options
-must be the ones the model is used with). The DAgger pass merges at --dagger-threshold (0.6, as
+--param K=V is passed to every `zones segment` run (SegmentOptions; the model records the
+cutting options they give, and is refused with any other). The DAgger pass merges at --dagger-threshold (0.6, as
 when the threshold was chosen); --loo scores at --threshold (the default's 0.4).
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
 """
@@ -55,13 +57,15 @@ def maps(dirs, exclude):
 
 
 def trace(zonemap, map_png, gt_png, csv, extra):
+    """The map's pair rows and labels, and the options its pieces were cut with."""
     cmd = [zonemap, "zones", "segment", map_png, "--out", os.devnull, "--score", gt_png,
-           "--merge-trace", csv] + extra
-    subprocess.run(cmd, check=True, capture_output=True)
+           "--merge-trace", csv, "--json"] + extra
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    trained_with = json.loads(out)["trained_with"]
     if os.path.getsize(csv) == 0:  # a map of one piece: no pair
-        return np.zeros((0, len(FEATURES)), np.float32), np.zeros(0)
+        return np.zeros((0, len(FEATURES)), np.float32), np.zeros(0), trained_with
     rows = np.loadtxt(csv, delimiter=",", ndmin=2)
-    return rows[:, 2:].astype(np.float32), rows[:, 1]
+    return rows[:, 2:].astype(np.float32), rows[:, 1], trained_with
 
 
 def collect(zonemap, pairs, tmp, extra, dir_weight):
@@ -71,13 +75,15 @@ def collect(zonemap, pairs, tmp, extra, dir_weight):
     per_dir = {}
     for _, _, d in pairs:
         per_dir[d] = per_dir.get(d, 0) + 1
-    xs, ys, ws = [], [], []
+    xs, ys, ws, options = [], [], [], []
     for m, g, d in pairs:
-        x, y = trace(zonemap, m, g, os.path.join(tmp, "trace.csv"), extra)
+        x, y, trained_with = trace(zonemap, m, g, os.path.join(tmp, "trace.csv"), extra)
         xs.append(x)
         ys.append(y)
         ws.append(np.full(len(y), dir_weight.get(d, 1.0) / (max(1, len(y)) * per_dir[d])))
-    return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws)
+        options.append(trained_with)
+    assert all(o == options[0] for o in options), "maps cut with different options"
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws), options[0]
 
 
 def fit(x, y, w):
@@ -85,7 +91,7 @@ def fit(x, y, w):
         x, y, sample_weight=w * len(w) / w.sum())
 
 
-def export(clf, x_check):
+def export(clf, x_check, trained_with):
     prior = clf.init_.class_prior_[1]
     model = {"features": FEATURES, "init": float(np.log(prior / (1.0 - prior))),
              "learning_rate": float(clf.learning_rate), "trees": []}
@@ -108,21 +114,23 @@ def export(clf, x_check):
                     else tree["right"][n]
             raw[i] += model["learning_rate"] * tree["value"][n]
     assert np.allclose(raw, clf.decision_function(x_check), atol=1e-6), "export mismatch"
+    model["trained_with"] = trained_with  # last, so a record alone changes only the last line
     return model
 
 
 def train(zonemap, pairs, dir_weight, dagger_threshold, params):
     with tempfile.TemporaryDirectory() as tmp:
-        x1, y1, w1 = collect(zonemap, pairs, tmp, ["--merge-oracle"] + params, dir_weight)
-        first = export(fit(x1, y1, w1), x1[:200])
+        x1, y1, w1, trained_with = collect(zonemap, pairs, tmp, ["--merge-oracle"] + params,
+                                           dir_weight)
+        first = export(fit(x1, y1, w1), x1[:200], trained_with)
         first_json = os.path.join(tmp, "first.json")
         with open(first_json, "w") as f:
             json.dump(first, f)
-        x2, y2, w2 = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
+        x2, y2, w2, _ = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
                                                     f"layout_merge_threshold={dagger_threshold}"]
                              + params, dir_weight)
         x, y, w = np.concatenate([x1, x2]), np.concatenate([y1, y2]), np.concatenate([w1, w2])
-        return export(fit(x, y, w), x[:200]), len(y1), len(y2), y.mean()
+        return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y2), y.mean()
 
 
 def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshold, params):

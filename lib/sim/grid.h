@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "common/status.h"
-#include "zones/grid_map.h"
+#include "segment/grid_map.h"
 
 namespace zm::sim {
 

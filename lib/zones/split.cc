@@ -2,12 +2,13 @@
 // polygon clipped along each cut.
 #include "zones/split.h"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
+#include <vector>
 
 #include "zones/polygon.h"
+#include "zones/principal_axis.h"
 
 namespace zm {
 namespace {
@@ -37,19 +38,15 @@ void Bisect(std::vector<Eigen::Vector2d> polygon, std::vector<Item> items, std::
     leaves.push_back(std::move(leaf));
     return;
   }
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (const Item& it : items) mean += it.xy;
-  mean /= static_cast<double>(n);
-  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-  for (const Item& it : items) cov += (it.xy - mean) * (it.xy - mean).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
-  Eigen::Vector2d axis = eig.eigenvectors().col(1);  // largest eigenvalue last
+  std::vector<Eigen::Vector2d> xy;
+  xy.reserve(n);
+  for (const Item& it : items) xy.push_back(it.xy);
+  Eigen::Vector2d axis = PrincipalAxes(xy).col(1);
   if (!axis.allFinite() || axis.norm() < 0.5) axis = Eigen::Vector2d::UnitX();
   // An eigenvector's sign is arbitrary: fix it so part order (and names) are reproducible.
   if (std::abs(axis.x()) >= std::abs(axis.y()) ? axis.x() < 0.0 : axis.y() < 0.0) axis = -axis;
-  std::stable_sort(items.begin(), items.end(), [&](const Item& a, const Item& b) {
-    return axis.dot(a.xy) < axis.dot(b.xy);
-  });
+  std::stable_sort(items.begin(), items.end(),
+                   [&](const Item& a, const Item& b) { return axis.dot(a.xy) < axis.dot(b.xy); });
   const std::size_t k = (n + max - 1) / max;  // parts still needed, >= 2
   const std::size_t k_left = k / 2;
   const std::size_t n_left = (n * k_left + k - 1) / k;  // <= k_left * max, rest <= (k-k_left)*max
@@ -83,8 +80,8 @@ Result<SplitResult> SplitOversizeZones(const ZoneSet& zones, std::span<const Zon
   std::vector<std::vector<KeyframeId>> by_zone(zones.size());
   for (const ZoneMember& m : members) {
     if (m.zone.value < 0 || static_cast<std::size_t>(m.zone.value) >= zones.size()) {
-      return InvalidArgument("split: a member names zone " + std::to_string(m.zone.value) +
-                             " of " + std::to_string(zones.size()));
+      return InvalidArgument("split: a member names zone " + std::to_string(m.zone.value) + " of " +
+                             std::to_string(zones.size()));
     }
     by_zone[static_cast<std::size_t>(m.zone.value)].push_back(m.keyframe);
   }

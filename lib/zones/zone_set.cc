@@ -87,7 +87,8 @@ Result<std::vector<Eigen::Vector2d>> ParseRing(const json& ring, const std::stri
                            " positions; a closed ring needs at least 4 (first repeated last)");
   }
   if (pts.front() != pts.back()) {
-    return InvalidArgument(where + ": the outer ring is not closed (its last position differs "
+    return InvalidArgument(where +
+                           ": the outer ring is not closed (its last position differs "
                            "from its first)");
   }
   pts.pop_back();
@@ -120,8 +121,8 @@ Result<ZoneSet> ParseGeoJson(const json& root, std::string_view source) {
     const json& f = features[i];
     std::string where = Where(source, i);
     if (!f.is_object()) return InvalidArgument(where + ": not a JSON object");
-    const json props = f.contains("properties") && f["properties"].is_object() ? f["properties"]
-                                                                                 : json::object();
+    const json props =
+        f.contains("properties") && f["properties"].is_object() ? f["properties"] : json::object();
     Zone zone;
     if (!props.contains("name") || !props["name"].is_string() ||
         props["name"].get<std::string>().empty()) {
@@ -139,8 +140,9 @@ Result<ZoneSet> ParseGeoJson(const json& root, std::string_view source) {
         return InvalidArgument(where + ": \"floor\" must be an integer");
       }
       zone.floor = props["floor"].get<int>();
-      zone.z_min_m = (zone.floor - 0.5) * floor_height;
-      zone.z_max_m = (zone.floor + 0.5) * floor_height;
+      const ZRange band = FloorZRange(zone.floor, floor_height);
+      zone.z_min_m = band.min_m;
+      zone.z_max_m = band.max_m;
     }
     for (const char* key : {"z_min", "z_max"}) {
       if (!props.contains(key)) continue;
@@ -162,8 +164,7 @@ Result<ZoneSet> ParseGeoJson(const json& root, std::string_view source) {
       return InvalidArgument(where + ": geometry must be a Polygon (got " +
                              (g.contains("type") ? g["type"].dump() : std::string("none")) + ")");
     }
-    if (!g.contains("coordinates") || !g["coordinates"].is_array() ||
-        g["coordinates"].empty()) {
+    if (!g.contains("coordinates") || !g["coordinates"].is_array() || g["coordinates"].empty()) {
       return InvalidArgument(where + ": the Polygon has no coordinates");
     }
     if (g["coordinates"].size() > 1) {
@@ -208,8 +209,7 @@ Result<ZoneSet> ParseKeyframeLists(const json& root, std::string_view source) {
     if (!root["initial_zone"].is_string()) {
       return InvalidArgument(src + ": \"initial_zone\" must be a zone name");
     }
-    ZM_RETURN_IF_ERROR(set.SetInitialZone(root["initial_zone"].get<std::string>())
-                           .Annotate(src));
+    ZM_RETURN_IF_ERROR(set.SetInitialZone(root["initial_zone"].get<std::string>()).Annotate(src));
   }
   return set;
 }
@@ -279,7 +279,8 @@ Status ZoneSet::SetInitialZone(std::string_view name) {
 Result<ZoneSet> ParseZoneJson(std::string_view text, std::string_view source_name) {
   const std::string src(source_name);
   if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) {
-    return InvalidArgument(src + ": empty file (expected a GeoJSON FeatureCollection or a "
+    return InvalidArgument(src +
+                           ": empty file (expected a GeoJSON FeatureCollection or a "
                            "{\"zones\": {...}} keyframe-list object)");
   }
   ZM_ASSIGN_OR_RETURN(json root, ParseStrict(text, source_name));
@@ -298,7 +299,8 @@ Result<ZoneSet> ParseZoneJson(std::string_view text, std::string_view source_nam
     set.set_source(src);
     return set;
   }
-  return InvalidArgument(src + ": neither a GeoJSON FeatureCollection nor a keyframe-list "
+  return InvalidArgument(src +
+                         ": neither a GeoJSON FeatureCollection nor a keyframe-list "
                          "object with \"zones\"");
 }
 
@@ -311,9 +313,13 @@ Result<ZoneSet> LoadZoneFile(const std::string& path) {
   return ParseZoneJson(ss.str(), path);
 }
 
-std::string ToGeoJsonText(const ZoneSet& zones) {
+ZRange FloorZRange(int floor, double floor_height_m) {
+  return {(floor - 0.5) * floor_height_m, (floor + 0.5) * floor_height_m};
+}
+
+std::string ZonesToGeoJson(std::span<const Zone> zones) {
   json features = json::array();
-  for (const Zone& z : zones.zones()) {
+  for (const Zone& z : zones) {
     json ring = json::array();
     for (const auto& p : z.polygon) ring.push_back({p.x(), p.y()});
     if (!z.polygon.empty()) ring.push_back({z.polygon[0].x(), z.polygon[0].y()});
@@ -329,13 +335,24 @@ std::string ToGeoJsonText(const ZoneSet& zones) {
   return root.dump(1) + "\n";
 }
 
+std::string ToGeoJsonText(const ZoneSet& zones) { return ZonesToGeoJson(zones.zones()); }
+
 Status WriteGeoJson(const ZoneSet& zones, const std::string& path) {
   if (zones.has_keyframe_lists()) {
     return InvalidArgument(path + ": keyframe-list zones have no polygons to write as GeoJSON");
   }
+  return WriteZonesGeoJson(zones.zones(), path);
+}
+
+Status WriteZonesGeoJson(std::span<const Zone> zones, const std::string& path) {
+  for (const Zone& z : zones) {
+    if (z.polygon.empty()) {
+      return InvalidArgument(path + ": zone \"" + z.name + "\" has no polygon to write as GeoJSON");
+    }
+  }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) return IoError(path + ": cannot open for writing");
-  out << ToGeoJsonText(zones);
+  out << ZonesToGeoJson(zones);
   out.close();
   if (!out) return IoError(path + ": write failed");
   return Status::Ok();

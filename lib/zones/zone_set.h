@@ -92,8 +92,21 @@ class ZoneSet {
 [[nodiscard]] Result<ZoneSet> LoadZoneFile(const std::string& path);
 // Parses zone JSON text; `source_name` names it in errors.
 [[nodiscard]] Result<ZoneSet> ParseZoneJson(std::string_view text, std::string_view source_name);
-// Writes polygon zones as a GeoJSON FeatureCollection (rings closed, as the format requires).
-// Keyframe-list sets have no geometry and are refused.
+// The z range of a zone on `floor` whose file gives none: [floor*H - H/2, floor*H + H/2) for
+// floor height H.
+struct ZRange {
+  double min_m = -kUnboundedZM;
+  double max_m = kUnboundedZM;
+};
+[[nodiscard]] ZRange FloorZRange(int floor, double floor_height_m = kDefaultFloorHeightM);
+
+// The one GeoJSON writer: a FeatureCollection of Polygon features (rings closed, as the format
+// requires) with properties name, kind, floor, z_min and z_max (null = unbounded on that side;
+// always written, so reading back never derives a range from the floor). Every zone must have a
+// polygon. The zone files of `zonemap zones` and of the offline segmentation are both this.
+[[nodiscard]] std::string ZonesToGeoJson(std::span<const Zone> zones);
+[[nodiscard]] Status WriteZonesGeoJson(std::span<const Zone> zones, const std::string& path);
+// The same for a set; keyframe-list sets have no geometry and are refused.
 Status WriteGeoJson(const ZoneSet& zones, const std::string& path);
 [[nodiscard]] std::string ToGeoJsonText(const ZoneSet& zones);
 

@@ -8,13 +8,18 @@ string(LENGTH "${symbols}" n)
 if(n LESS 1000)
   message(FATAL_ERROR "${BINARY} shows almost no symbols: is it stripped? (the check needs them)")
 endif()
+# The simulator, the harness, and the offline segmentation (lib/segment).
 set(forbidden "zm::sim::" "zm::CotenantProcess" "zm::DeviceLedger" "zm::RunScenario"
-              "zm::RunOnDevice" "zm::ExperimentProfile" "zm::LoadExperimentProfile")
+              "zm::RunOnDevice" "zm::ExperimentProfile" "zm::LoadExperimentProfile"
+              "zm::SegmentRooms" "zm::CutPieces" "zm::MergeLayoutPieces" "zm::LoadOccupancyGrid"
+              "zm::FindWalls" "zm::ScoreSegmentation")
 foreach(f ${forbidden})
   string(FIND "${symbols}" "${f}" at)
   if(NOT at EQUAL -1)
     string(SUBSTRING "${symbols}" ${at} 160 context)
-    message(FATAL_ERROR "zonemapd defines '${f}' (simulator or harness code): ${context}")
+    message(FATAL_ERROR "zonemapd defines '${f}' (simulator, harness or segmentation code): "
+                        "${context}")
   endif()
 endforeach()
-message(STATUS "zonemapd: no simulator or harness symbols among ${n} bytes of symbols")
+message(STATUS "zonemapd: no simulator, harness or segmentation symbols among ${n} bytes of "
+               "symbols")

@@ -26,7 +26,7 @@
 
 #include "mapdb/map_db.h"
 #include "mapdb/mapdb_test_util.h"
-#include "mapdb/rtabmap_test_util.h"
+#include "import/rtabmap_test_util.h"
 
 namespace zm {
 namespace {

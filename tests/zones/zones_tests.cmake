@@ -1,5 +1,5 @@
 # Tests of the zones module (zone files, GetZone, annotation, adjacency, splits). Included from
-# tests/zones/CMakeLists.txt; segment_tests.cmake holds the occupancy-grid segmentation tests.
+# tests/zones/CMakeLists.txt.
 zm_add_test(zm_zones_test
   SOURCES
     ${CMAKE_CURRENT_LIST_DIR}/zone_set_test.cc

@@ -1,6 +1,6 @@
 // Occupancy grid loaders (ROS YAML, plain image, RTAB-Map Admin.opt_map) and cell<->metre
 // conversion. Every OpenCV, zlib and sqlite3 failure becomes a Status naming the file.
-#include "zones/grid_map.h"
+#include "segment/grid_map.h"
 
 #include <sqlite3.h>
 #include <zlib.h>
@@ -60,17 +60,7 @@ std::uint8_t Classify(double p, double occupied_thresh, double free_thresh) {
 
 // Reads an image as 8-bit grey plus an alpha mask (255 where opaque).
 Result<std::pair<cv::Mat, cv::Mat>> ReadGreyAndAlpha(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    return NotFound(path + ": no such file");
-  }
-  cv::Mat img;
-  try {
-    img = cv::imread(path, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    return InvalidArgument(path + ": OpenCV could not read it: " + e.what());
-  }
-  if (img.empty()) return InvalidArgument(path + ": not a readable image (PNG, PGM, ...)");
+  ZM_ASSIGN_OR_RETURN(cv::Mat img, ReadImageFile(path, cv::IMREAD_UNCHANGED));
   try {
     if (img.depth() == CV_16U) img.convertTo(img, CV_8U, 1.0 / 257.0);
     if (img.depth() != CV_8U) {
@@ -79,8 +69,12 @@ Result<std::pair<cv::Mat, cv::Mat>> ReadGreyAndAlpha(const std::string& path) {
     cv::Mat grey;
     cv::Mat alpha(img.size(), CV_8UC1, cv::Scalar(255));
     switch (img.channels()) {
-      case 1: grey = img; break;
-      case 3: cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY); break;
+      case 1:
+        grey = img;
+        break;
+      case 3:
+        cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+        break;
       case 4:
         cv::cvtColor(img, grey, cv::COLOR_BGRA2GRAY);
         cv::extractChannel(img, alpha, 3);
@@ -107,6 +101,19 @@ struct YamlMap {
 
 }  // namespace
 
+Result<cv::Mat> ReadImageFile(const std::string& path, int imread_flags) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return NotFound(path + ": no such file");
+  cv::Mat img;
+  try {
+    img = cv::imread(path, imread_flags);
+  } catch (const cv::Exception& e) {
+    return InvalidArgument(path + ": OpenCV could not read it: " + e.what());
+  }
+  if (img.empty()) return InvalidArgument(path + ": not a readable image (PNG, PGM, ...)");
+  return img;
+}
+
 Eigen::Vector2d OccupancyGrid::CellToMetres(double col, double row) const {
   return {origin_m.x() + (col + 0.5) * resolution_m,
           origin_m.y() + (static_cast<double>(cells.rows) - row - 0.5) * resolution_m};
@@ -130,8 +137,10 @@ bool OccupancyGrid::CellOf(const Eigen::Vector2d& p_m, int* col, int* row) const
 
 Result<OccupancyGrid> LoadGridImage(const std::string& image_path, double resolution_m) {
   if (!(resolution_m > 0.0) || !std::isfinite(resolution_m)) {
-    return InvalidArgument(image_path + ": resolution must be a positive number of metres per "
-                           "pixel, got " + std::to_string(resolution_m));
+    return InvalidArgument(image_path +
+                           ": resolution must be a positive number of metres per "
+                           "pixel, got " +
+                           std::to_string(resolution_m));
   }
   ZM_ASSIGN_OR_RETURN(auto grey_alpha, ReadGreyAndAlpha(image_path));
   const cv::Mat& grey = grey_alpha.first;
@@ -232,7 +241,8 @@ Result<OccupancyGrid> LoadGridYaml(const std::string& yaml_path) {
     }
   }
   if (!(y.free_thresh >= 0.0 && y.free_thresh <= y.occupied_thresh && y.occupied_thresh <= 1.0)) {
-    return InvalidArgument(yaml_path + ": thresholds must satisfy 0 <= free_thresh <= "
+    return InvalidArgument(yaml_path +
+                           ": thresholds must satisfy 0 <= free_thresh <= "
                            "occupied_thresh <= 1");
   }
   std::filesystem::path image_path(y.image);
@@ -256,8 +266,8 @@ Result<OccupancyGrid> LoadGridYaml(const std::string& yaml_path) {
       }
       if (y.mode == "raw") {
         // Raw mode: the value is the occupancy in percent, 255 (or > 100) unknown.
-        out[c] = g[c] > 100 ? kCellUnknown
-                            : Classify(g[c] / 100.0, y.occupied_thresh, y.free_thresh);
+        out[c] =
+            g[c] > 100 ? kCellUnknown : Classify(g[c] / 100.0, y.occupied_thresh, y.free_thresh);
         continue;
       }
       const double p = y.negate ? g[c] / 255.0 : (255.0 - g[c]) / 255.0;
@@ -267,8 +277,8 @@ Result<OccupancyGrid> LoadGridYaml(const std::string& yaml_path) {
   return grid;
 }
 
-Result<OccupancyGrid> DecodeRtabmapMapBlob(const std::string& blob, double x_min_m,
-                                           double y_min_m, double resolution_m) {
+Result<OccupancyGrid> DecodeRtabmapMapBlob(const std::string& blob, double x_min_m, double y_min_m,
+                                           double resolution_m) {
   constexpr std::size_t kTrailer = 3 * sizeof(std::int32_t);
   if (blob.size() <= kTrailer) {
     return Corrupt("RTAB-Map opt_map blob is " + std::to_string(blob.size()) +
@@ -308,7 +318,8 @@ Result<OccupancyGrid> DecodeRtabmapMapBlob(const std::string& blob, double x_min
   grid.cells.create(rows, cols, CV_8UC1);
   for (int r = 0; r < rows; ++r) {
     auto* out = grid.cells.ptr<std::uint8_t>(rows - 1 - r);  // flip: RTAB-Map row 0 = bottom
-    const std::int8_t* in = raw.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(cols);
+    const std::int8_t* in =
+        raw.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(cols);
     for (int c = 0; c < cols; ++c) {
       const int v = in[c];
       out[c] = v < 0 ? kCellUnknown : (v >= 50 ? kCellOccupied : kCellFree);

@@ -2,7 +2,7 @@
 // read-only and walked with three cursors in node-id order (Node, Data, Feature: a merge join,
 // so no per-node query and no index is needed); keyframes are written in batches. OpenCV
 // exceptions are caught here and become Status values.
-#include "mapdb/rtabmap_import.h"
+#include "import/rtabmap_import.h"
 
 #include <zlib.h>
 

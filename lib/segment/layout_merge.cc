@@ -1,17 +1,14 @@
-#include "zones/layout_merge.h"
+#include "segment/layout_merge.h"
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
-#include <sstream>
 #include <unordered_map>
 #include <utility>
 
-#include "zones/declutter.h"
+#include "segment/declutter.h"
 
 namespace zm {
 namespace {
@@ -190,89 +187,6 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
 }
 
 }  // namespace
-
-double LayoutMergeModel::Probability(const std::array<float, kLayoutFeatureCount>& x) const {
-  double raw = init;
-  for (const Tree& t : trees) {
-    int n = 0;
-    while (t.feature[Idx(n)] >= 0) {
-      n = static_cast<double>(x[Idx(t.feature[Idx(n)])]) <= t.threshold[Idx(n)] ? t.left[Idx(n)]
-                                                                                : t.right[Idx(n)];
-    }
-    raw += rate * static_cast<double>(t.value[Idx(n)]);
-  }
-  return 1.0 / (1.0 + std::exp(-raw));
-}
-
-Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text) {
-  LayoutMergeModel m;
-  try {
-    const nlohmann::json j = nlohmann::json::parse(json_text);
-    const auto names = j.at("features").get<std::vector<std::string>>();
-    if (names.size() != kLayoutFeatureNames.size()) {
-      return InvalidArgument("layout merge model: " + std::to_string(names.size()) +
-                             " features, expected " + std::to_string(kLayoutFeatureCount));
-    }
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      if (names[i] != kLayoutFeatureNames[i]) {
-        return InvalidArgument("layout merge model: feature " + std::to_string(i) + " is '" +
-                               names[i] + "', expected '" + kLayoutFeatureNames[i] + "'");
-      }
-    }
-    m.init = j.at("init").get<double>();
-    m.rate = j.at("learning_rate").get<double>();
-    for (const auto& jt : j.at("trees")) {
-      LayoutMergeModel::Tree t;
-      t.feature = jt.at("feature").get<std::vector<int>>();
-      t.threshold = jt.at("threshold").get<std::vector<double>>();
-      t.left = jt.at("left").get<std::vector<int>>();
-      t.right = jt.at("right").get<std::vector<int>>();
-      t.value = jt.at("value").get<std::vector<float>>();
-      const std::size_t n = t.feature.size();
-      if (n == 0 || t.threshold.size() != n || t.left.size() != n || t.right.size() != n ||
-          t.value.size() != n) {
-        return InvalidArgument("layout merge model: tree " + std::to_string(m.trees.size()) +
-                               " has arrays of different lengths");
-      }
-      for (std::size_t i = 0; i < n; ++i) {
-        if (t.feature[i] < 0) continue;
-        // Children come after their parent: no cycles, every walk ends at a leaf.
-        if (t.feature[i] >= kLayoutFeatureCount || t.left[i] <= static_cast<int>(i) ||
-            t.right[i] <= static_cast<int>(i) || t.left[i] >= static_cast<int>(n) ||
-            t.right[i] >= static_cast<int>(n)) {
-          return InvalidArgument("layout merge model: tree " + std::to_string(m.trees.size()) +
-                                 " node " + std::to_string(i) + " is malformed");
-        }
-      }
-      m.trees.push_back(std::move(t));
-    }
-  } catch (const nlohmann::json::exception& e) {
-    return InvalidArgument(std::string("layout merge model: ") + e.what());
-  }
-  return m;
-}
-
-Result<LayoutMergeModel> LoadLayoutMergeModel(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return IoError(path + ": cannot open the layout merge model");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  auto m = ParseLayoutMergeModel(ss.str());
-  if (!m.ok()) return InvalidArgument(path + ": " + m.status().message());
-  return m;
-}
-
-const LayoutMergeModel& DefaultLayoutMergeModel() {
-  static const LayoutMergeModel model = [] {
-    static constexpr const char* kJson =
-#include "zones/layout_merge_model.inc"
-        ;
-    auto m = ParseLayoutMergeModel(kJson);
-    // The compiled-in model is checked by a test; an empty model merges nothing.
-    return m.ok() ? std::move(m).value() : LayoutMergeModel{};
-  }();
-  return model;
-}
 
 Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeModel& model,
                               double threshold, const LayoutMergeTrace& trace) {

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "geometry/pose.h"
-#include "mapdb/rtabmap_import.h"
+#include "import/rtabmap_import.h"
 
 namespace zm::test {
 

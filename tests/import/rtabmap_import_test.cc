@@ -1,7 +1,7 @@
 // RTAB-Map import on databases built here in RTAB-Map's schema: a single RGB-D node (JPEG colour,
 // PNG or RVL depth, features, calibration), a map of hundreds of pose-only nodes with doubly
 // stored links and optimized poses, and damaged blobs that must fail cleanly and atomically.
-#include "mapdb/rtabmap_import.h"
+#include "import/rtabmap_import.h"
 
 #include <doctest/doctest.h>
 
@@ -14,7 +14,7 @@
 
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/mapdb_test_util.h"
-#include "mapdb/rtabmap_test_util.h"
+#include "import/rtabmap_test_util.h"
 #include "mapdb/rvl.h"
 
 namespace zm {

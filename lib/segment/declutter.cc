@@ -1,7 +1,7 @@
 // Decluttering by dominant wall directions (see declutter.h). Straight runs are found in a copy
 // of the grid rotated so that the dominant direction is the image x axis: a horizontal and a
 // vertical line opening then find runs in both wall directions at once.
-#include "zones/declutter.h"
+#include "segment/declutter.h"
 
 #include <algorithm>
 #include <array>

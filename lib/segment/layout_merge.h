@@ -20,6 +20,8 @@
 #include <vector>
 
 #include "common/status.h"
+#include "segment/cut.h"
+#include "segment/merge.h"
 
 namespace zm {
 
@@ -67,17 +69,34 @@ struct LayoutMergeModel {
   double init = 0.0;
   double rate = 0.1;
   std::vector<Tree> trees;
+  // The options its training pieces were made with: the cut (the pieces themselves) and the rule
+  // merges (their segmentation is two of the features). Other options give the model pieces and
+  // features it never saw, so SegmentRooms refuses them (CheckLayoutMergeModelOptions).
+  CutOptions cut;
+  RuleMergeOptions rule_merge;
 
   [[nodiscard]] double Probability(const std::array<float, kLayoutFeatureCount>& x) const;
 };
 
 // Parses a model from its JSON text ({"features":[names], "init", "learning_rate",
-// "trees":[{"feature","threshold","left","right","value"}]}); the feature names must be
-// kLayoutFeatureNames in order. Errors name what is wrong.
+// "trees":[{"feature","threshold","left","right","value"}], "trained_with":{"cut":{...},
+// "rule_merge":{...}}}); the feature names must be kLayoutFeatureNames in order, and
+// trained_with must give every field of kCutOptionFields and kRuleMergeOptionFields by name and
+// nothing else. Errors name what is wrong.
 [[nodiscard]] Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text);
 [[nodiscard]] Result<LayoutMergeModel> LoadLayoutMergeModel(const std::string& path);
 // The compiled-in model (parsed once).
 [[nodiscard]] const LayoutMergeModel& DefaultLayoutMergeModel();
+
+// The "trained_with" object of a model trained on pieces made with these options (JSON text):
+// `zonemap zones segment --merge-trace --json` reports it, and scripts/train_layout_merge.py
+// writes it into the model it trains.
+[[nodiscard]] std::string LayoutMergeTrainedWithJson(const CutOptions& cut,
+                                                     const RuleMergeOptions& rules);
+// InvalidArgument naming the first option that differs from what `model` was trained with.
+[[nodiscard]] Status CheckLayoutMergeModelOptions(const LayoutMergeModel& model,
+                                                  const CutOptions& cut,
+                                                  const RuleMergeOptions& rules);
 
 // For training and evaluation: a ground truth to label each pair with (same room or not) and a
 // CSV to write every pair's features at every merge step; with `oracle`, the merges follow the

@@ -9,7 +9,7 @@
 // into the free space beyond it, a free end capped across (not a door's jamb), openings measured
 // against the space beside them, and clutter islands filled unless they hold a wall or touch the
 // border.
-#include "zones/declutter.h"
+#include "segment/declutter.h"
 
 #include <doctest/doctest.h>
 

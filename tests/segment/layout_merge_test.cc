@@ -1,7 +1,7 @@
 // The learned layout merge: model parsing (one clear error per defect), the ensemble's
 // arithmetic, greedy merging of layout pieces by a model, the training trace's labels and the
 // oracle's merges, the border-kind features, and the compiled-in model.
-#include "zones/layout_merge.h"
+#include "segment/layout_merge.h"
 
 #include <doctest/doctest.h>
 
@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "zones/declutter.h"
+#include "segment/declutter.h"
 
 namespace zm {
 namespace {
@@ -32,7 +32,9 @@ std::string StumpModel(double split) {
   return "{\"features\":" + Names() +
          ",\"init\":0,\"learning_rate\":1,\"trees\":[{\"feature\":[2,-1,-1],\"threshold\":[" +
          std::to_string(split) +
-         ",0,0],\"left\":[1,-1,-1],\"right\":[2,-1,-1],\"value\":[0,-10,10]}]}";
+         ",0,0],\"left\":[1,-1,-1],\"right\":[2,-1,-1],\"value\":[0,-10,10]}],"
+         "\"trained_with\":" +
+         LayoutMergeTrainedWithJson(CutOptions{}, RuleMergeOptions{}) + "}";
 }
 
 // Room A (columns 0-99) cut in two pieces by a line through free space (pieces 1 and 2), a wall
@@ -116,6 +118,38 @@ TEST_CASE("a layout merge model parses, and each defect gets one clear error") {
 
   CHECK_FALSE(ParseLayoutMergeModel("not json").ok());
   CHECK_FALSE(LoadLayoutMergeModel("/nonexistent/model.json").ok());
+}
+
+TEST_CASE("a model records the options its pieces were cut with, and refuses others") {
+  auto m = ParseLayoutMergeModel(StumpModel(0.8));
+  REQUIRE(m.ok());
+  CHECK(CheckLayoutMergeModelOptions(*m, CutOptions{}, RuleMergeOptions{}).ok());
+  CutOptions narrow_doors;
+  narrow_doors.door_max_width_m = 0.9;
+  const Status cut = CheckLayoutMergeModelOptions(*m, narrow_doors, RuleMergeOptions{});
+  CHECK(cut.code() == StatusCode::kInvalidArgument);
+  CHECK(cut.message().find("door_max_width_m=1.2, these options have 0.9") != std::string::npos);
+  RuleMergeOptions rules;
+  rules.min_room_area_m2 = 1.0;
+  CHECK(CheckLayoutMergeModelOptions(*m, CutOptions{}, rules)
+            .message()
+            .find("min_room_area_m2=0.5") != std::string::npos);
+
+  std::string none = StumpModel(0.8);
+  none.erase(none.find(",\"trained_with\""));
+  auto missing = ParseLayoutMergeModel(none + "}");
+  REQUIRE_FALSE(missing.ok());
+  CHECK(missing.status().message().find("no \"trained_with\"") != std::string::npos);
+  std::string extra = StumpModel(0.8);
+  extra.replace(extra.find("\"door_max_width_m\""), 18, "\"door_width_m\"");
+  auto unknown = ParseLayoutMergeModel(extra);
+  REQUIRE_FALSE(unknown.ok());
+  CHECK(unknown.status().message().find("trained_with.cut: unknown option 'door_width_m'") !=
+        std::string::npos);
+
+  // The compiled-in model was trained with the defaults (docs/segmentation.md).
+  CHECK(CheckLayoutMergeModelOptions(DefaultLayoutMergeModel(), CutOptions{}, RuleMergeOptions{})
+            .ok());
 }
 
 TEST_CASE("the ensemble is sigmoid(init + rate x leaf values), left at x <= threshold") {

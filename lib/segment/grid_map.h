@@ -27,9 +27,9 @@ inline constexpr std::uint8_t kCellFree = 255;
 inline constexpr double kDefaultGridResolutionM = 0.05;
 
 struct OccupancyGrid {
-  cv::Mat cells;                  // CV_8UC1, row 0 = top (largest y)
+  cv::Mat cells;                                  // CV_8UC1, row 0 = top (largest y)
   double resolution_m = kDefaultGridResolutionM;  // metres per cell
-  Eigen::Vector2d origin_m{0.0, 0.0};  // map-frame corner of the bottom-left cell
+  Eigen::Vector2d origin_m{0.0, 0.0};             // map-frame corner of the bottom-left cell
 
   [[nodiscard]] int rows() const { return cells.rows; }
   [[nodiscard]] int cols() const { return cells.cols; }
@@ -52,6 +52,11 @@ struct OccupancyGrid {
 // (and transparent pixels) = unknown. `resolution_m` must be positive.
 [[nodiscard]] Result<OccupancyGrid> LoadGridImage(const std::string& image_path,
                                                   double resolution_m = kDefaultGridResolutionM);
+
+// An image file as cv::imread reads it with `imread_flags`: NotFound when there is no such file,
+// InvalidArgument naming the file when it is not a readable image. The one image reader of the
+// grid loaders and the ground truth (score.h).
+[[nodiscard]] Result<cv::Mat> ReadImageFile(const std::string& path, int imread_flags);
 
 // Dispatches on the extension: .yaml/.yml -> LoadGridYaml, .db -> LoadRtabmapGrid, else an
 // image. `resolution_m` > 0 overrides the resolution of an image or YAML.

@@ -5,6 +5,8 @@
 // above a labelled regression floor with each; grid loaders (YAML, PNG,
 // RTAB-Map opt_map) place cells right and reject bad input with one clear error; keyframe-only
 // zones and oversize splits respect their keyframe cap.
+#include "segment/segmentation.h"
+
 #include <doctest/doctest.h>
 #include <sqlite3.h>
 #include <zlib.h>
@@ -12,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -20,9 +23,11 @@
 #include <set>
 #include <string>
 
-#include "zones/grid_map.h"
+#include "segment/grid_map.h"
+#include "segment/score.h"
+#include "segment/split.h"
+#include "segment/write.h"
 #include "zones/polygon.h"
-#include "zones/segmentation.h"
 #include "zones/zone_set.h"
 
 namespace zm {
@@ -32,7 +37,7 @@ namespace {
 // (the learned layout merge) is tested on the same floors further down.
 SegmentOptions Rules() {
   SegmentOptions o;
-  o.layout_merge_threshold = 0.0;
+  o.learned.layout_merge_threshold = 0.0;
   return o;
 }
 
@@ -110,10 +115,16 @@ TEST_CASE("a synthetic floor of rooms joined by doors is segmented one segment p
   // The GeoJSON is accepted by the zones module's own loader.
   const auto dir = TempDir("synthetic");
   const std::string path = (dir / "zones.geojson").string();
-  REQUIRE(WriteZonesGeoJson(path, *zones).ok());
+  REQUIRE(WriteZonesGeoJson(*zones, path).ok());
   auto loaded = LoadZoneFile(path);
   REQUIRE_MESSAGE(loaded.ok(), loaded.status().ToString());
   CHECK(loaded->size() == 4);
+  // Written by the zones module's one writer: floor 0's z range, explicit.
+  CHECK(loaded->zones()[0].z_min_m == -0.5 * kDefaultFloorHeightM);
+  CHECK(loaded->zones()[0].z_max_m == 0.5 * kDefaultFloorHeightM);
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  CHECK(text.find("\"z_min\": -1.5") != std::string::npos);
 }
 
 // A floor drawn from rectangles at 0.05 m/px: everything unknown, an occupied block, free
@@ -166,7 +177,7 @@ Floor LShapedFloor() {
   f.Room(1.0, 1.0, 4.0, 7.0, 1);  // the L: a 3 x 6 m arm...
   f.Room(1.0, 4.0, 7.0, 7.0, 1);  // ...and a 6 x 3 m arm
   f.Room(7.1, 1.0, 12.0, 5.0, 2);
-  f.Fill(7.0, 4.05, 7.1, 4.95, kCellFree);  // a 0.9 m door from the L's arm to the room
+  f.Fill(7.0, 4.05, 7.1, 4.95, kCellFree);      // a 0.9 m door from the L's arm to the room
   f.Fill(8.0, 1.0, 10.0, 1.6, kCellOccupied);   // cabinet against the top wall
   f.Fill(11.4, 2.5, 12.0, 3.7, kCellOccupied);  // desk against the right wall
   return f;
@@ -210,7 +221,7 @@ TEST_CASE("a cluttered floor still segments into its rooms") {
   CHECK(CountKind(*seg, "corridor") == 1);
   // Without decluttering the table's 1.4 m2 shadow stays an obstacle (the old behaviour).
   SegmentOptions off = Rules();
-  off.wall_min_length_m = 0.0;
+  off.cut.wall_min_length_m = 0.0;
   auto cluttered = SegmentRooms(grid, off);
   REQUIRE(cluttered.ok());
   CHECK(cv::countNonZero(cluttered->free_cleaned) < cv::countNonZero(seg->free_cleaned));
@@ -285,8 +296,8 @@ TEST_CASE("rooms joined by open-plan openings of 1.5 to 3 m split into the rooms
   Floor f(25.5, 8.0);
   const double x[5] = {1.0, 6.6, 12.2, 18.3, 24.5};
   for (int i = 0; i < 4; ++i) f.Room(x[i], 1.0, x[i + 1] - 0.1, 7.0, i + 1);
-  f.Fill(x[1] - 0.1, 2.5, x[1], 4.0, kCellFree);  // 1.5 m, wall on both sides
-  f.Fill(x[2] - 0.1, 3.0, x[2], 5.0, kCellFree);  // 2.0 m, wall on both sides
+  f.Fill(x[1] - 0.1, 2.5, x[1], 4.0, kCellFree);   // 1.5 m, wall on both sides
+  f.Fill(x[2] - 0.1, 3.0, x[2], 5.0, kCellFree);   // 2.0 m, wall on both sides
   f.Fill(x[3] - 0.1, 4.05, x[3], 7.0, kCellFree);  // 3.0 m, from a 3 m stub to the outer wall
   auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
@@ -304,7 +315,7 @@ TEST_CASE("rooms joined by open-plan openings of 1.5 to 3 m split into the rooms
   // Without the layout step the same floor is one or two segments (the openings are too wide
   // for doors and too wide to narrow the clearance much).
   SegmentOptions off = Rules();
-  off.opening_max_width_m = 0.0;
+  off.cut.opening_max_width_m = 0.0;
   auto without = SegmentRooms(f.grid, off);
   REQUIRE(without.ok());
   CHECK(without->segments.size() < 4);
@@ -325,7 +336,7 @@ TEST_CASE("an opening that constricts neither side joins the two spaces") {
   CHECK(BestShare(*seg, f.truth, 1, &l) > 0.95);  // less the partial wall
   // With the local ratio above 0.83 the opening stays a border: the partial wall did make one.
   SegmentOptions strict = Rules();
-  strict.opening_local_ratio = 0.9;
+  strict.rules.opening_local_ratio = 0.9;
   auto split = SegmentRooms(f.grid, strict);
   REQUIRE(split.ok());
   CHECK(split->segments.size() == 2);
@@ -346,13 +357,13 @@ TEST_CASE("an apartment with a sliding partition, a balcony slider and a WC spli
   // sides); above it a 1.5 x 1.2 m WC behind a 0.7 m door. The openings are 2.5 / 4.5 = 0.56
   // and 2.4 / 6.0 = 0.4 of the space beside them: borders.
   Floor f(13.0, 10.5);
-  f.Room(1.0, 3.0, 7.0, 7.5, 1);    // living room
-  f.Room(7.1, 3.0, 10.6, 7.5, 2);   // kitchen
-  f.Room(1.0, 7.6, 7.0, 9.1, 3);    // balcony
-  f.Room(1.0, 1.0, 2.5, 2.2, 4);    // WC (1.5 x 1.2 m)
-  f.Fill(7.0, 5.0, 7.1, 7.5, kCellFree);    // the sliding door: 2.5 m open at the bottom
-  f.Fill(2.8, 7.5, 5.2, 7.6, kCellFree);    // the balcony slider, 2.4 m
-  f.Fill(1.5, 2.2, 2.2, 3.0, kCellFree);    // WC door, 0.7 m
+  f.Room(1.0, 3.0, 7.0, 7.5, 1);          // living room
+  f.Room(7.1, 3.0, 10.6, 7.5, 2);         // kitchen
+  f.Room(1.0, 7.6, 7.0, 9.1, 3);          // balcony
+  f.Room(1.0, 1.0, 2.5, 2.2, 4);          // WC (1.5 x 1.2 m)
+  f.Fill(7.0, 5.0, 7.1, 7.5, kCellFree);  // the sliding door: 2.5 m open at the bottom
+  f.Fill(2.8, 7.5, 5.2, 7.6, kCellFree);  // the balcony slider, 2.4 m
+  f.Fill(1.5, 2.2, 2.2, 3.0, kCellFree);  // WC door, 0.7 m
   auto seg = SegmentRooms(f.grid, Rules());
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   std::set<int> used;
@@ -376,9 +387,9 @@ TEST_CASE("a wardrobe behind a door in a wall of short pieces is a room of its o
   f.Room(2.0, 1.0, 3.6, 1.7, 2);
   f.Fill(2.4, 1.7, 3.2, 1.8, kCellFree);
   SegmentOptions o = Rules();
-  o.wall_stub_min_length_m = 0.3;
-  o.seedless_room_min_area_m2 = 0.5;
-  o.min_room_area_m2 = 0.5;
+  o.cut.wall_stub_min_length_m = 0.3;
+  o.cut.seedless_room_min_area_m2 = 0.5;
+  o.rules.min_room_area_m2 = 0.5;
   auto seg = SegmentRooms(f.grid, o);
   REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
   int l1 = 0, l2 = 0;
@@ -387,7 +398,7 @@ TEST_CASE("a wardrobe behind a door in a wall of short pieces is a room of its o
   CHECK(l1 != l2);
   // Without stubs the door stays open and the wardrobe is flooded from the room.
   SegmentOptions no_stubs = o;
-  no_stubs.wall_stub_min_length_m = 0.0;
+  no_stubs.cut.wall_stub_min_length_m = 0.0;
   auto merged = SegmentRooms(f.grid, no_stubs);
   REQUIRE(merged.ok());
   BestShare(*merged, f.truth, 1, &l1);
@@ -425,7 +436,7 @@ TEST_CASE("a balcony behind a full-width slider, protruding from the facade, is 
   f.Fill(2.5, 5.0, 5.0, 5.15, kCellFree);  // the slider, open
   // Without facade openings the balcony is flooded from the room.
   SegmentOptions off = Rules();
-  off.facade_opening_max_width_m = 0.0;
+  off.cut.facade_opening_max_width_m = 0.0;
   CheckOwnRoomOnlyWithRule(f, /*share=*/0.85, off);
 }
 
@@ -439,7 +450,7 @@ TEST_CASE("a wardrobe whose whole front is one door is a room of its own") {
   f.Fill(3.6, 1.0, 3.7, 1.7, kCellOccupied);
   cv::rectangle(f.truth, Floor::R(2.1, 1.0, 3.6, 1.7), cv::Scalar(2), cv::FILLED);
   SegmentOptions off = Rules();
-  off.mouth_opening_max_width_m = 0.0;
+  off.cut.mouth_opening_max_width_m = 0.0;
   CheckOwnRoomOnlyWithRule(f, /*share=*/0.8, off);
 }
 
@@ -464,8 +475,7 @@ TEST_CASE("the default layout merge: rooms joined by doors, one segment per room
   auto score = ScoreSegmentation(seg->labels, truth);
   REQUIRE(score.ok());
   MESSAGE("synthetic floor, layout merge: " << score->precision << " " << score->recall << " "
-                                            << score->mean_iou << " "
-                                            << score->predicted_segments);
+                                            << score->mean_iou << " " << score->predicted_segments);
   CHECK(score->predicted_segments == 4);
   CHECK(score->precision > 0.99);
   CHECK(score->recall > 0.99);
@@ -499,18 +509,22 @@ TEST_CASE("the default layout merge: an L-shaped room stays whole") {
   CHECK(l1 != l2);
 }
 
-TEST_CASE("the layout pieces are the rule borders and more; a model that merges nothing keeps "
-          "them all") {
+TEST_CASE(
+    "the layout pieces are the rule borders and more; a model that merges nothing keeps "
+    "them all") {
   cv::Mat truth;
   const OccupancyGrid grid = SyntheticFloor(&truth);
   auto never = ParseLayoutMergeModel(
-      "{\"features\":" + [] {
+      "{\"features\":" +
+      [] {
         std::string s = "[";
         for (std::size_t i = 0; i < kLayoutFeatureNames.size(); ++i) {
           s += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[i] + "\"";
         }
         return s + "]";
-      }() + ",\"init\":-20,\"learning_rate\":1,\"trees\":[]}");
+      }() +
+      ",\"init\":-20,\"learning_rate\":1,\"trees\":[],\"trained_with\":" +
+      LayoutMergeTrainedWithJson(CutOptions{}, RuleMergeOptions{}) + "}");
   REQUIRE(never.ok());
   auto pieces = SegmentRooms(grid, SegmentOptions{}, *never);
   auto merged = SegmentRooms(grid);
@@ -530,17 +544,17 @@ TEST_CASE("the layout pieces are the rule borders and more; a model that merges 
   }
 }
 
-TEST_CASE("segmentation options are set by name, with one clear error otherwise") {
-  SegmentOptions o = Rules();
-  REQUIRE(SetSegmentOption("door_max_width_m=0.9", &o).ok());
-  CHECK(o.door_max_width_m == 0.9);
-  const Status unknown = SetSegmentOption("door_width=1", &o);
-  CHECK(unknown.code() == StatusCode::kInvalidArgument);
-  CHECK(unknown.message().find("unknown segmentation option 'door_width'") != std::string::npos);
-  CHECK(SetSegmentOption("door_max_width_m=wide", &o).message().find("not a number") !=
+TEST_CASE("the learned merge refuses cut options its model was not trained with") {
+  cv::Mat truth;
+  const OccupancyGrid grid = SyntheticFloor(&truth);
+  SegmentOptions o;
+  o.cut.door_max_width_m = 0.9;
+  auto refused = SegmentRooms(grid, o);
+  REQUIRE_FALSE(refused.ok());
+  CHECK(refused.status().message().find("door_max_width_m=1.2, these options have 0.9") !=
         std::string::npos);
-  CHECK_FALSE(SetSegmentOption("door_max_width_m", &o).ok());
-  CHECK_FALSE(SetSegmentOption("wall_min_length_m=-1", &o).ok());
+  o.learned.layout_merge_threshold = 0.0;  // the rule merges use no model
+  CHECK(SegmentRooms(grid, o).ok());
 }
 
 // map15's score with `options`, or none, saying so, when the shared data are not there (they
@@ -722,8 +736,7 @@ TEST_CASE("keyframe-only zones are compact, disjoint and capped in keyframes") {
   std::vector<Eigen::Vector2d> pts;
   for (int i = 0; i < 900; ++i) pts.emplace_back(u(rng), u(rng) * 0.5);
   for (int i = 0; i < 300; ++i) pts.emplace_back(3.0 + 0.01 * (i % 10), 3.0);  // a dense spot
-  auto zones = ZonesFromKeyframes(pts, {.cell_size_m = 8.0, .max_keyframes = 100,
-                                        .margin_m = 0.5});
+  auto zones = ZonesFromKeyframes(pts, {.cell_size_m = 8.0, .max_keyframes = 100, .margin_m = 0.5});
   REQUIRE_MESSAGE(zones.ok(), zones.status().ToString());
   std::vector<int> count(zones->size(), 0);
   for (const auto& p : pts) {

@@ -1,0 +1,98 @@
+// The merge stage of room segmentation: pieces (cut.h) joined into rooms and corridors, by the
+// rule merges or by the learned layout merge (layout_merge.h), and each segment's kind.
+//
+// The rule merges, in order: neighbours split only by an opening that constricts neither
+// (`opening_merge_ratio` of the larger one's peak clearance, and the border's main opening open
+// over `opening_local_ratio` of the space beside it) merge again (a corridor crossed by an aligned
+// wall); neighbours whose shared border is an opening wider than any door
+// (`merge_min_opening_m`) and not a constriction relative to them (`merge_open_border_ratio`)
+// merge (one open room cut in two by clutter); segments smaller than `min_room_area_m2` merge into
+// the neighbour sharing the longest border. Each segment is then labelled corridor when long and
+// narrow, else room.
+#pragma once
+
+#include <opencv2/core/mat.hpp>
+#include <vector>
+
+#include "common/status.h"
+#include "segment/cut.h"
+#include "segment/option_field.h"
+#include "segment/segment_info.h"
+
+namespace zm {
+
+struct RuleMergeOptions {
+  double opening_merge_ratio = 0.6;       // two segments an opening separates merge again when its
+                                          // clearance is >= this x the LARGER one's peak clearance:
+                                          // it constricts neither (a corridor crossed by an aligned
+                                          // wall). Leave-one-out pick
+  double opening_local_ratio = 0.75;      // ...and only when the opening line is open over >= this
+                                          // share of the free width just either side of it
+                                          // (declutter.h, OpeningLine::Constriction; 0 = off); an
+                                          // opening no wider than a door never merges. Fixed
+  double merge_open_border_ratio = 0.45;  // neighbours merge when their border's clearance is
+                                          // >= this x the smaller one's peak clearance (0 = off)
+  double merge_min_opening_m = 2.4;       // ...and the opening is wider than any door (a double
+                                          // door with its frame is < 2.4 m)
+  double merge_no_constriction_ratio = 0.0;  // neighbours also merge, however narrow, when the
+                                             // border is >= this x the narrower one's peak
+                                             // clearance: no constriction, one space (a corridor
+                                             // cut at a side opening); 0 = off
+  double min_room_area_m2 = 0.5;  // smaller segments merge into a neighbour (0.5 m2: a closet;
+                                  // fixed in the third part, was 1 m2, a WC)
+};
+
+inline constexpr OptionField<RuleMergeOptions> kRuleMergeOptionFields[] = {
+    {"opening_merge_ratio", &RuleMergeOptions::opening_merge_ratio},
+    {"opening_local_ratio", &RuleMergeOptions::opening_local_ratio},
+    {"merge_open_border_ratio", &RuleMergeOptions::merge_open_border_ratio},
+    {"merge_min_opening_m", &RuleMergeOptions::merge_min_opening_m},
+    {"merge_no_constriction_ratio", &RuleMergeOptions::merge_no_constriction_ratio},
+    {"min_room_area_m2", &RuleMergeOptions::min_room_area_m2},
+};
+
+// The learned layout merge (layout_merge.h; issue 16, fifth and sixth parts). When on, the
+// pieces are cut with LayoutPieceCut and the model merges neighbouring pieces while its
+// probability that they are one room is >= the threshold. 0 = off: the rule merges decide.
+struct LearnedMergeOptions {
+  double layout_merge_threshold = 0.4;
+  double layout_min_area_m2 = 0.1;  // segments it leaves smaller than this merge into the
+                                    // neighbour sharing the longest border (specks; 0.5 m2 as
+                                    // the rule merges costs 1-5 IoU points on the apartments:
+                                    // their closets are 0.5-1 m2)
+};
+
+inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = {
+    {"layout_merge_threshold", &LearnedMergeOptions::layout_merge_threshold},
+    {"layout_min_area_m2", &LearnedMergeOptions::layout_min_area_m2},
+};
+
+// A segment's kind: corridor when long and narrow, else room.
+struct KindOptions {
+  double corridor_elongation = 4.0;   // length / width at or above this = corridor
+  double corridor_max_width_m = 3.5;  // corridors are at most this wide
+};
+
+inline constexpr OptionField<KindOptions> kKindOptionFields[] = {
+    {"corridor_elongation", &KindOptions::corridor_elongation},
+    {"corridor_max_width_m", &KindOptions::corridor_max_width_m},
+};
+
+// InvalidArgument naming the first option out of its range.
+[[nodiscard]] Status CheckRuleMergeOptions(const RuleMergeOptions& o);
+[[nodiscard]] Status CheckLearnedMergeOptions(const LearnedMergeOptions& o);
+
+// Merges `pieces` by the rules above, in place; returns the number of segments, labelled 1..N.
+[[nodiscard]] int MergeByRules(const RuleMergeOptions& o, double door_max_width_m,
+                               double resolution_m, Pieces* pieces);
+
+// Merges segments smaller than `min_area` cells into the neighbour sharing the longest border
+// (dropping isolated ones), then renumbers labels 1..N. Returns N.
+int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area);
+
+// Each segment's area, width and kind from `labels` (1..count) and its clearance `dt`.
+[[nodiscard]] std::vector<SegmentInfo> DescribeSegments(const cv::Mat& labels, const cv::Mat& dt,
+                                                        int count, double resolution_m,
+                                                        const KindOptions& o);
+
+}  // namespace zm
