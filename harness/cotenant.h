@@ -51,8 +51,9 @@ struct ExperimentProfile;
 class DeviceModel;  // harness/device_model.h
 
 inline constexpr std::string_view kCotenantNote =
-    "stand-in for VLM decoding: weights mmap'ed from a file and streamed once per generated "
-    "token (memory-bandwidth bound), a KV cache that grows with the context; not a real model";
+    "stand-in for VLM decoding: weights read from a file (pinned in memory, or mmap'ed) and "
+    "streamed once per generated token (memory-bandwidth bound), a KV cache read with the "
+    "context; not a real model";
 
 // The paper's models: weight sizes as the paper gives them (decimal GB) and the KV cache's
 // geometry at f16 (llama.cpp's and Ollama's default cache type), from each model's config.json

@@ -384,13 +384,13 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
                          : request.out_dir + "/.ledger-" + std::to_string(getpid());
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<DeviceModel> device, OpenDeviceModel(dopt));
   if (request.on_device) request.on_device(*device);
-  const std::string swap_kind(device->cgroup() != nullptr ? SwapKindName(device->swap().kind())
-                                                          : "none");
-  const std::string swap_reason = device->cgroup() != nullptr
+  const Cgroup* device_cgroup = device->cgroup();
+  const std::string swap_kind(device_cgroup != nullptr ? SwapKindName(device->swap().kind())
+                                                       : "none");
+  const std::string swap_reason = device_cgroup != nullptr
                                       ? device->swap().reason()
                                       : std::string("the ledger simulates no swap");
-  const std::uint64_t swap_limit =
-      device->cgroup() != nullptr ? device->cgroup()->swap_limit_bytes() : 0;
+  const std::uint64_t swap_limit = device_cgroup != nullptr ? device_cgroup->swap_limit_bytes() : 0;
   if (loop.device.swap != "none" && swap_kind == "none") {
     // Never silent: the device asked for swap and has none.
     std::fprintf(stderr, "device swap: none: %s\n", swap_reason.c_str());
