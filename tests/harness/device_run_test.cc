@@ -294,6 +294,10 @@ TEST_CASE("device run (cgroup): the map process OOM-killed by the kernel, the ru
   if (!CgroupOrSkip()) return;
   test::EmulatorLauncher launcher;
   DeviceRunRequest r = Request("map_killed", "semantic", 1.0 / 32);  // ~200 MiB device
+  // No swap: the kill is what this case is about (with JetPack's zram the allocation fills the
+  // swap first, and a short replay may end before the kill).
+  r.profile.core.device.swap = "none";
+  r.profile.core.device.swap_bytes = 0;
   r.device = DeviceKind::kCgroup;
   r.device_explicit = true;
   r.time_compression = 10.0;
@@ -334,6 +338,8 @@ TEST_CASE("device run (cgroup): the co-tenant OOM-killed and restarted inside th
   if (!CgroupOrSkip()) return;
   test::EmulatorLauncher launcher;
   DeviceRunRequest r = Request("cotenant_killed", "semantic", 1.0 / 32);  // ~200 MiB device
+  r.profile.core.device.swap = "none";  // the kill, not the swap, is what this case is about
+  r.profile.core.device.swap_bytes = 0;
   r.device = DeviceKind::kCgroup;
   r.device_explicit = true;
   r.time_compression = 4.0;  // ~10 s
