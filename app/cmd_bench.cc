@@ -219,6 +219,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     std::uint32_t prompt_tokens = 0, answer_tokens = 0;
     bool quick = false, no_plots = false;
     std::string lock_arena;  // --lock-arena on|off: passed to every run ("" = the profile's)
+    std::string zram_charge = "on";  // --zram-charge on|off: passed to every run
   };
   auto o = std::make_shared<Opts>();
   auto* cmd = app.add_subcommand(
@@ -259,6 +260,10 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--lock-arena", o->lock_arena,
                   "on|off: mlock the bounded policies' arena in every run (default: the profile's "
                   "map.lock_arena; basic's heap is never locked)")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd->add_option("--zram-charge", o->zram_charge,
+                  "on (default): each run's device limit gives up the DRAM zram's compressed "
+                  "pages occupy, as on the Jetson | off: zram is free memory beside the device")
       ->check(CLI::IsMember({"on", "off"}));
   cmd->callback([o, &ctx, device_opt] {
     InstallStopSignals();
@@ -372,6 +377,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
       // Every run, alone and with the co-tenant, on the same frames' clock (issue 17 §4).
       req.time_compression = o->time_compression;
       req.cotenant_requests = o->cotenant_requests;
+      req.charge_zram = o->zram_charge == "on";
       std::fprintf(stderr, "bench: %s %s repeat %u/%u (run %zu of %zu)\n", c.scenario_name.c_str(),
                    c.run_name.c_str(), rep + 1, repeats, i + 1, order.size());
       auto r = RunOnDevice(req, StopFlag());

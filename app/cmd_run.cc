@@ -13,7 +13,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   struct Opts {
     std::string scenario, out, profile = "host", policy, memory_thr, cotenant, process_cap;
     std::string device = "cgroup";
-    std::string lock_arena, map_files = "cold";
+    std::string lock_arena, map_files = "cold", zram_charge = "on";
     double device_scale = 1.0, time_compression = 1.0;
     std::uint32_t cotenant_requests = 30;
     double cotenant_period = 0.0;
@@ -52,6 +52,10 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
                   "cold (default: the scenario's files dropped from the page cache first, so every "
                   "read is charged to the device) | warm (left as cached)")
       ->check(CLI::IsMember({"cold", "warm"}));
+  cmd->add_option("--zram-charge", o->zram_charge,
+                  "on (default): the device's limit gives up the DRAM zram's compressed pages "
+                  "occupy, as on the Jetson | off: zram is free memory beside the device")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd->add_flag("--verify-checksums", o->verify, "CRC-check every payload as it lands in its slot");
   cmd->add_flag("--quiet", o->quiet, "print nothing on success");
   cmd->callback([o, &ctx, device_opt] {
@@ -85,6 +89,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
     req.cotenant_period_s = o->cotenant_period;
     req.verify_checksums = o->verify;
     req.cold_files = o->map_files == "cold";
+    req.charge_zram = o->zram_charge == "on";
     auto s = RunOnDevice(req, StopFlag());
     if (!s.ok()) return ctx.Fail("run", s.status());
     if (o->quiet) return;

@@ -491,6 +491,7 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
                                    "the device's swappiness"));
     }
     ZM_ASSIGN_OR_RETURN(cg.limit_bytes_, ReadNumber(dir + "/memory.limit_in_bytes"));
+    cg.current_limit_bytes_ = cg.limit_bytes_;
     cg.usage_fd_ = OpenRead(dir + "/memory.usage_in_bytes");
     cg.peak_fd_ = OpenRead(dir + "/memory.max_usage_in_bytes");
     cg.events_fd_ = OpenRead(dir + "/memory.oom_control");
@@ -506,6 +507,7 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
       cg.swap_fd_ = OpenRead(dir + "/memory.swap.current");
     }
     ZM_ASSIGN_OR_RETURN(cg.limit_bytes_, ReadNumber(dir + "/memory.max"));
+    cg.current_limit_bytes_ = cg.limit_bytes_;
     cg.usage_fd_ = OpenRead(dir + "/memory.current");
     cg.peak_fd_ = OpenRead(dir + "/memory.peak");  // Linux >= 5.19; -1 before
     cg.events_fd_ = OpenRead(dir + "/memory.events");
@@ -528,6 +530,7 @@ Cgroup& Cgroup::operator=(Cgroup&& other) noexcept {
     dir_ = std::exchange(other.dir_, {});
     version_ = other.version_;
     limit_bytes_ = std::exchange(other.limit_bytes_, 0);
+    current_limit_bytes_ = std::exchange(other.current_limit_bytes_, 0);
     sampled_peak_ = std::exchange(other.sampled_peak_, 0);
     swap_limited_ = std::exchange(other.swap_limited_, false);
     swap_limit_bytes_ = std::exchange(other.swap_limit_bytes_, 0);
@@ -550,6 +553,28 @@ void Cgroup::CloseFiles() noexcept {
     if (*fd >= 0) close(*fd);
     *fd = -1;
   }
+}
+
+Status Cgroup::SetMemoryLimit(std::uint64_t bytes) {
+  if (!active()) return FailedPrecondition("cgroup: SetMemoryLimit on a removed cgroup");
+  if (bytes == 0 || bytes > limit_bytes_) {
+    return InvalidArgument("cgroup: memory limit " + FormatBytes(bytes) +
+                           " is outside (0, the device limit " + FormatBytes(limit_bytes_) + "]");
+  }
+  if (bytes == current_limit_bytes_) return Status::Ok();
+  const char* file = version_ == CgroupVersion::kV1 ? "/memory.limit_in_bytes" : "/memory.max";
+  ZM_RETURN_IF_ERROR(WriteFile(dir_ + file, std::to_string(bytes),
+                               "the device limit less what zram holds, " + FormatBytes(bytes)));
+  current_limit_bytes_ = bytes;
+  return Status::Ok();
+}
+
+std::uint64_t ChargedLimit(std::uint64_t limit_bytes, std::uint64_t outside_bytes,
+                           std::uint64_t granularity_bytes, std::uint64_t floor_bytes) noexcept {
+  const std::uint64_t g = granularity_bytes == 0 ? 1 : granularity_bytes;
+  const std::uint64_t outside = outside_bytes == 0 ? 0 : (outside_bytes + g - 1) / g * g;
+  const std::uint64_t floor = std::min(floor_bytes, limit_bytes);
+  return outside >= limit_bytes - floor ? floor : limit_bytes - outside;
 }
 
 Status Cgroup::AddProcess(pid_t pid) const {

@@ -100,6 +100,15 @@ class Cgroup {
   [[nodiscard]] int EnterSelf() const noexcept;
   // Reads the counters. Allocation-free; `ok` false when a file could not be read.
   [[nodiscard]] CgroupSample Sample() noexcept;
+  // Sets the child's memory limit to `bytes` (<= the limit it was created with; v1
+  // memory.limit_in_bytes, v2 memory.max): what the device's DRAM has left for the processes
+  // when something outside the cgroup occupies part of it (zram's compressed pages,
+  // ChargedLimit below). v1's memsw limit stays limit + swap as created, which is above. A lower
+  // limit than the usage makes the kernel reclaim (swap) inside the write; where it cannot, v1
+  // refuses (EBUSY) and the limit stays: the error says so. Not for the tick loop (allocates).
+  [[nodiscard]] Status SetMemoryLimit(std::uint64_t bytes);
+  // The limit in force now (limit_bytes() is the one the device was created with).
+  [[nodiscard]] std::uint64_t current_limit_bytes() const noexcept { return current_limit_bytes_; }
   // The processes inside now (cgroup.procs).
   [[nodiscard]] Result<std::vector<pid_t>> Processes() const;
   // Kills what is still inside (SIGKILL), waits for it to leave, removes the directory.
@@ -119,6 +128,7 @@ class Cgroup {
   std::string dir_;
   CgroupVersion version_ = CgroupVersion::kV1;
   std::uint64_t limit_bytes_ = 0;
+  std::uint64_t current_limit_bytes_ = 0;
   std::uint64_t sampled_peak_ = 0;
   bool swap_limited_ = false;
   std::uint64_t swap_limit_bytes_ = 0;
@@ -130,6 +140,14 @@ class Cgroup {
   int memsw_failcnt_fd_ = -1;  // v1 memory.memsw.failcnt: with swap limited, memsw meets it first
   int swap_fd_ = -1;           // v1 memory.memsw.usage_in_bytes, v2 memory.swap.current
 };
+
+// The device's memory limit with `outside_bytes` of its DRAM taken by something the cgroup is
+// not charged for (zram's compressed store: on the Jetson it lives in the same 8 GB, here on the
+// host outside the cgroup): `limit - outside`, the outside part rounded UP to `granularity_bytes`
+// (so that small changes do not rewrite the limit at every sample), never below `floor_bytes`.
+[[nodiscard]] std::uint64_t ChargedLimit(std::uint64_t limit_bytes, std::uint64_t outside_bytes,
+                                         std::uint64_t granularity_bytes,
+                                         std::uint64_t floor_bytes) noexcept;
 
 // Removes the children of `parent_dir` named <prefix>-<pid>-<start>-<n> whose creator no longer
 // runs (killing what is left inside them); returns how many were removed.

@@ -38,7 +38,13 @@ namespace {
 struct SharedReadings {
   std::atomic<std::uint64_t> cotenant_rss_bytes{0};
   std::atomic<std::int64_t> cotenant_pid{-1};
+  std::atomic<std::uint64_t> device_limit_bytes{0};   // in force now (charge_zram lowers it)
+  std::atomic<std::uint64_t> zram_mem_used_bytes{0};  // DRAM zram's compressed pages occupy
 };
+
+// The charged limit moves in steps of this much, so a few pages in or out of zram do not rewrite
+// the cgroup's limit at every sample.
+constexpr std::uint64_t kZramChargeStepBytes = 1ull << 20;
 
 // The device cgroup's swappiness: JetPack's. L4T (Ubuntu) sets no vm.swappiness of its own and
 // nvzramconfig only makes the zram devices, so it is the kernel default, 60 (check on a Jetson:
@@ -147,7 +153,7 @@ bool ReadAll(int fd, void* p, std::size_t n) {
   // The ledger's grant of the map process, and what a refusal does: the arena's free slots are
   // withheld (TickLoop::WithholdSlots) so no keyframe loads until a later grant succeeds.
   std::uint64_t last_majflt = SampleRusage().self_major_faults;
-  run.on_tick = [&, extra = std::array<char, 640>{}](
+  run.on_tick = [&, extra = std::array<char, 768>{}](
                     TickLoop& l, const TickClock& clock) mutable -> std::string_view {
     if (tenant) {
       const Arena& arena = l.arena();
@@ -173,7 +179,8 @@ bool ReadAll(int fd, void* p, std::size_t n) {
         "\"wall_s\":%.4f,\"device_usage_bytes\":%llu,\"device_swap_bytes\":%llu,"
         "\"map_rss_bytes\":%llu,\"map_swap_bytes\":%llu,\"cotenant_rss_bytes\":%llu,"
         "\"map_majflt\":%llu,\"map_majflt_tick\":%llu,\"map_minflt\":%llu,\"oom_kills\":%llu,"
-        "\"frames_dropped\":%llu,\"frames_arrived\":%llu,\"ledger_refusals\":%llu",
+        "\"frames_dropped\":%llu,\"frames_arrived\":%llu,\"ledger_refusals\":%llu,"
+        "\"device_limit_bytes\":%llu,\"zram_mem_used_bytes\":%llu",
         clock.wall_s, static_cast<unsigned long long>(d.usage_bytes),
         static_cast<unsigned long long>(d.swap_bytes),
         static_cast<unsigned long long>(me.rss_bytes),
@@ -185,7 +192,9 @@ bool ReadAll(int fd, void* p, std::size_t n) {
         static_cast<unsigned long long>(d.oom_kills),
         static_cast<unsigned long long>(clock.frames_dropped),
         static_cast<unsigned long long>(clock.frames_arrived),
-        static_cast<unsigned long long>(ledger_refusals));
+        static_cast<unsigned long long>(ledger_refusals),
+        static_cast<unsigned long long>(shared->device_limit_bytes.load()),
+        static_cast<unsigned long long>(shared->zram_mem_used_bytes.load()));
     return n > 0 && static_cast<std::size_t>(n) < extra.size()
                ? std::string_view(extra.data(), static_cast<std::size_t>(n))
                : std::string_view();
@@ -400,6 +409,14 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
       nullptr, sizeof(SharedReadings), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
   if (shared == MAP_FAILED) return IoError(std::string("mmap: ") + std::strerror(errno));
   new (shared) SharedReadings();
+  shared->device_limit_bytes.store(device->limit_bytes());
+  // zram's compressed pages charged to the device (DeviceRunRequest::charge_zram): only for a
+  // zram made for the run; an existing swap (a real Jetson's) is already in the device's DRAM.
+  Cgroup* const charge_cgroup =
+      request.charge_zram && device->swap().kind() == SwapKind::kZram ? device->cgroup() : nullptr;
+  std::uint64_t limit_min = device->limit_bytes();
+  std::uint64_t charge_refusals = 0;
+  std::uint64_t dram_peak = 0;  // usage + zram's compressed pages: the DRAM the device holds
   struct Unmap {
     SharedReadings* p;
     ~Unmap() { munmap(p, sizeof(SharedReadings)); }
@@ -508,6 +525,27 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
     last = device->Sample();
     if (last.ok) peak = std::max({peak, last.peak_bytes, last.usage_bytes});
     sample_swap(last);
+    if (charge_cgroup != nullptr) {
+      const ZramSample z = device->SampleZram();
+      if (z.ok) {
+        shared->zram_mem_used_bytes.store(z.mem_used_bytes);
+        if (last.ok) dram_peak = std::max(dram_peak, last.usage_bytes + z.mem_used_bytes);
+        // Floor: a quarter of the device; zram holds at most swap_bytes (half the memory) of
+        // swapped pages, so only a broken mm_stat could ask for less.
+        const std::uint64_t target = ChargedLimit(charge_cgroup->limit_bytes(), z.mem_used_bytes,
+                                                  kZramChargeStepBytes,
+                                                  charge_cgroup->limit_bytes() / 4);
+        if (target != charge_cgroup->current_limit_bytes()) {
+          if (Status s = charge_cgroup->SetMemoryLimit(target); !s.ok()) {
+            // The kernel could not reclaim down to it (v1 EBUSY): the device is over its DRAM
+            // for now; the next sample tries again. Said once, counted always.
+            if (charge_refusals++ == 0) std::fprintf(stderr, "device: %s\n", s.ToString().c_str());
+          }
+          limit_min = std::min(limit_min, charge_cgroup->current_limit_bytes());
+          shared->device_limit_bytes.store(charge_cgroup->current_limit_bytes());
+        }
+      }
+    }
     const ProcessSample m = map_sampler.Sample();
     if (m.alive) map_peak_rss = std::max(map_peak_rss, m.rss_bytes);
     if (cotenant_started) {
@@ -627,7 +665,11 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
                    {"comp_algorithm", device->swap().comp_algorithm()},
                    {"zram_orig_peak_bytes", zram_orig_peak},
                    {"zram_compr_peak_bytes", zram_compr_peak},
-                   {"zram_mem_used_peak_bytes", zram_mem_used_peak}}}};
+                   {"zram_mem_used_peak_bytes", zram_mem_used_peak},
+                   {"zram_charged", charge_cgroup != nullptr}}},
+                 {"limit_min_bytes", limit_min},
+                 {"dram_peak_bytes", charge_cgroup != nullptr ? dram_peak : peak},
+                 {"limit_charge_refusals", charge_refusals}};
   s["oom_events"] = final_sample.oom_kills;  // the memory table's column (simulated for the ledger)
   if (!cotenant.is_null()) s["cotenant"] = cotenant;
   {

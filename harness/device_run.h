@@ -65,6 +65,11 @@ struct DeviceRunRequest {
   // scenario directory (map.db, frames.bin, ...), so every read the map process makes is charged
   // to the device. false: a warm start (whatever is cached stays, charged where it was read).
   bool cold_files = true;
+  // With a zram swap made for the run: the cgroup's memory limit follows the DRAM that zram's
+  // compressed pages occupy (limit - mm_stat mem_used, sampled every 50 ms), because on the
+  // Jetson they live in the same 8 GB while here they live on the host, outside the cgroup.
+  // false: zram is free memory beside the device (more forgiving than the Jetson).
+  bool charge_zram = true;
   // Tests and tools: where the device is made.
   CgroupOptions cgroup;             // prefix, parent (limit_bytes is set from the profile)
   SwapSystem swap_system;           // where the device's zram is made (tests: a fake sysfs)

@@ -115,6 +115,12 @@ def extra_rows(cols):
         ("device OOM kills", lambda r: st(r, "/device/oom_kills", 1)),
         ("device peak", peak),
         ("device swap peak (MB)", lambda r: st(r, "/device/swap/peak_bytes", 1, 1e-6)),
+        ("device DRAM peak: usage + zram's store (GB)",
+         lambda r: st(r, "/device/dram_peak_bytes", 2, 1e-9) if r.stat("/device/dram_peak_bytes")
+         else "–"),
+        ("limit writes refused: over the device's DRAM",
+         lambda r: st(r, "/device/limit_charge_refusals", 0)
+         if r.stat("/device/limit_charge_refusals") else "–"),
         ("map major faults", lambda r: st(r, "/map/major_faults", 0)),
         ("map process outcome", lambda r: tally_text(r, "/map/outcome")),
         ("co-tenant outcome", ct_outcome),

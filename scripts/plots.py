@@ -138,6 +138,9 @@ def plot_memory(scenario, runs, fig_dir):
         if have_device:
             ax.plot(xs, series("device_usage_bytes"), color="k", lw=1.0, alpha=0.8,
                     label=f'device usage ({d.get("kind", "?")})')
+        if any(t.get("device_limit_bytes") for t in ticks) and d.get("swap", {}).get("zram_charged"):
+            ax.plot(xs, series("device_limit_bytes"), color="k", lw=1.0, ls="-.",
+                    label="limit in force (device − zram's store)")
         limit = d.get("limit_bytes")
         if not limit and d.get("memory_bytes"):
             limit = d["memory_bytes"] - d.get("os_reserve_bytes", 0)
@@ -475,6 +478,12 @@ def plot_timeline(scenario, runs, fig_dir):
         if any("map_swap_bytes" in t for t in ticks):
             bottom.plot(xs, series("map_swap_bytes"), color=style(run)["color"], lw=1.0, ls="--",
                         label="map process swapped out")
+        if any(t.get("zram_mem_used_bytes") for t in ticks):
+            bottom.plot(xs, series("zram_mem_used_bytes"), color="#8c564b", lw=1.0,
+                        label="zram's store (DRAM, charged to the device)")
+        if any(t.get("device_limit_bytes") for t in ticks) and d.get("swap", {}).get("zram_charged"):
+            bottom.plot(xs, series("device_limit_bytes"), color="k", lw=1.0, ls="-.",
+                        label="limit in force (device − zram's store)")
         limit = d.get("limit_bytes")
         if limit:
             bottom.axhline(limit / GB, color="k", ls=":", lw=1.0,

@@ -178,6 +178,38 @@ TEST_CASE("a child cgroup: its limit, no swap, named after this process, removed
   CHECK(cg->Remove().ok());  // idempotent
 }
 
+TEST_CASE("the charged limit: the device less what zram holds, in whole steps, with a floor") {
+  constexpr std::uint64_t kLimit = 800 * kMiB;
+  CHECK(ChargedLimit(kLimit, 0, kMiB, kLimit / 4) == kLimit);
+  CHECK(ChargedLimit(kLimit, 1, kMiB, kLimit / 4) == kLimit - kMiB);  // rounded up: a whole step
+  CHECK(ChargedLimit(kLimit, 207 * kMiB, kMiB, kLimit / 4) == kLimit - 207 * kMiB);
+  CHECK(ChargedLimit(kLimit, 207 * kMiB + 5, kMiB, kLimit / 4) == kLimit - 208 * kMiB);
+  CHECK(ChargedLimit(kLimit, kLimit, kMiB, kLimit / 4) == kLimit / 4);  // never below the floor
+  CHECK(ChargedLimit(kLimit, 5, 0, 0) == kLimit - 5);                   // step 0 = bytes
+}
+
+TEST_CASE("the device limit lowered and raised within the created one; beyond it refused") {
+  auto cg = CgroupOrSkip(64 * kMiB);
+  if (!cg) return;
+  CHECK(cg->current_limit_bytes() == 64 * kMiB);
+  REQUIRE(cg->SetMemoryLimit(48 * kMiB).ok());
+  CHECK(cg->current_limit_bytes() == 48 * kMiB);
+  CHECK(cg->limit_bytes() == 64 * kMiB);  // the device as created
+  const char* file =
+      cg->version() == CgroupVersion::kV1 ? "/memory.limit_in_bytes" : "/memory.max";
+  std::ifstream in(cg->dir() + file);
+  std::uint64_t written = 0;
+  in >> written;
+  CHECK(written == 48 * kMiB);
+  REQUIRE(cg->SetMemoryLimit(64 * kMiB).ok());
+  CHECK(cg->current_limit_bytes() == 64 * kMiB);
+  const Status over = cg->SetMemoryLimit(65 * kMiB);
+  CHECK(over.code() == StatusCode::kInvalidArgument);
+  CHECK(over.message().find("64.00 MiB") != std::string::npos);
+  CHECK(cg->SetMemoryLimit(0).code() == StatusCode::kInvalidArgument);
+  CHECK(cg->current_limit_bytes() == 64 * kMiB);
+}
+
 TEST_CASE("the map's residency is visible in the cgroup: slots taken and given back") {
   auto cg = CgroupOrSkip(64 * kMiB);
   if (!cg) return;
