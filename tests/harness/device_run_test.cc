@@ -131,7 +131,8 @@ bool CgroupOrSkip() {
 const std::vector<std::string> kTickKeys = {
     "wall_s",         "device_usage_bytes", "map_rss_bytes",  "cotenant_rss_bytes",
     "map_majflt",     "map_minflt",         "oom_kills",      "frames_dropped",
-    "frames_arrived", "device_swap_bytes",  "map_swap_bytes", "map_majflt_tick"};
+    "frames_arrived", "device_swap_bytes",  "map_swap_bytes", "map_majflt_tick",
+    "device_limit_bytes", "zram_mem_used_bytes"};
 
 TEST_CASE(
     "device run (ledger): simulated in the summary, frames dropped on an overrun, every key") {
@@ -227,6 +228,23 @@ TEST_CASE("device run (cgroup): the map's residency is visible in the cgroup") {
     } else {
       CHECK(sw["limit_bytes"].get<std::uint64_t>() ==
             ScaleBytes(3886ULL << 20, 1.0 / 16) / 4096 * 4096);
+    }
+    if (kind == "zram") {
+      // zram's store is charged to the device (the default): the limit in force is the device's
+      // less what zram holds, never above the device, reported per tick and at its lowest.
+      CHECK(sw["zram_charged"] == true);
+      const std::uint64_t limit = j["device"]["limit_bytes"];
+      CHECK(j["device"]["limit_min_bytes"].get<std::uint64_t>() <= limit);
+      CHECK(j["device"]["limit_min_bytes"].get<std::uint64_t>() >= limit / 4);
+      CHECK(j["device"]["dram_peak_bytes"].get<std::uint64_t>() >=
+            sw["zram_mem_used_peak_bytes"].get<std::uint64_t>());
+      for (const auto& x : Ticks(r.out_dir)) {
+        const std::uint64_t in_force = x["device_limit_bytes"];
+        CHECK(in_force <= limit);
+        CHECK(in_force >= limit / 4);  // ChargedLimit's floor
+      }
+    } else {
+      CHECK(sw["zram_charged"] == false);
     }
     if (kind == "zram") {
       // Removed after the run: no swap of ours remains.
