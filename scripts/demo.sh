@@ -26,10 +26,10 @@
 # scale a request is ~9 s of decode on an idle core, longer beside Basic), so the co-tenant is
 # busy for the patrol and the drain after it stays short. The map is the same 2,429 keyframes (the
 # arithmetic below does not depend on the patrol); the robot visits fewer zones and Basic's
-# start-up load is a larger part of each run. Measured (a 2-core machine at load 7-12): 2-4 of
-# the 4 requests completed per co-tenant run (7 of 12 beside Basic, 9 of 12 beside Semantic over
-# the 3 repeats), 675 s from the start of this script to the last table, the build not included.
-# README, "Results of make demo", gives the measured wall time.
+# start-up load is a larger part of each run. Measured on the idle 2-core VM with the issue 27
+# device (pinned weights, zram charged): all 4 requests completed in each of the 6 co-tenant runs,
+# 435 s from the start of this script to the last table, the build not included (at load 7-12,
+# before the pinned weights: 675 s, 2-4 of 4 requests). README, "Results of make demo".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 t0=$(date +%s)
