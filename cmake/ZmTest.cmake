@@ -8,7 +8,7 @@ if(NOT ZM_DOCTEST_CMAKE)
 endif()
 
 function(zm_add_test name)
-  cmake_parse_arguments(T "" "" "SOURCES;DEPS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "" "RESOURCE_LOCK" "SOURCES;DEPS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES} ${PROJECT_SOURCE_DIR}/tests/support/doctest_main.cc)
   target_include_directories(${name} PRIVATE ${PROJECT_SOURCE_DIR}/tests ${PROJECT_SOURCE_DIR}/lib
                                              ${PROJECT_SOURCE_DIR})
@@ -25,6 +25,9 @@ function(zm_add_test name)
   set(props TIMEOUT 600)
   if(labels)
     list(APPEND props LABELS "${labels}")
+  endif()
+  if(T_RESOURCE_LOCK)  # cases that share a machine-wide resource run one at a time under ctest -j
+    list(APPEND props RESOURCE_LOCK ${T_RESOURCE_LOCK})
   endif()
   doctest_discover_tests(${name} PROPERTIES ${props} DISCOVERY_TIMEOUT 120)
 endfunction()
