@@ -257,14 +257,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                   "co-tenant answer length (default: the profile's)");
   cmd->add_option("--pace", o->time_compression, "old name of --time-compression");
   cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
-  cmd->add_option("--lock-arena", o->lock_arena,
-                  "on|off: mlock the bounded policies' arena in every run (default: the profile's "
-                  "map.lock_arena; basic's heap is never locked)")
-      ->check(CLI::IsMember({"on", "off"}));
-  cmd->add_option("--zram-charge", o->zram_charge,
-                  "on (default): each run's device limit gives up the DRAM zram's compressed "
-                  "pages occupy, as on the Jetson | off: zram is free memory beside the device")
-      ->check(CLI::IsMember({"on", "off"}));
+  AddDeviceMemoryOptions(*cmd, &o->lock_arena, &o->zram_charge);  // passed to every run
   cmd->callback([o, &ctx, device_opt] {
     InstallStopSignals();
     auto device_kind = ParseDeviceKind(o->device);

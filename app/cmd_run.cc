@@ -44,18 +44,11 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--process-cap", o->process_cap, "cap this process (setrlimit), e.g. 6GiB; 0 = none");
   cmd->add_option("--pace", o->time_compression, "old name of --time-compression");
   cmd->add_option("--max-ticks", o->max_ticks, "stop after this many ticks (0 = all)");
-  cmd->add_option("--lock-arena", o->lock_arena,
-                  "on|off: mlock the bounded policies' arena (default: the profile's "
-                  "map.lock_arena; basic's heap is never locked)")
-      ->check(CLI::IsMember({"on", "off"}));
   cmd->add_option("--map-files", o->map_files,
                   "cold (default: the scenario's files dropped from the page cache first, so every "
                   "read is charged to the device) | warm (left as cached)")
       ->check(CLI::IsMember({"cold", "warm"}));
-  cmd->add_option("--zram-charge", o->zram_charge,
-                  "on (default): the device's limit gives up the DRAM zram's compressed pages "
-                  "occupy, as on the Jetson | off: zram is free memory beside the device")
-      ->check(CLI::IsMember({"on", "off"}));
+  AddDeviceMemoryOptions(*cmd, &o->lock_arena, &o->zram_charge);
   cmd->add_flag("--verify-checksums", o->verify, "CRC-check every payload as it lands in its slot");
   cmd->add_flag("--quiet", o->quiet, "print nothing on success");
   cmd->callback([o, &ctx, device_opt] {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <string>
 #include <string_view>
 
 #include "common/status.h"
@@ -20,6 +21,10 @@ struct CommandContext {
 // Returns the subcommand `name` of `app`, creating it if needed, so that groups such as
 // `zonemap zones annotate|segment` can be filled from several files in any order.
 CLI::App* GetOrAddSubcommand(CLI::App& app, const std::string& name, const std::string& description);
+
+// The device's memory options every run takes, declared once for `run` and `bench`:
+// --lock-arena on|off (empty = the profile's map.lock_arena) and --zram-charge on|off.
+void AddDeviceMemoryOptions(CLI::App& cmd, std::string* lock_arena, std::string* zram_charge);
 
 // Attaches every subcommand (commands.cc holds the list).
 void AddAllCommands(CLI::App& app, CommandContext& ctx);
