@@ -56,16 +56,7 @@ struct KeyframeInfo {
   std::uint64_t bytes = 0;   // its size in the host's memory; needed only for a byte budget
 };
 
-// Link kinds, numbered as RTAB-Map's Link::Type so an RTAB-Map host can cast.
-enum class LinkKind : std::int32_t {
-  kNeighbor = 0,
-  kGlobalClosure = 1,
-  kLocalSpaceClosure = 2,
-  kLocalTimeClosure = 3,
-  kUserClosure = 4,
-  kNeighborMerged = 6,
-};
-
+// A link between two keyframes (LinkKind: zonemap/types.h).
 struct KeyframeLink {
   KeyframeId from;
   KeyframeId to;
