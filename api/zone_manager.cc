@@ -233,7 +233,9 @@ Result<Answer> ZoneManager::Impl::Carry(const zm::Plan& plan, bool startup) {
   batches.clear();
   for (zm::KfIndex k : residency->unloads()) unload_ids.push_back(index.id(k));
   for (zm::KfIndex k : residency->loads()) load_ids.push_back(index.id(k));
-  for (const auto& b : residency->load_batches()) batches.push_back(LoadBatch{b.zone, b.begin, b.end});
+  for (const auto& b : residency->load_batches()) {
+    batches.push_back(LoadBatch{b.zone, b.begin, b.end});
+  }
   Answer a;
   a.unload = unload_ids;
   a.load = load_ids;

@@ -54,8 +54,9 @@ enum class LinkKind : std::int32_t {
 };
 
 // A rigid-body pose in the map frame: metres, and a unit quaternion with w last (TUM order,
-// as in trajectory files and zonemapd's line protocol). A quaternion whose norm is within
-// [0.5, 1.5] is normalised by zonemap; anything else, or a non-finite number, is rejected.
+// as in trajectory files and zonemapd's line protocol). A quaternion within the profile's
+// [input] quaternion_tolerance of unit norm (0.01 by default) is normalised by zonemap; anything
+// else, or a non-finite number, is rejected (zonemapd's input gate; docs/api.md).
 struct Pose {
   double x = 0.0, y = 0.0, z = 0.0;
   double qx = 0.0, qy = 0.0, qz = 0.0, qw = 1.0;

@@ -114,11 +114,11 @@ struct PolicyOptions {
 
 class LtmGraph;
 
-// Makes the policy of options.kind over `index` (which must outlive it). Allocates everything it will
-// ever need here. Errors name the bad option. `ltm_graph` is where basic
-// reads the long-term-memory nodes its graph searches admit (the run-time passes the map's
-// SourceLtmGraph, which must outlive the policy); null = the MapIndex stands in (tests and the
-// decision benchmark). The other policies ignore it.
+// Makes the policy of options.kind over `index` (which must outlive it). Allocates everything
+// it will ever need here. Errors name the bad option. `ltm_graph` is where basic reads the
+// long-term-memory nodes its graph searches admit (the run-time passes the map's SourceLtmGraph,
+// which must outlive the policy); null = the MapIndex stands in (tests and the decision
+// benchmark). The other policies ignore it.
 [[nodiscard]] Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
                                                                const PolicyOptions& options,
                                                                LtmGraph* ltm_graph = nullptr);

@@ -89,8 +89,9 @@ void Daemon::Hello() {
       buf, sizeof buf,
       "hello zonemapd %d policy %s k_max %u arena_slots %u slot_bytes %llu keyframes %u "
       "zones %zu max_features %u max_route_waypoints %u input %s\n",
-      kPoseProtocolVersion, PolicyName(l.config().policy.kind).data(), l.k_max(), l.arena().capacity(),
-      static_cast<unsigned long long>(l.slot_bytes()), l.map_index().keyframe_count(),
+      kPoseProtocolVersion, PolicyName(l.config().policy.kind).data(), l.k_max(),
+      l.arena().capacity(), static_cast<unsigned long long>(l.slot_bytes()),
+      l.map_index().keyframe_count(),
       l.zone_set().size(), staged_.max_features(), profile_.input.max_route_waypoints, input);
   if (n > 0 && static_cast<std::size_t>(n) < sizeof buf) {
     if (options_.pose_fd >= 0 && !WriteAll(options_.pose_fd, {buf, static_cast<std::size_t>(n)})) {

@@ -3,15 +3,17 @@
 
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 namespace zm {
 
 MapExtent ExtentOf(const MapIndex& index) {
+  Eigen::AlignedBox3d box;  // empty until extended
+  for (KfIndex k = 0; k < index.keyframe_count(); ++k) box.extend(index.position(k));
   MapExtent e;
-  if (index.keyframe_count() == 0) return e;
-  e.min = e.max = index.position(0);
-  for (KfIndex k = 1; k < index.keyframe_count(); ++k) {
-    e.min = e.min.cwiseMin(index.position(k));
-    e.max = e.max.cwiseMax(index.position(k));
+  if (!box.isEmpty()) {
+    e.min = box.min();
+    e.max = box.max();
   }
   return e;
 }

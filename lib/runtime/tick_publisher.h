@@ -34,7 +34,7 @@ struct PublishOptions {
   // Track the localization status and covariance, write pose lines and the tracker's telemetry
   // members (zonemapd); off: neither (a replay's ticks.jsonl carries the record alone).
   bool track_status = false;
-  PoseOutputOptions output;      // the tracker's uncertainty model ([output])
+  PoseOutputOptions output{};    // the tracker's uncertainty model ([output])
 };
 
 class TickPublisher {

@@ -58,8 +58,8 @@ TEST_CASE("basic and unbounded: the arena holds the whole map, residency is meas
 TEST_CASE("a run's options become budget inputs by the policy's name") {
   const BudgetInputs orin = Orin(2'000'000, 10'000);
   for (const char* bounded : {"semantic", "predictive", "radius", "oracle"}) {
-    const BudgetInputs in =
-        BudgetInputsFor(orin.device, orin.model, orin.map, *ParsePolicyKind(bounded), 2'000'000, 10'000);
+    const BudgetInputs in = BudgetInputsFor(orin.device, orin.model, orin.map,
+                                            *ParsePolicyKind(bounded), 2'000'000, 10'000);
     CHECK_MESSAGE(in.bounded_policy, bounded);
     CHECK_FALSE(in.unbounded_policy);
     CHECK(in.largest_keyframe_bytes == 2'000'000);
