@@ -317,7 +317,7 @@ void Daemon::Flush() {
 }
 
 nlohmann::json Daemon::Summary(bool interrupted) const {
-  nlohmann::json s = LoopSummary(*loop_, interrupted);
+  nlohmann::json s = ToJson(LoopSummary(*loop_, interrupted));
   nlohmann::json by_reason = nlohmann::json::object();
   for (std::size_t i = 0; i < kRejectReasonCount; ++i) {
     by_reason[RejectReasonName(static_cast<RejectReason>(i))] = rejects_.by_reason[i];
