@@ -13,6 +13,7 @@
 #include "common/ids.h"
 #include "common/status.h"
 #include "geometry/pose.h"
+#include "runtime/buffered_file.h"
 
 namespace zm {
 
@@ -87,9 +88,8 @@ class TelemetryWriter {
   TelemetryWriter() = default;
   TelemetryWriter(const TelemetryWriter&) = delete;
   TelemetryWriter& operator=(const TelemetryWriter&) = delete;
-  ~TelemetryWriter();
 
-  // Opens (truncates) `path`. The stdio buffer is allocated here, once.
+  // Opens (truncates) `path` (the one BufferedFile: its buffer is allocated here, once).
   [[nodiscard]] Status Open(const std::string& path);
   // Appends one JSON line. `extra` (may be empty) is a pre-formatted fragment of further members,
   // `"key":value,"key2":value2`, appended inside the object: how the evaluation adds its device
@@ -101,8 +101,7 @@ class TelemetryWriter {
   [[nodiscard]] std::uint64_t lines() const { return lines_; }
 
  private:
-  std::FILE* file_ = nullptr;
-  char* stdio_buffer_ = nullptr;
+  BufferedFile file_;
   char line_[2048] = {};
   std::uint64_t lines_ = 0;
 };
