@@ -15,9 +15,15 @@
 #include "runtime/frame_source.h"
 #include "runtime/input_gate.h"
 #include "runtime/profile.h"
+#include "runtime/summary.h"
 #include "runtime/tick_loop.h"
 
 namespace zonemap {
+
+// The public header states the defaults in plain C++ (it may include nothing of the core's); the
+// parameters are declared once in the core, and these keep the two the same.
+static_assert(MapLoopOptions{}.max_features == zm::kMaxFeaturesParam.default_value,
+              "MapLoopOptions::max_features must default to runtime/frame_source.h's");
 
 using internal::FromPose3;
 using internal::ToPose3;
@@ -207,7 +213,9 @@ std::string_view MapLoop::zone_name(ZoneId zone) const {
 std::string_view MapLoop::profile_path() const { return impl_->profile.source; }
 
 LoopStats MapLoop::stats() const {
-  const zm::LoopTotals& t = impl_->loop->totals();
+  // The run summary zonemapd and the harness write (runtime/summary.h), projected onto the
+  // public struct: one derivation of every figure.
+  const zm::RunSummary t = zm::LoopSummary(*impl_->loop, false);
   LoopStats s;
   s.ticks = t.ticks;
   s.loop_closures = t.loop_closures;
@@ -216,15 +224,15 @@ LoopStats MapLoop::stats() const {
   s.zone_loads = t.zone_loads;
   s.db_transactions = t.db_transactions;
   s.db_bytes_read = t.db_bytes_read;
-  s.peak_resident_keyframes = t.peak_resident_keyframes;
+  s.peak_resident_keyframes = static_cast<std::uint32_t>(t.peak_resident_keyframes);
   s.over_budget_ticks = t.over_budget_ticks;
   s.stalled_ticks = t.stalled_ticks;
   s.rejected_frames =
       impl_->rejected + (impl_->gated_replay ? impl_->gated_replay->rejects().total : 0);
-  s.tick_ms_mean = t.tick_ms.mean();
-  s.tick_ms_p50 = t.tick_ms.Quantile(0.50);
-  s.tick_ms_p99 = t.tick_ms.Quantile(0.99);
-  s.tick_ms_max = t.tick_ms.max();
+  s.tick_ms_mean = t.tick_ms.mean;
+  s.tick_ms_p50 = t.tick_ms.p50;
+  s.tick_ms_p99 = t.tick_ms.p99;
+  s.tick_ms_max = t.tick_ms.max;
   return s;
 }
 

@@ -29,6 +29,12 @@
 
 namespace zonemap {
 
+// The public header states the default in plain C++ (it may include nothing of the core's); the
+// doorway band is declared once in zones/annotate.h, and this keeps the two the same.
+static_assert(HostMap{}.doorway_band_m == zm::kDoorwayBandParam.default_value,
+              "HostMap::doorway_band_m must default to zones/annotate.h's");
+
+
 using internal::ToPose3;
 
 struct ZoneManager::Impl {

@@ -4,6 +4,10 @@
 // (lib/runtime/budget.h), so scripts ask the program instead of re-deriving K_max
 // (scripts/sweep.py, docs/style.md §14).
 //
+// --list-models prints the co-tenant's model table (harness/cotenant.h's CotenantModels: weights,
+// KV bytes per token, sliding window, fixed state) as JSON: the one table, which scripts/sweep.py
+// reads instead of keeping a copy.
+//
 // --stdin serves many maps from one process: "N B" pairs, one a line, each answered by one JSON
 // line (an "error" member when DeriveBudget refuses that map); a script walking a grid starts one
 // process per profile variant instead of one per point.
@@ -15,6 +19,8 @@
 #include <string>
 
 #include "commands.h"
+#include "param_options.h"
+#include "harness/cotenant.h"
 #include "harness/device_scale.h"
 #include "harness/experiment_profile.h"
 
@@ -39,6 +45,7 @@ nlohmann::json BudgetJson(const MapFacts& map, const Result<Budget>& budget) {
   j["slot_bytes"] = b.slot_bytes;
   j["k_max"] = b.k_max;
   j["arena_slots"] = b.arena_slots;
+  j["arena_slot_bytes"] = b.arena_slot_bytes;
   j["bounded"] = b.bounded;
   return j;
 }
@@ -68,13 +75,14 @@ void AddBudgetCommand(CLI::App& app, CommandContext& ctx) {
     MapFacts map;
     bool json = false;
     bool stdin_pairs = false;
+    bool list_models = false;
   };
   auto o = std::make_shared<Opts>();
   auto* cmd = app.add_subcommand(
       "budget", "Print the memory budget (K_max, slot, arena, map share) a run would derive");
   cmd->add_option("--profile", o->profile, "device profile name or TOML path (default host)");
   cmd->add_option("--policy", o->policy, "basic|radius|semantic|predictive|oracle|unbounded");
-  cmd->add_option("--memory-thr", o->memory_thr, "MemoryThr: N keyframes, BYTES (e.g. 512MiB), or N,BYTES");
+  AddParamOption(*cmd, kMemoryThrParam, &o->memory_thr);
   auto* cotenant = cmd->add_option(
       "--cotenant", o->cotenant, "the co-tenant model, as `zonemap run`: the map share stays frozen");
   cmd->add_option("--model", o->model,
@@ -88,7 +96,23 @@ void AddBudgetCommand(CLI::App& app, CommandContext& ctx) {
                               "read 'KEYFRAMES LARGEST_KEYFRAME_BYTES' lines from stdin; one JSON line each");
   pairs->excludes(keyframes)->excludes(largest);
   cmd->add_flag("--json", o->json, "print JSON");
+  cmd->add_flag("--list-models", o->list_models,
+                "print the co-tenant's model table as JSON (weights, KV cache per token) and exit");
   cmd->callback([o, &ctx, keyframes, largest] {
+    if (o->list_models) {
+      nlohmann::json models = nlohmann::json::array();
+      for (const CotenantModel& m : CotenantModels()) {
+        models.push_back({{"name", m.name},
+                          {"display", m.display},
+                          {"weights_bytes", m.weights_bytes},
+                          {"kv_bytes_per_token", m.kv_bytes_per_token},
+                          {"window_bytes_per_token", m.window_bytes_per_token},
+                          {"window_tokens", m.window_tokens},
+                          {"state_bytes", m.state_bytes}});
+      }
+      std::printf("%s\n", models.dump(2).c_str());
+      return;
+    }
     if (!o->stdin_pairs && (keyframes->count() == 0 || largest->count() == 0)) {
       return ctx.Fail("budget", "--keyframes and --largest-keyframe-bytes are required (or --stdin)");
     }

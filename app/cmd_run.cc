@@ -1,9 +1,12 @@
 // `zonemap run`: replays a scenario's localization run through the tick loop under a policy and
 // a device profile, writing RUNDIR/ticks.jsonl, estimate.tum and summary.json.
+#include <unistd.h>
+
 #include <cstdio>
 #include <memory>
 
 #include "commands.h"
+#include "param_options.h"
 #include "harness/device_run.h"
 #include "runtime/stop_signal.h"
 
@@ -26,7 +29,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--out", o->out, "run directory to write")->required();
   cmd->add_option("--policy", o->policy, "basic|radius|semantic|predictive|oracle|unbounded");
   cmd->add_option("--profile", o->profile, "device profile name or TOML path (default host)");
-  cmd->add_option("--memory-thr", o->memory_thr, "MemoryThr: N keyframes, BYTES (e.g. 512MiB), or N,BYTES");
+  AddParamOption(*cmd, kMemoryThrParam, &o->memory_thr);
   cmd->add_option("--cotenant", o->cotenant, "run the VLM stand-in beside the loop (model name)");
   auto* device_opt = cmd->add_option(
       "--device", o->device,
@@ -35,8 +38,10 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--device-scale", o->device_scale,
                   "0 < S <= 1: device memory, OS reserve, weights, KV cache and keyframe bytes x S");
   cmd->add_option("--time-compression", o->time_compression,
-                  "frames arrive at the profile's rate, X times faster than real time (1 = real "
-                  "time; 0 = every frame as fast as the loop goes, no drops)");
+                  "frames arrive at the profile's rate, X times faster than real time (default 1: "
+                  "the profile's real rate, [loop] rate_hz: a patrol takes as long as it did on the "
+                  "robot; 0 = every frame as fast as the loop goes, no drops). On a terminal a "
+                  "progress line shows frames, rate and ETA");
   cmd->add_option("--cotenant-requests", o->cotenant_requests,
                   "co-tenant requests spread over the patrol (default 30)");
   cmd->add_option("--cotenant-period-s", o->cotenant_period,
@@ -83,42 +88,43 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
     req.verify_checksums = o->verify;
     req.cold_files = o->map_files == "cold";
     req.charge_zram = o->zram_charge == "on";
+    // Progress only where someone watches: quiet when stderr is a file or a pipe.
+    req.progress = !o->quiet && isatty(STDERR_FILENO) == 1;
     auto s = RunOnDevice(req, StopFlag());
     if (!s.ok()) return ctx.Fail("run", s.status());
     if (o->quiet) return;
-    const auto& j = s.value();
-    const auto& d = j["device"];
+    const DeviceRunSummary& r = s.value();
+    const RunSummary& j = r.run;
+    const DeviceSummary& d = r.device;
     std::printf("device: %s%s, limit %.1f MiB, peak %.1f MiB, OOM kills %llu (device scale %g)\n",
-                d["description"].get<std::string>().c_str(),
-                d["simulated"].get<bool>() ? " [simulated]" : "",
-                d["limit_bytes"].get<double>() / 1048576.0, d["peak_bytes"].get<double>() / 1048576.0,
-                static_cast<unsigned long long>(d["oom_kills"].get<std::uint64_t>()), o->device_scale);
-    const auto& sw = d["swap"];
+                d.description.c_str(), d.simulated ? " [simulated]" : "",
+                static_cast<double>(d.limit_bytes) / 1048576.0,
+                static_cast<double>(d.peak_bytes) / 1048576.0,
+                static_cast<unsigned long long>(d.oom_kills), o->device_scale);
+    const DeviceSwapSummary& sw = d.swap;
     std::printf("device swap: %s, limit %.1f MiB, peak %.1f MiB, zram memory peak %.1f MiB\n",
-                sw["kind"].get<std::string>().c_str(), sw["limit_bytes"].get<double>() / 1048576.0,
-                sw["peak_bytes"].get<double>() / 1048576.0,
-                sw["zram_mem_used_peak_bytes"].get<double>() / 1048576.0);
+                sw.kind.c_str(), static_cast<double>(sw.limit_bytes) / 1048576.0,
+                static_cast<double>(sw.peak_bytes) / 1048576.0,
+                static_cast<double>(sw.zram_mem_used_peak_bytes) / 1048576.0);
+    const ReplaySummary replay = j.replay.value_or(ReplaySummary{});
     std::printf(
         "map process: %s, %llu major faults, arena %s; frames: %llu arrived, %llu dropped "
         "(time compression %g)\n",
-        j["map"]["outcome"].get<std::string>().c_str(),
-        static_cast<unsigned long long>(j["map"]["major_faults"].get<std::uint64_t>()),
-        j["map"]["arena_locked"].get<bool>() ? "locked" : "not locked",
-        static_cast<unsigned long long>(j["frames_arrived"].get<std::uint64_t>()),
-        static_cast<unsigned long long>(j["frames_dropped"].get<std::uint64_t>()),
-        o->time_compression);
-    std::printf("%s: %llu ticks, K_max %u, peak resident %u, loop closures %llu, ATE %.3f m, "
+        r.map.outcome.c_str(), static_cast<unsigned long long>(r.map.major_faults),
+        r.map.arena_locked ? "locked" : "not locked",
+        static_cast<unsigned long long>(replay.frames_arrived),
+        static_cast<unsigned long long>(replay.frames_dropped), o->time_compression);
+    std::printf("%s: %llu ticks, K_max %llu, peak resident %llu, loop closures %llu, ATE %.3f m, "
                 "tick p50 %.2f ms p99 %.2f ms, over-budget ticks %llu%s\n",
-                j["policy"].get<std::string>().c_str(),
-                static_cast<unsigned long long>(j["ticks"].get<std::uint64_t>()),
-                j["k_max"].get<unsigned>(), j["peak_resident_keyframes"].get<unsigned>(),
-                static_cast<unsigned long long>(j["loop_closures"].get<std::uint64_t>()),
-                j["ate_rmse_m"].is_number() ? j["ate_rmse_m"].get<double>() : -1.0,
-                j["tick_ms"]["p50"].get<double>(), j["tick_ms"]["p99"].get<double>(),
-                static_cast<unsigned long long>(j["over_budget_ticks"].get<std::uint64_t>()),
-                j["interrupted"].get<bool>() ? " (interrupted)" : "");
-    if (j.contains("cotenant")) {
-      const auto& c = j["cotenant"];
+                j.policy.c_str(), static_cast<unsigned long long>(j.ticks),
+                static_cast<unsigned long long>(j.k_max),
+                static_cast<unsigned long long>(j.peak_resident_keyframes),
+                static_cast<unsigned long long>(j.loop_closures),
+                replay.trajectory.ate_rmse_m.value_or(-1.0), j.tick_ms.p50, j.tick_ms.p99,
+                static_cast<unsigned long long>(j.over_budget_ticks),
+                j.interrupted ? " (interrupted)" : "");
+    if (!r.cotenant.is_null()) {
+      const nlohmann::json& c = r.cotenant;
       const bool has_latency = c.contains("latency_ms") && c["latency_ms"].is_object() &&
                                c["latency_ms"].value("p50", nlohmann::json()).is_number();
       std::printf("co-tenant (stand-in) %s: %s, %u of %u requests, %u restarts, %.2f tokens/s, "

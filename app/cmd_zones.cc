@@ -8,6 +8,7 @@
 #include <string>
 
 #include "commands.h"
+#include "param_options.h"
 #include "zones/adjacency.h"
 #include "zones/annotate.h"
 #include "zones/zone_set.h"
@@ -18,7 +19,7 @@ namespace {
 struct AnnotateCliOpts {
   std::string db;
   std::string zones;
-  double band_m = 0.5;
+  double band_m = kDoorwayBandParam.default_value;
   std::uint32_t max_zone_keyframes = 0;
   std::uint32_t warn_keyframes = 0;
   bool json = false;
@@ -120,9 +121,7 @@ void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("ZONES", opts->zones,
                   "zone file: GeoJSON FeatureCollection or {\"zones\": {name: [keyframe ids]}}")
       ->required();
-  cmd->add_option("--band", opts->band_m,
-                  "doorway band in metres: keyframes this close to another zone join it too")
-      ->check(CLI::NonNegativeNumber);
+  AddParamOption(*cmd, kDoorwayBandParam, &opts->band_m);
   cmd->add_option("--max-zone-keyframes", opts->max_zone_keyframes,
                   "split zones holding more keyframes than this into compact parts (0 = never)");
   cmd->add_option("--warn-keyframes", opts->warn_keyframes,

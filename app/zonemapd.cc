@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "param_options.h"
 #include "runtime/daemon.h"
 #include "runtime/memory_cap.h"
 #include "runtime/profile.h"
@@ -43,7 +44,7 @@ int main(int argc, char** argv) {
   bool use_stdin = false;
   bool no_hello = false;
   std::uint64_t max_ticks = 0;
-  std::uint32_t max_features = 2048;
+  std::uint32_t max_features = 0;
   app.add_option("--profile", profile_name, "device profile name or TOML path");
   app.add_option("--db", db_path, "map database")->required();
   app.add_option("--frames", frames_path, "replay a recorded frames file");
@@ -51,9 +52,9 @@ int main(int argc, char** argv) {
   app.add_option("--udp", udp_port, "read the live line protocol from 127.0.0.1:PORT (0 = any)");
   app.add_option("--out", out, "run directory (ticks.jsonl, estimate.tum, summary.json)")->required();
   app.add_option("--policy", policy, "override the profile's policy");
-  app.add_option("--memory-thr", memory_thr, "override MemoryThr: N, BYTES or N,BYTES");
+  zm::app::AddParamOption(app, zm::kMemoryThrParam, &memory_thr);
   app.add_option("--max-ticks", max_ticks, "stop after this many ticks");
-  app.add_option("--max-features", max_features, "largest frame accepted on live input");
+  zm::app::AddParamOption(app, zm::kMaxFeaturesParam, &max_features);
   app.add_flag("--no-hello", no_hello, "do not write the hello line first");
   app.add_option("--sqlite-heap", sqlite_heap,
                  "SQLite's fixed heap, reserved at start (0 = SQLite's default: malloc)");

@@ -86,6 +86,15 @@ bool PoisonByDefault() {
 
 }  // namespace
 
+std::uint64_t ArenaSlotBytes(std::uint64_t slot_bytes, bool release_to_os) {
+  // A slot given back to the kernel must own whole pages, or releasing it would drop (or keep)
+  // a neighbour's bytes.
+  const std::uint64_t alignment = release_to_os
+                                      ? std::max<std::uint64_t>(Arena::kSlotAlignment, PageBytes())
+                                      : Arena::kSlotAlignment;
+  return AlignUp(slot_bytes, alignment);
+}
+
 std::variant<ArenaPlan, ArenaError> PlanArena(const ArenaConfig& config) {
   if (config.slot_bytes == 0) {
     return ArenaError{ArenaErrorCode::kZeroSlotBytes, "arena: slot_bytes is 0; it must be at "
@@ -95,12 +104,7 @@ std::variant<ArenaPlan, ArenaError> PlanArena(const ArenaConfig& config) {
     return ArenaError{ArenaErrorCode::kNoBudget,
                       "arena: no budget: give MemoryThr as a keyframe count, as bytes, or both"};
   }
-  // A slot given back to the kernel must own whole pages, or releasing it would drop (or keep)
-  // a neighbour's bytes.
-  const std::uint64_t alignment =
-      config.release_to_os ? std::max<std::uint64_t>(Arena::kSlotAlignment, PageBytes())
-                           : Arena::kSlotAlignment;
-  const std::uint64_t slot = AlignUp(config.slot_bytes, alignment);
+  const std::uint64_t slot = ArenaSlotBytes(config.slot_bytes, config.release_to_os);
   if (config.budget_bytes != 0 && slot > config.budget_bytes) {
     return ArenaError{ArenaErrorCode::kSlotLargerThanBudget,
                       "arena: one slot (" + std::to_string(slot) +

@@ -91,6 +91,12 @@ struct ArenaError {
 
 // Computes K_max and the aligned slot size without reserving anything. Shared by Create() and
 // by callers (reports, profiles) that need the arithmetic alone.
+// The slot size the arena uses for `slot_bytes`: rounded up to 64 bytes, or to a page with
+// release_to_os (a slot given back to the kernel must own whole pages). The one alignment rule:
+// PlanArena applies it and DeriveBudget (runtime/budget.h) reports it, so the arena a budget asks
+// for (arena slots x aligned slot bytes) is exactly the arena made.
+[[nodiscard]] std::uint64_t ArenaSlotBytes(std::uint64_t slot_bytes, bool release_to_os);
+
 struct ArenaPlan {
   std::uint32_t slots = 0;
   std::uint64_t slot_bytes = 0;  // aligned (to a page with release_to_os)

@@ -100,10 +100,31 @@ bool ReadAll(int fd, void* p, std::size_t n) {
   return true;
 }
 
+// "\rrun: frame 812 of 4128 (20 %), 2.0 frames/s, ETA 27:38" on stderr, in place. A stack buffer
+// and one write(2): a warm tick allocates nothing.
+void WriteProgress(const TickClock& clock, std::uint64_t frames_total) {
+  const double rate = clock.wall_s > 0 ? static_cast<double>(clock.frames_arrived) / clock.wall_s
+                                       : 0.0;
+  const std::uint64_t left =
+      frames_total > clock.frames_arrived ? frames_total - clock.frames_arrived : 0;
+  const auto eta_s = static_cast<std::uint64_t>(rate > 0 ? static_cast<double>(left) / rate : 0.0);
+  std::array<char, 160> line{};
+  const int n = std::snprintf(
+      line.data(), line.size(), "\rrun: frame %llu of %llu (%.0f %%), %.1f frames/s, ETA %llu:%02llu ",
+      static_cast<unsigned long long>(clock.frames_arrived),
+      static_cast<unsigned long long>(frames_total),
+      frames_total > 0 ? 100.0 * static_cast<double>(clock.frames_arrived) /
+                             static_cast<double>(frames_total)
+                       : 0.0,
+      rate, static_cast<unsigned long long>(eta_s / 60), static_cast<unsigned long long>(eta_s % 60));
+  if (n > 0) (void)WriteAll(STDERR_FILENO, line.data(), std::min<std::size_t>(static_cast<std::size_t>(n), line.size() - 1));
+}
+
 // The map process: the replay inside the device. Never returns (it _exits: the runner's objects,
 // the device among them, are the runner's to destroy).
 [[noreturn]] void MapProcess(const DeviceRunRequest& request, const LoopConfig& loop,
-                             DeviceModel& device, SharedReadings* shared, int ready_fd, int go_fd,
+                             std::uint64_t frames_total, DeviceModel& device,
+                             SharedReadings* shared, int ready_fd, int go_fd,
                              const std::atomic<bool>* stop) {
   const std::string err_path = request.out_dir + "/map_error.txt";
   const auto fail = [&](const Status& s) {
@@ -139,7 +160,8 @@ bool ReadAll(int fd, void* p, std::size_t n) {
   run.time_compression = request.time_compression;
   run.on_ready = [&](const TickLoop& l) -> Result<double> {
     // What a summary needs if this process does not live to write one (the budget, the arena).
-    std::ofstream(request.out_dir + "/map_start.json") << LoopSummary(l, false).dump(2) << '\n';
+    std::ofstream(request.out_dir + "/map_start.json") << ToJson(LoopSummary(l, false)).dump(2)
+                                                       << '\n';
     // Ready: the loop is built (the arena reserved and pre-faulted). The runner starts the
     // co-tenant, then sends the clock's origin.
     const char byte = 1;
@@ -154,8 +176,13 @@ bool ReadAll(int fd, void* p, std::size_t n) {
   // The ledger's grant of the map process, and what a refusal does: the arena's free slots are
   // withheld (TickLoop::WithholdSlots) so no keyframe loads until a later grant succeeds.
   std::uint64_t last_majflt = SampleRusage().self_major_faults;
+  double next_progress_s = 0.0;
   run.on_tick = [&, extra = std::array<char, 768>{}](
                     TickLoop& l, const TickClock& clock) mutable -> std::string_view {
+    if (request.progress && clock.wall_s >= next_progress_s) {
+      next_progress_s = clock.wall_s + 1.0;
+      WriteProgress(clock, frames_total);
+    }
     if (tenant) {
       const Arena& arena = l.arena();
       const std::uint64_t slots = l.bounded() ? arena.capacity() : arena.in_use();
@@ -201,66 +228,24 @@ bool ReadAll(int fd, void* p, std::size_t n) {
                : std::string_view();
   };
   auto summary = RunScenario(run, stop);
+  if (request.progress) std::fputs("\n", stderr);  // past the progress line
   if (!summary.ok()) fail(summary.status());
-  nlohmann::json s = std::move(summary).value();
-  s["ledger_refusals"] = ledger_refusals;
-  std::ofstream(request.out_dir + "/map_summary.json") << s.dump(2) << '\n';
+  RunSummary s = std::move(summary).value();
+  s.ledger_refusals = ledger_refusals;
+  std::ofstream(request.out_dir + "/map_summary.json") << ToJson(s).dump(2) << '\n';
   std::fflush(nullptr);
   _exit(0);
 }
 
-// Keys a complete run's summary has that a partial one must carry too (bench reads them).
-void FillMissing(nlohmann::json& s) {
-  const auto zero = [&s](const char* k) {
-    if (!s.contains(k)) s[k] = 0;
-  };
-  for (const char* k : {"k_max",
-                        "slot_bytes",
-                        "arena_slots",
-                        "ticks",
-                        "loop_closures",
-                        "closures_rejected",
-                        "peak_resident_keyframes",
-                        "peak_resident_bytes",
-                        "over_budget_ticks",
-                        "max_over_budget_keyframes",
-                        "keyframes_loaded",
-                        "keyframes_unloaded",
-                        "zone_loads",
-                        "db_transactions",
-                        "db_queries",
-                        "db_blob_reads",
-                        "db_bytes_read",
-                        "frames_dropped",
-                        "frames_arrived",
-                        "alloc_failures",
-                        "stalled_ticks"}) {
-    zero(k);
-  }
-  if (!s.contains("tick_ms")) {
-    s["tick_ms"] = {{"mean", 0.0}, {"p50", 0.0}, {"p99", 0.0}, {"max", 0.0}, {"count", 0}};
-  }
-  if (!s.contains("startup")) s["startup"] = nlohmann::json::object();
-  if (!s.contains("steady_state")) s["steady_state"] = nlohmann::json::object();
-  if (!s.contains("loads")) s["loads"] = nlohmann::json::object();
-  if (!s.contains("interrupted")) s["interrupted"] = false;
-  for (const char* k :
-       {"update_rate_hz", "ate_rmse_m", "ate_se3_rmse_m", "rpe_trans_rmse_m", "rpe_rot_rmse_deg"}) {
-    if (!s.contains(k)) s[k] = nullptr;
-  }
-}
-
 }  // namespace
 
-Result<nlohmann::json> SummarizePartialRun(const std::string& scenario_dir,
-                                           const std::string& out_dir, double time_compression) {
-  nlohmann::json s = nlohmann::json::object();
+Result<RunSummary> SummarizePartialRun(const std::string& scenario_dir, const std::string& out_dir,
+                                       double time_compression) {
+  // The budget and the arena, as the map process saw them when its loop was built.
+  RunSummary s;
   if (std::ifstream in(out_dir + "/map_start.json"); in) {
-    try {
-      s = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::exception&) {
-      s = nlohmann::json::object();
-    }
+    const nlohmann::json start = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+    if (auto read = RunSummaryFromJson(start); read.ok()) s = std::move(read).value();
   }
   StreamingStats tick_ms;
   std::uint64_t ticks = 0, closures = 0, loaded = 0, unloaded = 0, over = 0, bytes_read = 0;
@@ -300,63 +285,318 @@ Result<nlohmann::json> SummarizePartialRun(const std::string& scenario_dir,
       wall_s = t.value("wall_s", wall_s);
     }
   }
-  s["partial"] = true;
-  s["ticks"] = ticks;
-  s["loop_closures"] = closures;
-  s["keyframes_loaded"] = loaded;
-  s["keyframes_unloaded"] = unloaded;
-  s["over_budget_ticks"] = over;
-  s["db_bytes_read"] = bytes_read;
-  s["db_transactions"] = tx;
-  s["db_queries"] = q;
-  s["peak_resident_keyframes"] = peak_kf;
-  s["peak_resident_bytes"] = peak_bytes;
-  s["frames_dropped"] = dropped;
-  s["frames_arrived"] = arrived;
-  s["wall_s"] = wall_s;
-  s["time_compression"] = time_compression;
-  s["tick_ms"] = {{"mean", tick_ms.mean()},
-                  {"p50", tick_ms.Quantile(0.50)},
-                  {"p99", tick_ms.Quantile(0.99)},
-                  {"max", tick_ms.max()},
-                  {"count", tick_ms.count()}};
-  s["time_total_ms"] = TimeTotalJson({.steady_mean_ms = tick_ms.mean(),
-                                      .steady_ticks = tick_ms.count(),
-                                      .has_startup = has_startup,
-                                      .startup_tick_ms = startup_tick_ms,
-                                      .late_ms = late_ms,
-                                      .idle_load_ms = idle_load_ms});
-  if (has_startup && !s["startup"].is_object()) s["startup"] = nlohmann::json::object();
-  if (has_startup) s["startup"]["tick_ms"] = startup_tick_ms;
-  s["update_rate_hz"] = nullptr;
+  s.partial = true;
+  s.ticks = ticks;
+  s.loop_closures = closures;
+  s.keyframes_loaded = loaded;
+  s.keyframes_unloaded = unloaded;
+  s.over_budget_ticks = over;
+  s.db_bytes_read = bytes_read;
+  s.db_transactions = tx;
+  s.db_queries = q;
+  s.peak_resident_keyframes = peak_kf;
+  s.peak_resident_bytes = peak_bytes;
+  s.tick_ms = {.mean = tick_ms.mean(),
+               .p50 = tick_ms.Quantile(0.50),
+               .p99 = tick_ms.Quantile(0.99),
+               .max = tick_ms.max(),
+               .count = tick_ms.count()};
+  s.time_total_ms = TimeTotalOf({.steady_mean_ms = tick_ms.mean(),
+                                 .steady_ticks = tick_ms.count(),
+                                 .has_startup = has_startup,
+                                 .startup_tick_ms = startup_tick_ms,
+                                 .late_ms = late_ms,
+                                 .idle_load_ms = idle_load_ms});
+  if (has_startup) s.startup.tick_ms = startup_tick_ms;
+  s.update_rate_hz.reset();
   if (time_compression > 0 && wall_s > 0) {
-    s["update_rate_hz"] = static_cast<double>(ticks) / (wall_s * time_compression);
+    s.update_rate_hz = static_cast<double>(ticks) / (wall_s * time_compression);
   }
-  s["ate_rmse_m"] = nullptr;
-  s["ate_se3_rmse_m"] = nullptr;
-  s["rpe_trans_rmse_m"] = nullptr;
-  s["rpe_rot_rmse_deg"] = nullptr;
+  ReplaySummary& r = s.replay.emplace();
+  r.time_compression = time_compression;
+  r.realtime_frames = time_compression > 0;
+  r.frames_dropped = dropped;
+  r.frames_arrived = arrived;
+  r.wall_s = wall_s;
   auto scenario = sim::LoadScenario(scenario_dir);
+  if (scenario.ok()) r.scenario = scenario->dir;
   auto est = ReadTrajectory(out_dir + "/estimate.tum", TrajectoryFormat::kTum);
   if (scenario.ok() && !scenario->localization_gt.empty() && est.ok() && est->poses.size() > 2) {
     auto gt = ReadTrajectory(scenario->localization_gt, TrajectoryFormat::kTum);
-    if (gt.ok()) {
-      if (auto none = Evaluate(*gt, *est, {.align = AlignMode::kNone}); none.ok()) {
-        s["ate_rmse_m"] = none->ape_trans_m.rmse;
-        s["rpe_trans_rmse_m"] = none->rpe_trans_m.rmse;
-        s["rpe_rot_rmse_deg"] = none->rpe_rot_deg.rmse;
-        s["associated_poses"] = none->associated;
-      }
-      if (auto se3 = Evaluate(*gt, *est, {.align = AlignMode::kSe3}); se3.ok()) {
-        s["ate_se3_rmse_m"] = se3->ape_trans_m.rmse;
-      }
-    }
+    if (gt.ok()) r.trajectory = EvaluateEstimate(*gt, *est);
   }
-  FillMissing(s);
   return s;
 }
 
-Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::atomic<bool>* stop) {
+namespace {
+
+// The device's peaks and the map process's end, as the runner's monitor saw them.
+struct DeviceWatch {
+  std::uint64_t peak = 0;
+  std::uint64_t swap_peak = 0;
+  std::uint64_t zram_mem_used_peak = 0, zram_orig_peak = 0, zram_compr_peak = 0;
+  std::uint64_t dram_peak = 0;  // usage + zram's compressed pages: the DRAM the device holds
+  std::uint64_t limit_min = 0;
+  std::uint64_t charge_refusals = 0;
+  std::uint64_t map_peak_rss = 0;
+  std::uint64_t cotenant_peak_rss = 0;
+  int wait_status = 0;
+  rusage map_usage{};
+  DeviceSample final_sample;
+
+  void SampleSwap(DeviceModel& device, const DeviceSample& d) {
+    if (d.ok) swap_peak = std::max(swap_peak, d.swap_bytes);
+    const ZramSample z = device.SampleZram();
+    if (z.ok) {
+      zram_mem_used_peak = std::max(zram_mem_used_peak, z.mem_used_bytes);
+      zram_orig_peak = std::max(zram_orig_peak, z.orig_data_bytes);
+      zram_compr_peak = std::max(zram_compr_peak, z.compr_data_bytes);
+    }
+  }
+};
+
+// zram's compressed pages charged to the device (DeviceRunRequest::charge_zram): the cgroup's
+// limit follows the DRAM they occupy. One sample's step.
+void ChargeZram(DeviceModel& device, Cgroup& cgroup, const DeviceSample& last,
+                SharedReadings* shared, DeviceWatch& w) {
+  const ZramSample z = device.SampleZram();
+  if (!z.ok) return;
+  shared->zram_mem_used_bytes.store(z.mem_used_bytes);
+  if (last.ok) w.dram_peak = std::max(w.dram_peak, last.usage_bytes + z.mem_used_bytes);
+  // Floor: a quarter of the device; zram holds at most swap_bytes (half the memory) of swapped
+  // pages, so only a broken mm_stat could ask for less.
+  const std::uint64_t target = ChargedLimit(cgroup.limit_bytes(), z.mem_used_bytes,
+                                            kZramChargeStepBytes, cgroup.limit_bytes() / 4);
+  if (target == cgroup.current_limit_bytes()) return;
+  if (Status s = cgroup.SetMemoryLimit(target); !s.ok()) {
+    // The kernel could not reclaim down to it (v1 EBUSY): the device is over its DRAM for now;
+    // the next sample tries again. Said once, counted always.
+    if (w.charge_refusals++ == 0) std::fprintf(stderr, "device: %s\n", s.ToString().c_str());
+  }
+  w.limit_min = std::min(w.limit_min, cgroup.current_limit_bytes());
+  shared->device_limit_bytes.store(cgroup.current_limit_bytes());
+}
+
+// Monitors until the map process ends (every 50 ms): the device's peak and OOM kills, zram's
+// store (charged to the limit when `charge_cgroup`), the map process's and the co-tenant's RSS
+// (published to the map process through `shared`).
+Result<DeviceWatch> WatchUntilMapExits(DeviceModel& device, pid_t map_pid, SharedReadings* shared,
+                                       Cgroup* charge_cgroup, CotenantSupervisor* cotenant,
+                                       const std::atomic<bool>* stop) {
+  DeviceWatch w;
+  w.limit_min = device.limit_bytes();
+  DeviceSample last = device.Sample();
+  w.peak = last.peak_bytes;
+  ProcessSampler map_sampler;
+  if (auto s = ProcessSampler::Open(map_pid); s.ok()) map_sampler = std::move(s).value();
+  ProcessSampler co_sampler;
+  pid_t co_pid = -1;
+  bool sent_term = false;
+  for (;;) {
+    // wait4: the map process's own rusage (its major faults) when it is reaped.
+    const pid_t r = wait4(map_pid, &w.wait_status, WNOHANG, &w.map_usage);
+    if (r == map_pid) break;
+    if (r < 0 && errno != EINTR) return Internal(std::string("waitpid: ") + std::strerror(errno));
+    if (stop != nullptr && stop->load() && !sent_term) {
+      kill(map_pid, SIGTERM);
+      sent_term = true;
+    }
+    last = device.Sample();
+    if (last.ok) w.peak = std::max({w.peak, last.peak_bytes, last.usage_bytes});
+    w.SampleSwap(device, last);
+    if (charge_cgroup != nullptr) ChargeZram(device, *charge_cgroup, last, shared, w);
+    const ProcessSample m = map_sampler.Sample();
+    if (m.alive) w.map_peak_rss = std::max(w.map_peak_rss, m.rss_bytes);
+    if (cotenant != nullptr) {
+      const pid_t p = cotenant->child_pid();
+      if (p != co_pid) {
+        co_pid = p;
+        co_sampler = ProcessSampler();
+        if (p > 0) {
+          if (auto s = ProcessSampler::Open(p); s.ok()) co_sampler = std::move(s).value();
+        }
+        shared->cotenant_pid.store(p);
+      }
+      const ProcessSample c = co_sampler.Sample();
+      const std::uint64_t rss = c.alive ? c.rss_bytes : 0;
+      shared->cotenant_rss_bytes.store(rss);
+      w.cotenant_peak_rss = std::max(w.cotenant_peak_rss, rss);
+    }
+    SleepS(0.05);
+  }
+  return w;
+}
+
+// Requests still in flight may finish (the same grace for every run), then the co-tenant stops;
+// its report with the run's pacing (null without a co-tenant).
+nlohmann::json FinishCotenant(const DeviceRunRequest& request, CotenantSupervisor& supervisor,
+                              bool started, const Status& start_error, double period_s,
+                              std::uint64_t peak_rss, const std::atomic<bool>* stop) {
+  nlohmann::json cotenant = nullptr;
+  if (started) {
+    const double drain_until = NowS() + request.cotenant_drain_s;
+    while (NowS() < drain_until && !(stop != nullptr && stop->load())) {
+      const CotenantResult c = supervisor.Snapshot();
+      if (c.requests + c.requests_failed >= request.cotenant_requests) break;
+      SleepS(0.1);
+    }
+    auto r = supervisor.Stop();
+    if (r.ok()) {
+      const CotenantResult& c = r.value();
+      cotenant = ToJson(c);
+      cotenant["outcome"] = std::string(CotenantOutcomeName(c.outcome));
+      cotenant["symbol"] = std::string(CotenantOutcomeSymbol(c.outcome));
+      cotenant["requests_completed"] = c.requests;
+      cotenant["restarts"] = c.restarts;
+      cotenant["peak_rss_bytes"] = peak_rss;
+      std::ofstream(request.out_dir + "/cotenant.json") << ToJson(c).dump(2) << '\n';
+    } else {
+      cotenant = {{"outcome", "failed_to_start"}, {"reason", r.status().message()}};
+    }
+  } else if (request.with_cotenant) {
+    cotenant = {{"outcome", "failed_to_start"},
+                {"requests_completed", 0},
+                {"restarts", 0},
+                {"reason", !start_error.ok() ? start_error.message()
+                                             : std::string("the map process never became ready")},
+                {"note", std::string(kCotenantNote)}};
+  }
+  if (!cotenant.is_null()) {
+    cotenant["events_file"] = "cotenant.jsonl";
+    cotenant["request_period_s"] = period_s;
+    cotenant["requests_planned"] = request.cotenant_requests;
+    cotenant["stand_in"] = true;
+  }
+  return cotenant;
+}
+
+// The map process's own summary (map_summary.json, when it exited cleanly), or the one rebuilt
+// from its ticks; and how it ended.
+Result<RunSummary> MapSummaryOrPartial(const DeviceRunRequest& request, const ChildExit& exit,
+                                       std::string& outcome) {
+  const std::string path = request.out_dir + "/map_summary.json";
+  if (exit.exited && exit.code == 0) {
+    if (std::ifstream in(path); in) {
+      const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+      if (auto s = RunSummaryFromJson(j); !j.is_discarded() && s.ok()) {
+        outcome = s->interrupted ? "interrupted" : "completed";
+        return std::move(s).value();
+      }
+    }
+  }
+  outcome = exit.signaled && exit.signal == SIGKILL ? "killed"
+            : exit.signaled                         ? "crashed"
+                                                    : "failed";
+  return SummarizePartialRun(request.scenario_dir, request.out_dir, request.time_compression);
+}
+
+// A map generated at a larger footprint than the device's scale (a full-size map at --device-scale
+// 1/8): the arena the map process would reserve for it can exceed its process cap (RLIMIT_AS),
+// and the kernel's "arena reservation exceeds RLIMIT_AS" would not say why. Said here, with the
+// numbers and the fix, before anything runs. `loop` is already scaled.
+Status CheckFootprintScale(const sim::ScenarioInfo& scenario, double device_scale,
+                           const LoopConfig& loop) {
+  if (loop.map.process_cap_bytes == 0 || scenario.footprint_scale <= device_scale) {
+    return Status::Ok();
+  }
+  auto budget = DeriveBudget(BudgetInputsFor(loop.device, loop.model, loop.map,
+                                             loop.policy.kind, scenario.resident_bytes_max,
+                                             scenario.keyframes));
+  if (!budget.ok()) return Status::Ok();  // the map process says what is wrong with the budget
+  const std::uint64_t arena_bytes = std::uint64_t{budget->arena_slots} * budget->slot_bytes;
+  if (arena_bytes <= loop.map.process_cap_bytes) return Status::Ok();
+  char scale[32];
+  std::snprintf(scale, sizeof scale, "%g", device_scale);
+  char made[32];
+  std::snprintf(made, sizeof made, "%g", scenario.footprint_scale);
+  return FailedPrecondition(
+      "the map '" + scenario.dir + "' was generated at footprint scale " + made +
+      " (largest keyframe " + FormatBytes(scenario.resident_bytes_max) + ") but the device runs at " +
+      "--device-scale " + scale + ": " + std::string(PolicyName(loop.policy.kind)) + "'s arena of " +
+      std::to_string(budget->arena_slots) + " slots x " + FormatBytes(budget->slot_bytes) + " = " +
+      FormatBytes(arena_bytes) + " exceeds the map process's cap map.process_cap_bytes " +
+      FormatBytes(loop.map.process_cap_bytes) + "; generate the map with `zonemap sim ... " +
+      "--footprint-scale " + scale + "` (or run it at --device-scale " + made + ")");
+}
+
+// The device's options for a run of `loop` (already scaled): cgroup or ledger, its limit, its
+// swap at JetPack's swappiness.
+Result<DeviceModelOptions> DeviceOptionsFor(const DeviceRunRequest& request,
+                                            const LoopConfig& loop) {
+  ZM_ASSIGN_OR_RETURN(std::uint64_t limit, DeviceLimitBytes(loop.device));
+  DeviceModelOptions dopt;
+  dopt.kind = request.device;
+  dopt.fall_back_to_ledger = !request.device_explicit;
+  dopt.limit_bytes = limit;
+  dopt.cgroup = request.cgroup;
+  dopt.swap.requested = loop.device.swap;
+  dopt.swap.bytes = loop.device.swap_bytes;  // scaled with the device
+  dopt.swap.system = request.swap_system;
+  if (loop.device.swap != "none" && dopt.cgroup.swappiness < 0) {
+    dopt.cgroup.swappiness = kJetPackSwappiness;
+  }
+  dopt.ledger_path = !request.ledger_path.empty()
+                         ? request.ledger_path
+                         : request.out_dir + "/.ledger-" + std::to_string(getpid());
+  return dopt;
+}
+
+}  // namespace
+
+nlohmann::json ToJson(const DeviceRunSummary& d) {
+  nlohmann::json s = ToJson(d.run);
+  const MapProcessSummary& m = d.map;
+  s["map"] = {{"outcome", m.outcome},
+              {"pid", m.pid},
+              {"exit_code", m.exit_code},
+              {"signal", m.signal},
+              {"peak_rss_bytes", m.peak_rss_bytes},
+              {"major_faults", m.major_faults},
+              {"arena_locked", m.arena_locked},
+              {"lock_arena_requested", m.lock_arena_requested},
+              {"cold_files", m.cold_files},
+              {"files_dropped_bytes", m.files_dropped_bytes}};
+  if (m.error) s["map"]["error"] = *m.error;
+  s["device_scale"] = d.device_scale;
+  const DeviceSummary& v = d.device;
+  const DeviceSwapSummary& w = v.swap;
+  s["device"] = {{"kind", v.kind},
+                 {"simulated", v.simulated},
+                 {"description", v.description},
+                 {"fallback_reason", v.fallback_reason},
+                 {"limit_bytes", v.limit_bytes},
+                 {"peak_bytes", v.peak_bytes},
+                 {"oom_kills", v.oom_kills},
+                 {"limit_hits", v.limit_hits},
+                 {"scale", v.scale},
+                 {"name", v.name},
+                 {"memory_bytes", v.memory_bytes},
+                 {"os_reserve_bytes", v.os_reserve_bytes},
+                 {"map_peak_rss_bytes", v.map_peak_rss_bytes},
+                 {"cotenant_peak_rss_bytes", v.cotenant_peak_rss_bytes},
+                 {"swap",
+                  {{"kind", w.kind},
+                   {"requested", w.requested},
+                   {"reason", w.reason},
+                   {"description", w.description},
+                   {"limit_bytes", w.limit_bytes},
+                   {"peak_bytes", w.peak_bytes},
+                   {"swappiness", w.swappiness},
+                   {"comp_algorithm", w.comp_algorithm},
+                   {"zram_orig_peak_bytes", w.zram_orig_peak_bytes},
+                   {"zram_compr_peak_bytes", w.zram_compr_peak_bytes},
+                   {"zram_mem_used_peak_bytes", w.zram_mem_used_peak_bytes},
+                   {"zram_charged", w.zram_charged}}},
+                 {"limit_min_bytes", v.limit_min_bytes},
+                 {"dram_peak_bytes", v.dram_peak_bytes},
+                 {"limit_charge_refusals", v.limit_charge_refusals}};
+  s["oom_events"] = v.oom_kills;  // the memory table's column (simulated for the ledger)
+  if (!d.cotenant.is_null()) s["cotenant"] = d.cotenant;
+  return s;
+}
+
+Result<DeviceRunSummary> RunOnDevice(const DeviceRunRequest& request,
+                                     const std::atomic<bool>* stop) {
   namespace fs = std::filesystem;
   ZM_RETURN_IF_ERROR(ValidateDeviceScale(request.device_scale));
   if (!(request.time_compression >= 0.0)) {
@@ -374,24 +614,11 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   // The device at scale S: memory, OS reserve, model and the map's bytes together.
   LoopConfig loop = request.profile.core;
   ZM_RETURN_IF_ERROR(ApplyDeviceScale(request.device_scale, loop.device, loop.model, loop.map));
-  ZM_ASSIGN_OR_RETURN(std::uint64_t limit, DeviceLimitBytes(loop.device));
-  DeviceModelOptions dopt;
-  dopt.kind = request.device;
-  dopt.fall_back_to_ledger = !request.device_explicit;
-  dopt.limit_bytes = limit;
-  dopt.cgroup = request.cgroup;
-  dopt.swap.requested = loop.device.swap;
-  dopt.swap.bytes = loop.device.swap_bytes;  // scaled with the device
-  dopt.swap.system = request.swap_system;
-  if (loop.device.swap != "none" && dopt.cgroup.swappiness < 0) {
-    dopt.cgroup.swappiness = kJetPackSwappiness;
-  }
+  ZM_RETURN_IF_ERROR(CheckFootprintScale(scenario, request.device_scale, loop));
+  ZM_ASSIGN_OR_RETURN(DeviceModelOptions dopt, DeviceOptionsFor(request, loop));
   // The map's files: every read of the run lands in the device (cold), or not (warm).
   const std::uint64_t dropped_file_bytes =
       request.cold_files ? DropFileCache(request.scenario_dir) : 0;
-  dopt.ledger_path = !request.ledger_path.empty()
-                         ? request.ledger_path
-                         : request.out_dir + "/.ledger-" + std::to_string(getpid());
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<DeviceModel> device, OpenDeviceModel(dopt));
   if (request.on_device) request.on_device(*device);
   const Cgroup* device_cgroup = device->cgroup();
@@ -400,7 +627,6 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   const std::string swap_reason = device_cgroup != nullptr
                                       ? device->swap().reason()
                                       : std::string("the ledger simulates no swap");
-  const std::uint64_t swap_limit = device_cgroup != nullptr ? device_cgroup->swap_limit_bytes() : 0;
   if (loop.device.swap != "none" && swap_kind == "none") {
     // Never silent: the device asked for swap and has none.
     std::fprintf(stderr, "device swap: none: %s\n", swap_reason.c_str());
@@ -415,9 +641,6 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   // zram made for the run; an existing swap (a real Jetson's) is already in the device's DRAM.
   Cgroup* const charge_cgroup =
       request.charge_zram && device->swap().kind() == SwapKind::kZram ? device->cgroup() : nullptr;
-  std::uint64_t limit_min = device->limit_bytes();
-  std::uint64_t charge_refusals = 0;
-  std::uint64_t dram_peak = 0;  // usage + zram's compressed pages: the DRAM the device holds
   struct Unmap {
     SharedReadings* p;
     ~Unmap() { munmap(p, sizeof(SharedReadings)); }
@@ -442,7 +665,10 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   if (map_pid == 0) {
     close(ready[0]);
     close(go[1]);
-    MapProcess(request, loop, *device, shared, ready[1], go[0], stop);
+    const std::uint64_t frames_total =
+        loop.loop.max_ticks != 0 ? std::min<std::uint64_t>(loop.loop.max_ticks, scenario.frames)
+                                 : scenario.frames;
+    MapProcess(request, loop, frames_total, *device, shared, ready[1], go[0], stop);
   }
   close(ready[1]);
   close(go[0]);
@@ -493,198 +719,73 @@ Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request, const std::a
   if (map_ready && !WriteAll(go[1], &origin, sizeof origin)) map_ready = false;
   close(go[1]);
 
-  // Monitor until the map process ends: the device's peak and OOM kills, the co-tenant's RSS.
-  DeviceSample last = device->Sample();
-  std::uint64_t peak = last.peak_bytes;
-  std::uint64_t cotenant_peak_rss = 0, map_peak_rss = 0;
-  ProcessSampler map_sampler;
-  if (auto s = ProcessSampler::Open(map_pid); s.ok()) map_sampler = std::move(s).value();
-  ProcessSampler co_sampler;
-  pid_t co_pid = -1;
-  int status = 0;
-  rusage map_usage{};
-  std::uint64_t swap_peak = 0, zram_mem_used_peak = 0, zram_orig_peak = 0, zram_compr_peak = 0;
-  const auto sample_swap = [&](const DeviceSample& d) {
-    if (d.ok) swap_peak = std::max(swap_peak, d.swap_bytes);
-    const ZramSample z = device->SampleZram();
-    if (z.ok) {
-      zram_mem_used_peak = std::max(zram_mem_used_peak, z.mem_used_bytes);
-      zram_orig_peak = std::max(zram_orig_peak, z.orig_data_bytes);
-      zram_compr_peak = std::max(zram_compr_peak, z.compr_data_bytes);
-    }
-  };
-  bool sent_term = false;
-  for (;;) {
-    // wait4: the map process's own rusage (its major faults) when it is reaped.
-    const pid_t w = wait4(map_pid, &status, WNOHANG, &map_usage);
-    if (w == map_pid) break;
-    if (w < 0 && errno != EINTR) return Internal(std::string("waitpid: ") + std::strerror(errno));
-    if (stop != nullptr && stop->load() && !sent_term) {
-      kill(map_pid, SIGTERM);
-      sent_term = true;
-    }
-    last = device->Sample();
-    if (last.ok) peak = std::max({peak, last.peak_bytes, last.usage_bytes});
-    sample_swap(last);
-    if (charge_cgroup != nullptr) {
-      const ZramSample z = device->SampleZram();
-      if (z.ok) {
-        shared->zram_mem_used_bytes.store(z.mem_used_bytes);
-        if (last.ok) dram_peak = std::max(dram_peak, last.usage_bytes + z.mem_used_bytes);
-        // Floor: a quarter of the device; zram holds at most swap_bytes (half the memory) of
-        // swapped pages, so only a broken mm_stat could ask for less.
-        const std::uint64_t target = ChargedLimit(charge_cgroup->limit_bytes(), z.mem_used_bytes,
-                                                  kZramChargeStepBytes,
-                                                  charge_cgroup->limit_bytes() / 4);
-        if (target != charge_cgroup->current_limit_bytes()) {
-          if (Status s = charge_cgroup->SetMemoryLimit(target); !s.ok()) {
-            // The kernel could not reclaim down to it (v1 EBUSY): the device is over its DRAM
-            // for now; the next sample tries again. Said once, counted always.
-            if (charge_refusals++ == 0) std::fprintf(stderr, "device: %s\n", s.ToString().c_str());
-          }
-          limit_min = std::min(limit_min, charge_cgroup->current_limit_bytes());
-          shared->device_limit_bytes.store(charge_cgroup->current_limit_bytes());
-        }
-      }
-    }
-    const ProcessSample m = map_sampler.Sample();
-    if (m.alive) map_peak_rss = std::max(map_peak_rss, m.rss_bytes);
-    if (cotenant_started) {
-      const pid_t p = supervisor.child_pid();
-      if (p != co_pid) {
-        co_pid = p;
-        co_sampler = ProcessSampler();
-        if (p > 0) {
-          if (auto s = ProcessSampler::Open(p); s.ok()) co_sampler = std::move(s).value();
-        }
-        shared->cotenant_pid.store(p);
-      }
-      const ProcessSample c = co_sampler.Sample();
-      const std::uint64_t rss = c.alive ? c.rss_bytes : 0;
-      shared->cotenant_rss_bytes.store(rss);
-      cotenant_peak_rss = std::max(cotenant_peak_rss, rss);
-    }
-    SleepS(0.05);
-  }
-  const ChildExit exit = DescribeWaitStatus(status);
-
-  // Requests still in flight may finish (the same grace for every run), then the co-tenant stops.
-  nlohmann::json cotenant = nullptr;
-  if (cotenant_started) {
-    const double drain_until = NowS() + request.cotenant_drain_s;
-    while (NowS() < drain_until && !(stop != nullptr && stop->load())) {
-      const CotenantResult c = supervisor.Snapshot();
-      if (c.requests + c.requests_failed >= request.cotenant_requests) break;
-      SleepS(0.1);
-    }
-    auto r = supervisor.Stop();
-    if (r.ok()) {
-      const CotenantResult& c = r.value();
-      cotenant = ToJson(c);
-      cotenant["outcome"] = std::string(CotenantOutcomeName(c.outcome));
-      cotenant["symbol"] = std::string(CotenantOutcomeSymbol(c.outcome));
-      cotenant["requests_completed"] = c.requests;
-      cotenant["restarts"] = c.restarts;
-      cotenant["peak_rss_bytes"] = cotenant_peak_rss;
-      std::ofstream(request.out_dir + "/cotenant.json") << ToJson(c).dump(2) << '\n';
-    } else {
-      cotenant = {{"outcome", "failed_to_start"}, {"reason", r.status().message()}};
-    }
-  } else if (request.with_cotenant) {
-    cotenant = {
-        {"outcome", "failed_to_start"},
-        {"requests_completed", 0},
-        {"restarts", 0},
-        {"reason", !cotenant_error.ok() ? cotenant_error.message()
-                                        : std::string("the map process never became ready")},
-        {"note", std::string(kCotenantNote)}};
-  }
-  if (!cotenant.is_null()) {
-    cotenant["events_file"] = "cotenant.jsonl";
-    cotenant["request_period_s"] = period_s;
-    cotenant["requests_planned"] = request.cotenant_requests;
-    cotenant["stand_in"] = true;
-  }
-
+  ZM_ASSIGN_OR_RETURN(DeviceWatch watch,
+                      WatchUntilMapExits(*device, map_pid, shared, charge_cgroup,
+                                         cotenant_started ? &supervisor : nullptr, stop));
+  const ChildExit exit = DescribeWaitStatus(watch.wait_status);
+  DeviceRunSummary out;
+  out.cotenant = FinishCotenant(request, supervisor, cotenant_started, cotenant_error, period_s,
+                                watch.cotenant_peak_rss, stop);
   const DeviceSample final_sample = device->Sample();
-  if (final_sample.ok) peak = std::max(peak, final_sample.peak_bytes);
-  sample_swap(final_sample);
+  if (final_sample.ok) watch.peak = std::max(watch.peak, final_sample.peak_bytes);
+  watch.SampleSwap(*device, final_sample);
 
   // The map process's summary, or what its ticks say.
-  nlohmann::json s;
-  std::string map_outcome;
   std::string map_error;
   if (std::ifstream e(request.out_dir + "/map_error.txt"); e) std::getline(e, map_error);
-  if (exit.exited && exit.code == 0 && fs::exists(request.out_dir + "/map_summary.json")) {
-    std::ifstream in(request.out_dir + "/map_summary.json");
-    s = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
-    map_outcome = s.value("interrupted", false) ? "interrupted" : "completed";
-  }
-  if (s.is_discarded() || s.is_null()) {
-    ZM_ASSIGN_OR_RETURN(
-        s, SummarizePartialRun(request.scenario_dir, request.out_dir, request.time_compression));
-    map_outcome = exit.signaled && exit.signal == SIGKILL ? "killed"
-                  : exit.signaled                         ? "crashed"
-                                                          : "failed";
-  }
-  FillMissing(s);
-  s["map"] = {{"outcome", map_outcome},
-              {"pid", map_pid},
-              {"exit_code", exit.exited ? exit.code : -1},
-              {"signal", exit.signaled ? exit.signal : 0},
-              {"peak_rss_bytes", map_peak_rss},
-              {"major_faults", static_cast<std::uint64_t>(map_usage.ru_majflt)},
-              {"arena_locked", s.value("arena_locked", false)},
-              {"lock_arena_requested", loop.map.lock_arena},
-              {"cold_files", request.cold_files},
-              {"files_dropped_bytes", dropped_file_bytes}};
-  if (!map_error.empty()) s["map"]["error"] = map_error;
-  s["time_compression"] = request.time_compression;
-  s["device_scale"] = request.device_scale;
-  s["device"] = {{"kind", std::string(DeviceKindName(device->kind()))},
-                 {"simulated", device->simulated()},
-                 {"description", device->Describe()},
-                 {"fallback_reason", device->fallback_reason()},
-                 {"limit_bytes", device->limit_bytes()},
-                 {"peak_bytes", peak},
-                 {"oom_kills", final_sample.oom_kills},
-                 {"limit_hits", final_sample.limit_hits},
-                 {"scale", request.device_scale},
-                 {"name", loop.device.name},
-                 {"memory_bytes", loop.device.memory_bytes},
-                 {"os_reserve_bytes", loop.device.os_reserve_bytes},
-                 {"map_peak_rss_bytes", map_peak_rss},
-                 {"cotenant_peak_rss_bytes", cotenant_peak_rss},
-                 {"swap",
-                  {{"kind", swap_kind},
-                   {"requested", loop.device.swap},
-                   {"reason", swap_reason},
-                   {"description", device->swap().Describe()},
-                   {"limit_bytes", swap_limit},
-                   {"peak_bytes", swap_peak},
-                   {"swappiness", dopt.cgroup.swappiness},
-                   {"comp_algorithm", device->swap().comp_algorithm()},
-                   {"zram_orig_peak_bytes", zram_orig_peak},
-                   {"zram_compr_peak_bytes", zram_compr_peak},
-                   {"zram_mem_used_peak_bytes", zram_mem_used_peak},
-                   {"zram_charged", charge_cgroup != nullptr}}},
-                 {"limit_min_bytes", limit_min},
-                 {"dram_peak_bytes", charge_cgroup != nullptr ? dram_peak : peak},
-                 {"limit_charge_refusals", charge_refusals}};
-  s["oom_events"] = final_sample.oom_kills;  // the memory table's column (simulated for the ledger)
-  if (!cotenant.is_null()) s["cotenant"] = cotenant;
-  {
-    std::ofstream out(request.out_dir + "/summary.json");
-    out << s.dump(2) << '\n';
-    if (!out) return IoError("cannot write '" + request.out_dir + "/summary.json'");
-  }
+  MapProcessSummary& m = out.map;
+  ZM_ASSIGN_OR_RETURN(out.run, MapSummaryOrPartial(request, exit, m.outcome));
+  if (!out.run.replay) out.run.replay.emplace();
+  out.run.replay->time_compression = request.time_compression;
+  m.pid = map_pid;
+  m.exit_code = exit.exited ? exit.code : -1;
+  m.signal = exit.signaled ? exit.signal : 0;
+  m.peak_rss_bytes = watch.map_peak_rss;
+  m.major_faults = static_cast<std::uint64_t>(watch.map_usage.ru_majflt);
+  m.arena_locked = out.run.arena_locked;
+  m.lock_arena_requested = loop.map.lock_arena;
+  m.cold_files = request.cold_files;
+  m.files_dropped_bytes = dropped_file_bytes;
+  if (!map_error.empty()) m.error = map_error;
+  out.device_scale = request.device_scale;
+  DeviceSummary& v = out.device;
+  v.kind = std::string(DeviceKindName(device->kind()));
+  v.simulated = device->simulated();
+  v.description = device->Describe();
+  v.fallback_reason = device->fallback_reason();
+  v.limit_bytes = device->limit_bytes();
+  v.peak_bytes = watch.peak;
+  v.oom_kills = final_sample.oom_kills;
+  v.limit_hits = final_sample.limit_hits;
+  v.scale = request.device_scale;
+  v.name = loop.device.name;
+  v.memory_bytes = loop.device.memory_bytes;
+  v.os_reserve_bytes = loop.device.os_reserve_bytes;
+  v.map_peak_rss_bytes = watch.map_peak_rss;
+  v.cotenant_peak_rss_bytes = watch.cotenant_peak_rss;
+  v.swap = {.kind = swap_kind,
+            .requested = loop.device.swap,
+            .reason = swap_reason,
+            .description = device->swap().Describe(),
+            .limit_bytes = device_cgroup != nullptr ? device_cgroup->swap_limit_bytes() : 0,
+            .peak_bytes = watch.swap_peak,
+            .swappiness = dopt.cgroup.swappiness,
+            .comp_algorithm = device->swap().comp_algorithm(),
+            .zram_orig_peak_bytes = watch.zram_orig_peak,
+            .zram_compr_peak_bytes = watch.zram_compr_peak,
+            .zram_mem_used_peak_bytes = watch.zram_mem_used_peak,
+            .zram_charged = charge_cgroup != nullptr};
+  v.limit_min_bytes = watch.limit_min;
+  v.dram_peak_bytes = charge_cgroup != nullptr ? watch.dram_peak : watch.peak;
+  v.limit_charge_refusals = watch.charge_refusals;
+  ZM_RETURN_IF_ERROR(WriteSummaryFile(request.out_dir + "/summary.json", ToJson(out)));
   if (Status r = device->Remove(); !r.ok()) {
     std::fprintf(stderr, "device: %s\n", r.ToString().c_str());
   }
-  if (map_outcome == "failed" && !map_error.empty() && s.value("ticks", 0) == 0) {
+  if (m.outcome == "failed" && !map_error.empty() && out.run.ticks == 0) {
     return Internal("map process: " + map_error);
   }
-  return s;
+  return out;
 }
 
 }  // namespace zm

@@ -30,6 +30,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -38,6 +39,7 @@
 #include "harness/device_model.h"
 #include "harness/experiment_profile.h"
 #include "harness/run.h"
+#include "runtime/summary.h"
 
 namespace zm {
 
@@ -70,6 +72,9 @@ struct DeviceRunRequest {
   // Jetson they live in the same 8 GB while here they live on the host, outside the cgroup.
   // false: zram is free memory beside the device (more forgiving than the Jetson).
   bool charge_zram = true;
+  // A progress line on stderr about once a second (frames, rate, ETA), rewritten in place:
+  // `zonemap run` sets it when stderr is a terminal.
+  bool progress = false;
   // Tests and tools: where the device is made.
   CgroupOptions cgroup;             // prefix, parent (limit_bytes is set from the profile)
   SwapSystem swap_system;           // where the device's zram is made (tests: a fake sysfs)
@@ -84,14 +89,79 @@ struct DeviceRunRequest {
   std::function<void(DeviceModel&)> on_device;
 };
 
-[[nodiscard]] Result<nlohmann::json> RunOnDevice(const DeviceRunRequest& request,
-                                                 const std::atomic<bool>* stop = nullptr);
+// summary.json of a device run: the map process's RunSummary (runtime/summary.h) with what the
+// runner adds (docs/harness.md, "summary.json: the keys this adds"). Written once, by the runner.
+struct MapProcessSummary {
+  std::string outcome;  // completed | interrupted | killed | crashed | failed
+  std::int64_t pid = -1;
+  int exit_code = -1;
+  int signal = 0;
+  std::uint64_t peak_rss_bytes = 0;
+  std::uint64_t major_faults = 0;
+  bool arena_locked = false;
+  bool lock_arena_requested = false;
+  bool cold_files = true;
+  std::uint64_t files_dropped_bytes = 0;
+  std::optional<std::string> error;  // map_error.txt's line, when it wrote one
+};
+
+struct DeviceSwapSummary {
+  std::string kind;  // zram | existing | none
+  std::string requested;
+  std::string reason;
+  std::string description;
+  std::uint64_t limit_bytes = 0;
+  std::uint64_t peak_bytes = 0;
+  int swappiness = -1;
+  std::string comp_algorithm;
+  std::uint64_t zram_orig_peak_bytes = 0;
+  std::uint64_t zram_compr_peak_bytes = 0;
+  std::uint64_t zram_mem_used_peak_bytes = 0;
+  bool zram_charged = false;
+};
+
+struct DeviceSummary {
+  std::string kind;  // cgroup | ledger
+  bool simulated = false;
+  std::string description;
+  std::string fallback_reason;
+  std::uint64_t limit_bytes = 0;
+  std::uint64_t peak_bytes = 0;
+  std::uint64_t oom_kills = 0;
+  std::uint64_t limit_hits = 0;
+  double scale = 1.0;
+  std::string name;
+  std::uint64_t memory_bytes = 0;
+  std::uint64_t os_reserve_bytes = 0;
+  std::uint64_t map_peak_rss_bytes = 0;
+  std::uint64_t cotenant_peak_rss_bytes = 0;
+  DeviceSwapSummary swap;
+  std::uint64_t limit_min_bytes = 0;
+  std::uint64_t dram_peak_bytes = 0;
+  std::uint64_t limit_charge_refusals = 0;
+};
+
+struct DeviceRunSummary {
+  RunSummary run;  // the map process's own summary, or the one rebuilt from its ticks
+  MapProcessSummary map;
+  DeviceSummary device;
+  double device_scale = 1.0;
+  // The co-tenant's report (harness/cotenant.h's ToJson(CotenantResult), its own codec) with the
+  // run's pacing (requests_planned, request_period_s, ...); null without a co-tenant.
+  nlohmann::json cotenant;
+};
+// summary.json: RunSummary's keys with `map`, `device`, `device_scale`, `oom_events`
+// (= device.oom_kills, the memory table's column) and `cotenant`.
+[[nodiscard]] nlohmann::json ToJson(const DeviceRunSummary& summary);
+
+[[nodiscard]] Result<DeviceRunSummary> RunOnDevice(const DeviceRunRequest& request,
+                                                   const std::atomic<bool>* stop = nullptr);
 
 // The summary of a map process that did not finish (killed): the metrics over the ticks it
-// managed, from RUNDIR/ticks.jsonl, RUNDIR/estimate.tum and RUNDIR/map_start.json, with every key
-// a complete run's summary has (0 where nothing was measured). Exposed for tests.
-[[nodiscard]] Result<nlohmann::json> SummarizePartialRun(const std::string& scenario_dir,
-                                                         const std::string& out_dir,
-                                                         double time_compression);
+// managed, from RUNDIR/ticks.jsonl, RUNDIR/estimate.tum and RUNDIR/map_start.json (0 where
+// nothing was measured; `partial` set). Exposed for tests.
+[[nodiscard]] Result<RunSummary> SummarizePartialRun(const std::string& scenario_dir,
+                                                     const std::string& out_dir,
+                                                     double time_compression);
 
 }  // namespace zm

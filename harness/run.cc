@@ -32,7 +32,7 @@ ZoneId FindZone(const ZoneSet& zones, const std::string& name) {
 
 }  // namespace
 
-Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<bool>* stop) {
+Result<RunSummary> RunScenario(const RunRequest& request, const std::atomic<bool>* stop) {
   ZM_ASSIGN_OR_RETURN(sim::ScenarioInfo scenario, sim::LoadScenario(request.scenario_dir));
   std::error_code ec;
   std::filesystem::create_directories(request.out_dir, ec);
@@ -140,49 +140,54 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   const double wall_s = MonotonicSeconds() - origin;
   publisher.Close();
 
-  // Trajectory metrics: the estimate lives in the map frame, so ATE unaligned, and SE(3)-aligned
-  // beside it (docs/evaluation.md).
   const LoopTotals& t = loop->totals();
-  nlohmann::json s = LoopSummary(*loop, interrupted);
-  s["profile"] = request.profile_name;
-  s["scenario"] = scenario.dir;
+  RunSummary s = LoopSummary(*loop, interrupted);
+  ReplaySummary& r = s.replay.emplace();
+  r.profile = request.profile_name;
+  r.scenario = scenario.dir;
   // Frames: real time or not, stated in every summary (issue 17 §4).
-  s["time_compression"] = request.time_compression;
-  s["realtime_frames"] = realtime;
-  s["frames_arrived"] = rt ? rt->frames_arrived() : t.ticks;
-  s["frames_dropped"] = rt ? rt->frames_dropped() : 0;
-  s["frames_not_taken"] = rt ? rt->frames_not_taken() : 0;
-  s["frames_refused"] = gated.rejects().total;  // by the input gate
-  s["wall_s"] = wall_s;
-  s["wall_origin_mono_s"] = origin;
+  r.time_compression = request.time_compression;
+  r.realtime_frames = realtime;
+  r.frames_arrived = rt ? rt->frames_arrived() : t.ticks;
+  r.frames_dropped = rt ? rt->frames_dropped() : 0;
+  r.frames_not_taken = rt ? rt->frames_not_taken() : 0;
+  r.frames_refused = gated.rejects().total;  // by the input gate
+  r.wall_s = wall_s;
+  r.wall_origin_mono_s = origin;
   if (realtime) {
     // What the robot got: frames processed per second of the frames' clock.
-    s["update_rate_model_hz"] = s["update_rate_hz"];
+    r.update_rate_model_hz = s.update_rate_hz;
     const double frames_clock_s = wall_s * request.time_compression;
-    s["update_rate_hz"] = frames_clock_s > 0 ? static_cast<double>(t.ticks) / frames_clock_s : 0.0;
+    s.update_rate_hz = frames_clock_s > 0 ? static_cast<double>(t.ticks) / frames_clock_s : 0.0;
   }
-  s["ate_rmse_m"] = nullptr;
-  s["ate_se3_rmse_m"] = nullptr;
-  s["rpe_trans_rmse_m"] = nullptr;
-  s["rpe_rot_rmse_deg"] = nullptr;
   if (!scenario.localization_gt.empty() && t.ticks > 2) {
     ZM_ASSIGN_OR_RETURN(Trajectory gt,
                         ReadTrajectory(scenario.localization_gt, TrajectoryFormat::kTum));
-    auto none = Evaluate(gt, estimate, {.align = AlignMode::kNone});
-    auto se3 = Evaluate(gt, estimate, {.align = AlignMode::kSe3});
-    if (none.ok()) {
-      s["ate_rmse_m"] = none->ape_trans_m.rmse;
-      s["rpe_trans_rmse_m"] = none->rpe_trans_m.rmse;
-      s["rpe_rot_rmse_deg"] = none->rpe_rot_deg.rmse;
-      s["associated_poses"] = none->associated;
-    }
-    if (se3.ok()) s["ate_se3_rmse_m"] = se3->ape_trans_m.rmse;
+    r.trajectory = EvaluateEstimate(gt, estimate);
   }
-
-  std::ofstream out(request.out_dir + "/summary.json");
-  out << s.dump(2) << '\n';
-  if (!out) return IoError("cannot write '" + request.out_dir + "/summary.json'");
+  ZM_RETURN_IF_ERROR(WriteSummaryFile(request.out_dir + "/summary.json", ToJson(s)));
   return s;
+}
+
+TrajectorySummary EvaluateEstimate(const Trajectory& ground_truth, const Trajectory& estimate) {
+  TrajectorySummary m;
+  if (auto none = Evaluate(ground_truth, estimate, {.align = AlignMode::kNone}); none.ok()) {
+    m.ate_rmse_m = none->ape_trans_m.rmse;
+    m.rpe_trans_rmse_m = none->rpe_trans_m.rmse;
+    m.rpe_rot_rmse_deg = none->rpe_rot_deg.rmse;
+    m.associated_poses = none->associated;
+  }
+  if (auto se3 = Evaluate(ground_truth, estimate, {.align = AlignMode::kSe3}); se3.ok()) {
+    m.ate_se3_rmse_m = se3->ape_trans_m.rmse;
+  }
+  return m;
+}
+
+Status WriteSummaryFile(const std::string& path, const nlohmann::json& summary) {
+  std::ofstream out(path);
+  out << summary.dump(2) << '\n';
+  if (!out) return IoError("cannot write '" + path + "'");
+  return Status::Ok();
 }
 
 }  // namespace zm

@@ -1,6 +1,6 @@
 // One replay of a scenario through the tick loop: what `zonemap run` and the evaluation matrix
 // call. Opens the scenario's database and frames, runs every tick, writes RUNDIR/ticks.jsonl,
-// RUNDIR/estimate.tum and RUNDIR/summary.json (the keys of docs/design.md), and returns the
+// RUNDIR/estimate.tum and RUNDIR/summary.json (runtime/summary.h's RunSummary), and returns the
 // summary. Deterministic: the same inputs give the same decisions and the same summary, timings
 // aside.
 #pragma once
@@ -12,7 +12,9 @@
 #include <string_view>
 
 #include "common/status.h"
+#include "geometry/trajectory.h"
 #include "runtime/input_gate.h"
+#include "runtime/summary.h"
 #include "runtime/telemetry.h"
 #include "runtime/tick_loop.h"
 
@@ -55,7 +57,18 @@ struct RunRequest {
 // real-time frames `update_rate_hz` is frames processed per second of the frames' clock. `stop`
 // (may be null) ends it early at a tick boundary (SIGINT/SIGTERM); the telemetry is flushed and the
 // summary written for the ticks done.
-[[nodiscard]] Result<nlohmann::json> RunScenario(const RunRequest& request,
-                                                 const std::atomic<bool>* stop = nullptr);
+// Its summary (RunSummary with its replay part) is also RUNDIR/summary.json.
+[[nodiscard]] Result<RunSummary> RunScenario(const RunRequest& request,
+                                             const std::atomic<bool>* stop = nullptr);
+
+// The trajectory metrics of an estimate against ground truth (summary.json's ate_rmse_m,
+// ate_se3_rmse_m, rpe_*): unaligned, since the estimate lives in the map frame, and SE(3)-aligned
+// beside it (docs/evaluation.md). A metric that cannot be computed stays null. The one place a
+// replay's and a killed run's metrics come from.
+[[nodiscard]] TrajectorySummary EvaluateEstimate(const Trajectory& ground_truth,
+                                                 const Trajectory& estimate);
+
+// Writes `summary` to PATH as summary.json (2-space JSON); the error names the file.
+[[nodiscard]] Status WriteSummaryFile(const std::string& path, const nlohmann::json& summary);
 
 }  // namespace zm

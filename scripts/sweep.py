@@ -32,10 +32,12 @@ Modes:
 K_max and the map share are the program's: `zonemap budget --stdin` answers with
 lib/runtime/budget.h's DeriveBudget (the one derivation of K_max), so every mode needs a built
 zonemap ($ZONEMAP, default build/host-release/app/zonemap). The arithmetic left here is Basic's
-demand and the co-tenant's KV cache. The model table mirrors harness/cotenant.cc's kModels.
+demand and the co-tenant's KV cache; the model table is the program's too (`zonemap budget
+--list-models`).
 """
 import argparse
 import atexit
+import collections.abc
 import csv
 import json
 import math
@@ -50,15 +52,39 @@ import runs as R  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
-# harness/cotenant.cc kModels: weights (the paper's, decimal), KV bytes per token of context,
-# KV bytes per token within the sliding window and the window, fixed recurrent state.
-MODELS = {
-    "qwen3.5-0.8b": (1_000_000_000, 12_288, 0, 0, 20_201_472),
-    "qwen3-vl-2b": (1_900_000_000, 114_688, 0, 0, 0),
-    "qwen3.5-2b": (2_700_000_000, 12_288, 0, 0, 20_201_472),
-    "qwen3-vl-4b": (3_300_000_000, 147_456, 0, 0, 0),
-    "gemma3-4b": (3_300_000_000, 20_480, 118_784, 1024, 0),
-}
+class _ModelTable(collections.abc.Mapping):
+    """The co-tenant's model table, asked of the program (`zonemap budget --list-models`: harness/
+    cotenant.cc's CotenantModels, the one table): name -> (weights (the paper's, decimal), KV
+    bytes per token of context, KV bytes per token within the sliding window, the window, fixed
+    recurrent state), smallest weights first (the tables' and the figure's order)."""
+
+    def __init__(self):
+        self._table = None
+
+    def _load(self):
+        if self._table is None:
+            cmd = [zonemap_exe(), "budget", "--list-models"]
+            try:
+                out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+            except (OSError, subprocess.CalledProcessError) as e:
+                raise SystemExit(f"sweep: cannot run {' '.join(cmd)} ({e}): build it, or set ZONEMAP")
+            models = sorted(json.loads(out), key=lambda m: m["weights_bytes"])  # stable
+            self._table = {m["name"]: (m["weights_bytes"], m["kv_bytes_per_token"],
+                                       m["window_bytes_per_token"], m["window_tokens"],
+                                       m["state_bytes"]) for m in models}
+        return self._table
+
+    def __getitem__(self, name):
+        return self._load()[name]
+
+    def __iter__(self):
+        return iter(self._load())
+
+    def __len__(self):
+        return len(self._load())
+
+
+MODELS = _ModelTable()
 # Resident bytes per keyframe: the sparse keyframes before issue 17 (~0.1 MB), then RTAB-Map's
 # reported process memory per node, 1.9 MB (rtabmap#494) to 2.3 MB (rtabmap#82), and 2.16 MB,
 # the largest keyframe of the default dense scenario (docs/sim.md) = its slot.

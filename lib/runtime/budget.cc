@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "arena/arena.h"
 #include "memory/policy_kind.h"
 
 namespace zm {
@@ -74,6 +75,7 @@ Result<Budget> DeriveBudget(const BudgetInputs& in) {
     b.k_max = whole_map;
     b.arena_slots = whole_map;
     b.bounded = false;
+    b.arena_slot_bytes = ArenaSlotBytes(b.slot_bytes, /*release_to_os=*/true);
     return b;
   }
   ZM_ASSIGN_OR_RETURN(b.map_share_bytes, MapShareBytes(in.device, in.model, in.map));
@@ -96,6 +98,8 @@ Result<Budget> DeriveBudget(const BudgetInputs& in) {
   b.k_max = static_cast<std::uint32_t>(k);
   b.bounded = in.bounded_policy;
   b.arena_slots = b.bounded ? b.k_max : whole_map;
+  // A whole-map arena (basic, unbounded) gives its slots' pages back: page-aligned slots.
+  b.arena_slot_bytes = ArenaSlotBytes(b.slot_bytes, /*release_to_os=*/!b.bounded);
   return b;
 }
 

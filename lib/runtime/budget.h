@@ -78,6 +78,10 @@ struct Budget {
   std::uint64_t slot_bytes = 0;
   std::uint32_t k_max = 0;                // MemoryThr in keyframes (>= 1)
   std::uint32_t arena_slots = 0;          // what the arena reserves
+  // slot_bytes as the arena aligns it (arena.h's ArenaSlotBytes; page-aligned for the whole-map
+  // arenas of basic and unbounded, whose slots go back to the kernel): the arena reserves exactly
+  // arena_slots x arena_slot_bytes, nothing recomputed.
+  std::uint64_t arena_slot_bytes = 0;
   bool bounded = true;                    // the arena caps residency at k_max
 };
 

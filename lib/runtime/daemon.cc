@@ -255,7 +255,7 @@ void Daemon::Diagnose(std::string_view text) {
 void Daemon::Flush() { publisher_.Flush(); }
 
 nlohmann::json Daemon::Summary(bool interrupted) const {
-  nlohmann::json s = LoopSummary(*loop_, interrupted);
+  nlohmann::json s = ToJson(LoopSummary(*loop_, interrupted));
   nlohmann::json by_reason = nlohmann::json::object();
   for (std::size_t i = 0; i < kRejectReasonCount; ++i) {
     by_reason[RejectReasonName(static_cast<RejectReason>(i))] = rejects_.by_reason[i];

@@ -51,7 +51,7 @@ struct DaemonInput {
 };
 
 struct DaemonOptions {
-  std::uint32_t max_features = 2048;  // largest live frame accepted (zonemapd --max-features)
+  std::uint32_t max_features = kMaxFeaturesParam.default_value;  // largest live frame accepted
   int pose_fd = 1;                    // hello, pose lines and acks (-1: none); not owned
   int diagnostics_fd = 2;             // refusals and changes (-1: none); not owned
   std::string telemetry_path;         // ticks.jsonl ("" = none)

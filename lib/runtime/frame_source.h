@@ -11,10 +11,17 @@
 #include <memory>
 #include <string>
 
+#include "common/param.h"
 #include "common/status.h"
 #include "localization/frame.h"
 
 namespace zm {
+
+// The largest live frame a loop accepts, declared once: zonemapd --max-features
+// (DaemonOptions::max_features) and the public API's MapLoopOptions::max_features (checked equal
+// at compile time in api/map_loop.cc) take it from here. Every source reserves its Frame for it.
+inline constexpr Param<std::uint32_t> kMaxFeaturesParam{
+    "max-features", 2048, 1, 65536, "the largest frame accepted on live input (features)"};
 
 class FrameSource {
  public:

@@ -22,6 +22,7 @@
 #include <string>
 #include <string_view>
 
+#include "common/param.h"
 #include "common/status.h"
 #include "localization/localizer.h"
 #include "memory/policy.h"
@@ -68,6 +69,11 @@ inline constexpr std::string_view kHarnessProfileSections[] = {"cotenant"};
 [[nodiscard]] Result<Budget> DeriveBudget(const Profile& profile,
                                           std::uint64_t largest_keyframe_bytes,
                                           std::uint64_t keyframe_count);
+
+// --memory-thr, declared once for zonemapd, `zonemap run`, `zonemap budget`, `zonemap arena` and the
+// public API (MapLoopOptions::memory_thr, ManagerOptions' count and share): one grammar, one parser.
+inline constexpr TextParam kMemoryThrParam{
+    "memory-thr", "MemoryThr: N keyframes, BYTES (e.g. 512MiB), or N,BYTES (both: the smaller)"};
 
 // --memory-thr: a plain integer is a keyframe count, a number with a unit is bytes, and
 // "COUNT,BYTES" sets both (K_max = min(count, bytes / slot_bytes)).

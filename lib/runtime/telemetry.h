@@ -95,7 +95,7 @@ class TelemetryWriter {
   TelemetryWriter(const TelemetryWriter&) = delete;
   TelemetryWriter& operator=(const TelemetryWriter&) = delete;
 
-  // Opens (truncates) `path`. The stdio buffer is allocated here, once.
+  // Opens (truncates) `path` (the one BufferedFile: its buffer is allocated here, once).
   [[nodiscard]] Status Open(const std::string& path);
   // Appends one JSON line. `extra` (may be empty) is a pre-formatted fragment of further members,
   // `"key":value,"key2":value2`, appended inside the object: how the evaluation adds its device

@@ -61,7 +61,7 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   // is ordinary memory, as RTAB-Map's is (map.lock_arena is then ignored; summary: arena_locked).
   auto arena_or = Arena::Create({.memory_thr_keyframes = budget.arena_slots,
                                  .budget_bytes = 0,
-                                 .slot_bytes = budget.slot_bytes,
+                                 .slot_bytes = budget.arena_slot_bytes,
                                  .lock = config.map.lock_arena && budget.bounded,
                                  .prefault = config.map.prefault_arena,
                                  .release_to_os = !budget.bounded});

@@ -648,6 +648,9 @@ Result<ScenarioInfo> LoadScenario(const std::string& dir) {
     s.camera.width = cam.at("width").get<std::uint32_t>();
     s.camera.height = cam.at("height").get<std::uint32_t>();
     s.keyframe_bytes_max = j.at("keyframe_bytes").at("max").get<std::uint32_t>();
+    if (j.contains("dense") && j.at("dense").contains("footprint_scale")) {
+      s.footprint_scale = j.at("dense").at("footprint_scale").get<double>();
+    }
     // Scenarios from before dense keyframes have no resident section: resident = on disk.
     s.resident_bytes_max = j.contains("resident_bytes")
                                ? j.at("resident_bytes").at("max").get<std::uint32_t>()

@@ -24,6 +24,7 @@
 #include "sim/observe.h"
 #include "sim/rgbd.h"
 #include "sim/route.h"
+#include "zones/annotate.h"
 
 namespace zm::sim {
 
@@ -60,7 +61,7 @@ struct ScenarioOptions {
   int threads = 2;
   bool progress = false;  // progress bar on stderr
   std::string source;     // the database's source string, e.g. "sim hospital seed=1"
-  double annotate_band_m = 0.5;
+  double annotate_band_m = kDoorwayBandParam.default_value;  // zones/annotate.h
 };
 
 struct ScenarioReport {
@@ -108,6 +109,7 @@ struct ScenarioInfo {
   CameraIntrinsics camera;
   std::uint32_t keyframe_bytes_max = 0;   // largest compressed payload on disk
   std::uint32_t resident_bytes_max = 0;   // largest keyframe once decoded (the slot size)
+  double footprint_scale = 1.0;           // `zonemap sim --footprint-scale` (dense.footprint_scale)
   std::string map_db, zones_geojson, frames_bin, mapping_gt, localization_gt, route_json, map_yaml;
 };
 [[nodiscard]] Result<ScenarioInfo> LoadScenario(const std::string& dir);

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "common/param.h"
 #include "common/status.h"
 #include "mapdb/map_db.h"
 #include "zones/split.h"
@@ -24,8 +25,15 @@
 
 namespace zm {
 
+// The doorway band, declared once: `zonemap zones annotate --band`, the simulator's annotation
+// (sim::ScenarioOptions::annotate_band_m) and the public API's HostMap::doorway_band_m (checked
+// equal at compile time in api/zone_manager.cc) take it from here.
+inline constexpr Param<double> kDoorwayBandParam{
+    "band", 0.5, 0.0, 50.0,
+    "doorway band in metres: keyframes this close to another zone join it too"};
+
 struct AnnotateOptions {
-  double band_m = 0.5;                     // doorway band: join neighbours this close (metres)
+  double band_m = kDoorwayBandParam.default_value;  // doorway band: join neighbours this close
   std::uint32_t warn_zone_keyframes = 0;   // report zones holding more (0 = no budget)
   std::uint32_t max_zone_keyframes = 0;    // split zones holding more (0 = never split)
 };

@@ -148,7 +148,10 @@ TEST_CASE(
   };
   auto s = RunOnDevice(r);
   REQUIRE_MESSAGE(s.ok(), s.status().ToString());
-  const nlohmann::json& j = *s;
+  const nlohmann::json j = ToJson(*s);
+  // summary.json is the typed summary's codec output, versioned.
+  CHECK(ReadJson(r.out_dir + "/summary.json") == j);
+  CHECK(j["schema_version"] == kSummarySchemaVersion);
   CHECK(j["device"]["kind"] == "ledger");
   CHECK(j["device"]["simulated"] == true);
   CHECK(j["device"]["description"].get<std::string>().find("simulated") != std::string::npos);
@@ -194,7 +197,7 @@ TEST_CASE("device run (ledger): a refused map grant means those keyframes are no
   auto s = RunOnDevice(r);
   other.reset();
   REQUIRE_MESSAGE(s.ok(), s.status().ToString());
-  const nlohmann::json& j = *s;
+  const nlohmann::json j = ToJson(*s);
   CHECK(j["map"]["outcome"] == "completed");
   CHECK(j.value("ledger_refusals", 0ULL) > 0);
   // Loads that would have exceeded the grant found no slot: keyframes not loaded.
@@ -202,6 +205,60 @@ TEST_CASE("device run (ledger): a refused map grant means those keyframes are no
   CHECK(j["cotenant"]["outcome"] == "failed_to_start");
   CHECK(j["cotenant"]["requests_completed"] == 0);
   CHECK(j["device"]["oom_kills"].get<std::uint64_t>() > 0);  // the ledger's simulated events
+}
+
+TEST_CASE("device run (ledger): a killed run's summary rebuilt from its ticks matches its own") {
+  // SummarizePartialRun reads what the map process left (map_start.json, ticks.jsonl,
+  // estimate.tum): on a completed run's directory it must give the counts the run's own summary
+  // has, through the same typed summary.
+  test::EmulatorLauncher launcher;
+  DeviceRunRequest r = Request("ledger_partial", "semantic", 1.0 / 64);
+  r.device = DeviceKind::kLedger;
+  r.device_explicit = true;
+  auto s = RunOnDevice(r);
+  REQUIRE_MESSAGE(s.ok(), s.status().ToString());
+  auto p = SummarizePartialRun(r.scenario_dir, r.out_dir, r.time_compression);
+  REQUIRE_MESSAGE(p.ok(), p.status().ToString());
+  const RunSummary& whole = s->run;
+  CHECK(p->partial);
+  CHECK_FALSE(whole.partial);
+  CHECK(p->ticks == whole.ticks);
+  CHECK(p->k_max == whole.k_max);  // from map_start.json
+  CHECK(p->loop_closures == whole.loop_closures);
+  CHECK(p->tick_ms.count == whole.tick_ms.count);
+  REQUIRE(p->replay.has_value());
+  REQUIRE(whole.replay.has_value());
+  CHECK(p->replay->frames_arrived == whole.replay->frames_arrived);
+  REQUIRE(p->replay->trajectory.ate_rmse_m.has_value());
+  // The estimate file holds the poses at TUM's printed precision.
+  CHECK(*p->replay->trajectory.ate_rmse_m ==
+        doctest::Approx(*whole.replay->trajectory.ate_rmse_m).epsilon(1e-3));
+  CHECK(ToJson(*p)["partial"] == true);
+}
+
+TEST_CASE("device run: a map made at full footprint on a scaled device names the footprint") {
+  // basic's arena holds the whole map: at --device-scale 1/2 a full-footprint map's arena
+  // outgrows a map process cap the device scale did not shrink. The run refuses before anything
+  // runs, naming the scales and the numbers, instead of the arena's "exceeds RLIMIT_AS".
+  DeviceRunRequest r = Request("footprint", "basic", 0.5);
+  r.device = DeviceKind::kLedger;
+  r.device_explicit = true;
+  r.profile.core.map.process_cap_bytes = 1 << 20;
+  auto s = RunOnDevice(r);
+  REQUIRE_FALSE(s.ok());
+  const std::string m = s.status().message();
+  CHECK(m.find("footprint scale 1") != std::string::npos);
+  CHECK(m.find("--device-scale 0.5") != std::string::npos);
+  CHECK(m.find("--footprint-scale 0.5") != std::string::npos);
+  CHECK(m.find("map.process_cap_bytes") != std::string::npos);
+  CHECK(m.find("RLIMIT_AS") == std::string::npos);
+  // A matching footprint, or no cap, runs as before.
+  r.profile.core.map.process_cap_bytes = 0;
+  r.out_dir = RunDir("footprint_nocap");
+  r.profile.core.loop.max_ticks = 3;
+  test::EmulatorLauncher launcher;
+  auto ok = RunOnDevice(r);
+  CHECK_MESSAGE(ok.ok(), ok.status().ToString());
 }
 
 TEST_CASE("device run (cgroup): the map's residency is visible in the cgroup") {
@@ -215,7 +272,7 @@ TEST_CASE("device run (cgroup): the map's residency is visible in the cgroup") {
     r.profile.core.map.prefault_arena = true;
     auto s = RunOnDevice(r);
     REQUIRE_MESSAGE(s.ok(), s.status().ToString());
-    const nlohmann::json& j = *s;
+    const nlohmann::json j = ToJson(*s);
     CHECK(j["device"]["kind"] == "cgroup");
     CHECK(j["device"]["simulated"] == false);
     CHECK(j["map"]["outcome"] == "completed");
@@ -334,7 +391,7 @@ TEST_CASE("device run (cgroup): the map process OOM-killed by the kernel, the ru
   };
   auto s = RunOnDevice(r);
   REQUIRE_MESSAGE(s.ok(), s.status().ToString());
-  const nlohmann::json& j = *s;
+  const nlohmann::json j = ToJson(*s);
   CHECK(j["map"]["outcome"] == "killed");
   CHECK(j["map"]["signal"] == 9);
   CHECK(j["partial"] == true);
@@ -382,7 +439,7 @@ TEST_CASE("device run (cgroup): the co-tenant OOM-killed and restarted inside th
   r.map_child_hook = [] { std::ofstream("/proc/self/oom_score_adj") << "-1000\n"; };
   auto s = RunOnDevice(r);
   REQUIRE_MESSAGE(s.ok(), s.status().ToString());
-  const nlohmann::json& j = *s;
+  const nlohmann::json j = ToJson(*s);
   CHECK(j["map"]["outcome"] == "completed");
   REQUIRE(j.contains("cotenant"));
   const nlohmann::json& ct = j["cotenant"];

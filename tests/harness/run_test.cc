@@ -59,10 +59,11 @@ TEST_CASE("run: the recorded frames pass the input gate; each tick is published 
   r.loop.map.memory_thr_keyframes = 20;
   auto s = RunScenario(r);
   REQUIRE_MESSAGE(s.ok(), s.status().ToString());
-  const auto ticks = (*s)["ticks"].get<std::uint64_t>();
+  const std::uint64_t ticks = s->ticks;
   CHECK(ticks > 10);
-  CHECK((*s)["frames_refused"] == 0);
-  CHECK((*s)["frames_arrived"] == ticks);
+  REQUIRE(s->replay.has_value());
+  CHECK(s->replay->frames_refused == 0);
+  CHECK(s->replay->frames_arrived == ticks);
   CHECK(Lines(dir / "run" / "ticks.jsonl") == ticks);
   CHECK(Lines(dir / "run" / "estimate.tum") == ticks + 1);  // + the TUM header
   fs::remove_all(dir);

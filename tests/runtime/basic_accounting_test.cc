@@ -163,15 +163,15 @@ TEST_CASE("basic's database work by hand: start-up, then searches and loads, one
   CHECK(o.db->total_transactions() - transactions_before == t.db_transactions);
   CHECK(t.step_errors == 0);
 
-  const nlohmann::json s = LoopSummary(loop, false);
-  CHECK(s["startup"]["db_queries"] == 8);
-  CHECK(s["startup"]["db_transactions"] == 8);
-  CHECK(s["startup"]["db_blob_reads"] == 0);
-  CHECK(s["steady_state"]["db_queries"] == 58);
-  CHECK(s["steady_state"]["db_transactions"] == 58);
-  CHECK(s["db_queries"] == 66);
-  CHECK(s["search_queries"] == 26);
-  CHECK(s["search_transactions"] == 26);
+  const RunSummary s = LoopSummary(loop, false);
+  CHECK(s.startup.db_queries == 8);
+  CHECK(s.startup.db_transactions == 8);
+  CHECK(s.startup.db_blob_reads == 0);
+  CHECK(s.steady_state.db_queries == 58);
+  CHECK(s.steady_state.db_transactions == 58);
+  CHECK(s.db_queries == 66);
+  CHECK(s.search_queries == 26);
+  CHECK(s.search_transactions == 26);
 
   std::ifstream in(ticks_path);
   std::string line;
@@ -206,7 +206,7 @@ TEST_CASE("semantic's zone load counts its blob reads in the same unit") {
   CHECK(t.db_blob_reads == 6);
   CHECK(t.search_queries == 0);
   CHECK(SteadyDbWork(t).queries == 0);
-  CHECK(LoopSummary(loop, false)["startup"]["db_blob_reads"] == 6);
+  CHECK(LoopSummary(loop, false).startup.db_blob_reads == 6);
 }
 
 TEST_CASE("basic's start-up: the recorded last working memory, or every node when asked") {
