@@ -19,20 +19,23 @@ MapExtent ExtentOf(const MapIndex& index) {
 }
 
 const char* RejectRule(RejectReason reason) {
-  switch (reason) {
-    case RejectReason::kStampNotIncreasing:
-      return "stamp not greater than the last accepted frame's";
-    case RejectReason::kStampOutOfRange:
-      return "stamp not finite or beyond 2^32 s";
-    case RejectReason::kQuaternionNotUnit:
-      return "quaternion length beyond [input] quaternion_tolerance";
-    case RejectReason::kPositionOutsideMap:
-      return "position beyond the map's extent + [input] max_distance_from_map_m";
-    case RejectReason::kRouteOutsideMap:
-      return "a waypoint beyond the map's extent + [input] max_distance_from_map_m";
-    default:
-      return "";
+  struct Rule {
+    RejectReason reason;
+    const char* words;
+  };
+  static constexpr Rule kRules[] = {
+      {RejectReason::kStampNotIncreasing, "stamp not greater than the last accepted frame's"},
+      {RejectReason::kStampOutOfRange, "stamp not finite or beyond 2^32 s"},
+      {RejectReason::kQuaternionNotUnit, "quaternion length beyond [input] quaternion_tolerance"},
+      {RejectReason::kPositionOutsideMap,
+       "position beyond the map's extent + [input] max_distance_from_map_m"},
+      {RejectReason::kRouteOutsideMap,
+       "a waypoint beyond the map's extent + [input] max_distance_from_map_m"},
+  };
+  for (const Rule& r : kRules) {
+    if (r.reason == reason) return r.words;
   }
+  return "";  // a parser's reason: its own words say what was wrong
 }
 
 InputGate::InputGate(const InputOptions& options, const MapExtent& extent)
