@@ -55,14 +55,14 @@ Result<MapInspection> InspectMap(const std::string& path) {
   }));
   ZM_ASSIGN_OR_RETURN(std::optional<std::vector<std::byte>> blob, map->VocabularyBlob());
   if (blob) {
-    ZM_ASSIGN_OR_RETURN(std::optional<Vocabulary> vocabulary, LoadMapVocabulary(*map, path));
+    ZM_ASSIGN_OR_RETURN(const Vocabulary vocabulary, ParseMapVocabulary(*blob, path));
     VocabularyInspection v;
-    v.words = vocabulary->word_count();
-    v.nodes = vocabulary->node_count();
-    v.branching = vocabulary->branching();
-    v.depth = vocabulary->depth();
-    v.training_keyframes = vocabulary->training_keyframes();
-    v.memory_bytes = vocabulary->memory_bytes();
+    v.words = vocabulary.word_count();
+    v.nodes = vocabulary.node_count();
+    v.branching = vocabulary.branching();
+    v.depth = vocabulary.depth();
+    v.training_keyframes = vocabulary.training_keyframes();
+    v.memory_bytes = vocabulary.memory_bytes();
     v.blob_bytes = blob->size();
     out.vocabulary = v;
   }

@@ -97,13 +97,18 @@ Result<MapVocabularyReport> TrainAndStoreMapVocabulary(const std::string& path,
   return report;
 }
 
+Result<Vocabulary> ParseMapVocabulary(std::span<const std::byte> blob, const std::string& map_name) {
+  auto vocabulary = Vocabulary::FromBlob(blob);
+  if (!vocabulary.ok()) return vocabulary.status().Annotate("vocabulary of " + map_name);
+  return vocabulary;
+}
+
 Result<std::optional<Vocabulary>> LoadMapVocabulary(const MapReader& map,
                                                     const std::string& map_name) {
   ZM_ASSIGN_OR_RETURN(std::optional<std::vector<std::byte>> blob, map.VocabularyBlob());
   if (!blob) return std::optional<Vocabulary>{};
-  auto vocabulary = Vocabulary::FromBlob(*blob);
-  if (!vocabulary.ok()) return vocabulary.status().Annotate("vocabulary of " + map_name);
-  return std::optional<Vocabulary>(std::move(*vocabulary));
+  ZM_ASSIGN_OR_RETURN(Vocabulary vocabulary, ParseMapVocabulary(*blob, map_name));
+  return std::optional<Vocabulary>(std::move(vocabulary));
 }
 
 }  // namespace zm

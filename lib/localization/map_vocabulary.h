@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "common/status.h"
@@ -56,6 +57,11 @@ struct TrainedMapVocabulary {
 // that what the file now holds reads back as the same bytes.
 [[nodiscard]] Result<MapVocabularyReport> TrainAndStoreMapVocabulary(
     const std::string& path, const MapVocabularyOptions& options);
+
+// Validates stored vocabulary bytes (Vocabulary::FromBlob); a damaged blob is kCorrupt naming
+// `map_name` ("vocabulary of MAP: body checksum mismatch"). LoadMapVocabulary's check.
+[[nodiscard]] Result<Vocabulary> ParseMapVocabulary(std::span<const std::byte> blob,
+                                                    const std::string& map_name);
 
 // The map's vocabulary, validated; nullopt when the map has none. A damaged blob is kCorrupt
 // naming `map_name` ("vocabulary of MAP: body checksum mismatch").
