@@ -126,7 +126,7 @@ TEST_CASE("import-tum: gaps, a missing, an unreadable, a truncated and a wrong-s
   CHECK(CameraPoseInMap((*kfs)[1].pose).translation().x() == doctest::Approx(0.4));
 }
 
-TEST_CASE("import-tum: an existing OUT is refused and kept; no pose for any frame leaves no output") {
+TEST_CASE("import-tum: an existing OUT is refused and kept, and no pose for any frame leaves no output") {
   TempDir dir;
   TumFolderSpec spec;
   spec.frames = 4;

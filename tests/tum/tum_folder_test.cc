@@ -26,7 +26,7 @@ TumFolderOptions OptionsFor(const TumFolderSpec& s) {
 
 bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
-TEST_CASE("tum: rgb.txt and depth.txt are associated by the nearest stamp; every frame reads") {
+TEST_CASE("tum: rgb.txt and depth.txt are associated by the nearest stamp and every frame reads") {
   TempDir dir;
   TumFolderSpec spec;
   spec.frames = 5;
