@@ -60,6 +60,16 @@ nlohmann::json ToJson(const RtabmapImportReport& r, const std::string& out) {
                                       ? nlohmann::json{{"nodes", r.last_wm_nodes},
                                                        {"info_time_enter", r.last_info_time_enter}}
                                       : nlohmann::json(nullptr)},
+          {"features_source", r.orb_keyframes > 0 || r.orb_nodes_without_images > 0 ? "orb" : "rtabmap"},
+          {"orb_keyframes", r.orb_keyframes},
+          {"orb_nodes_without_images", r.orb_nodes_without_images},
+          {"extract_ms", r.extract_ms},
+          {"vocabulary", r.vocabulary_trained
+                             ? nlohmann::json{{"words", r.vocabulary.words},
+                                              {"nodes", r.vocabulary.nodes},
+                                              {"memory_bytes", r.vocabulary.memory_bytes},
+                                              {"training_descriptors", r.vocabulary.training_descriptors}}
+                             : nlohmann::json(nullptr)},
           {"ms", r.ms}};
 }
 
@@ -73,6 +83,7 @@ void AddImportCommand(CLI::App& app, CommandContext& ctx) {
     bool raw_poses = false;
     bool json = false;
     bool quiet = false;
+    std::string features = "rtabmap";
   };
   auto opts = std::make_shared<Opts>();
   auto* cmd = app.add_subcommand("import-rtabmap",
@@ -82,10 +93,19 @@ void AddImportCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_flag("--overwrite", opts->overwrite, "replace OUT if it exists (only once the import succeeded)");
   cmd->add_flag("--no-dense", opts->no_dense, "leave colour and depth images out of the payloads");
   cmd->add_flag("--raw-poses", opts->raw_poses, "use Node.pose (odometry) even when Admin.opt_poses exists");
+  cmd->add_option("--features", opts->features,
+                  "where keyframe features come from. rtabmap (default): RTAB-Map's own Feature "
+                  "rows, exactly, with no image decoding (a database without images keeps its "
+                  "features). orb: zonemap's one ORB extractor on each node's Data image and "
+                  "depth, as its loop and import-tum extract them, then the vocabulary is trained "
+                  "and stored (what a map localized by zonemap's pixel loop needs)")
+      ->check(CLI::IsMember({"rtabmap", "orb"}))
+      ->capture_default_str();
   cmd->add_flag("--json", opts->json, "print the import report as JSON");
   cmd->add_flag("-q,--quiet", opts->quiet, "no progress bar");
   cmd->callback([opts, &ctx] {
     RtabmapImportOptions o;
+    o.features = opts->features == "orb" ? RtabmapFeatureSource::kOrb : RtabmapFeatureSource::kRtabmap;
     o.overwrite = opts->overwrite;
     o.keep_dense = !opts->no_dense;
     o.use_optimized_poses = !opts->raw_poses;
@@ -118,6 +138,19 @@ void AddImportCommand(CLI::App& app, CommandContext& ctx) {
                 static_cast<unsigned long long>(r->images), static_cast<unsigned long long>(r->depths));
     std::printf("  payloads %.2f MiB, largest %u bytes (the minimum slot_bytes)\n",
                 static_cast<double>(r->total_payload_bytes) / (1024.0 * 1024.0), r->largest_payload_bytes);
+    if (o.features == RtabmapFeatureSource::kOrb) {
+      std::printf("  ORB features on %llu nodes (%llu without colour and depth), %.2f ms per node\n",
+                  static_cast<unsigned long long>(r->orb_keyframes),
+                  static_cast<unsigned long long>(r->orb_nodes_without_images),
+                  r->orb_keyframes > 0 ? r->extract_ms / static_cast<double>(r->orb_keyframes) : 0.0);
+      if (r->vocabulary_trained) {
+        std::printf("  vocabulary %u words, %u nodes from %llu descriptors\n", r->vocabulary.words,
+                    r->vocabulary.nodes,
+                    static_cast<unsigned long long>(r->vocabulary.training_descriptors));
+      } else {
+        std::printf("  vocabulary: none (no feature to train on)\n");
+      }
+    }
     if (r->has_camera) {
       std::printf("  camera %ux%u fx=%.2f fy=%.2f cx=%.2f cy=%.2f\n", r->camera.width, r->camera.height,
                   r->camera.fx, r->camera.fy, r->camera.cx, r->camera.cy);

@@ -44,6 +44,9 @@ void AddAllCommands(CLI::App& app, CommandContext& ctx) {
   AddSimCommand(app, ctx);
   AddRunCommand(app, ctx);
   AddBenchCommand(app, ctx);
+  AddVocabCommand(app, ctx);
+  AddInspectCommand(app, ctx);
+  AddImportTumCommand(app, ctx);
 }
 
 }  // namespace zm::app

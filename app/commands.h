@@ -38,5 +38,8 @@ void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx);
 void AddSimCommand(CLI::App& app, CommandContext& ctx);
 void AddRunCommand(CLI::App& app, CommandContext& ctx);
 void AddBenchCommand(CLI::App& app, CommandContext& ctx);
+void AddVocabCommand(CLI::App& app, CommandContext& ctx);
+void AddInspectCommand(CLI::App& app, CommandContext& ctx);
+void AddImportTumCommand(CLI::App& app, CommandContext& ctx);
 
 }  // namespace zm::app

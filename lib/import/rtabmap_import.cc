@@ -13,6 +13,7 @@
 #include <map>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <set>
 #include <tuple>
@@ -453,6 +454,89 @@ class Importer {
     return Status::Ok();
   }
 
+  // --features orb: the node's payload from its Data.image and Data.depth through the one
+  // extractor (orb_keyframe.h), or, without both images, the dense bytes alone and no features.
+  Result<std::vector<std::byte>> OrbPayload(const NodeRow& n) {
+    const KeyframeId id{n.id};
+    const auto without_images = [&]() -> Result<std::vector<std::byte>> {
+      ++report_.orb_nodes_without_images;
+      Dense dense;
+      if (data_ && data_rc_ == SQLITE_ROW && sqlite3_column_int64(data_.get(), 0) == n.id &&
+          options_.keep_dense) {
+        ZM_ASSIGN_OR_RETURN(dense, BuildDense(n.id, ColumnBytes(data_.get(), 1),
+                                              ColumnBytes(data_.get(), 2), report_));
+      }
+      return EncodePayload(PayloadParts{id, {}, {}, {}, dense.format, dense.bytes, dense.split});
+    };
+    if (!data_) return without_images();
+    sqlite3_stmt* s = data_.get();
+    ZM_RETURN_IF_ERROR(Seek(s, data_rc_, n.id, "Data"));
+    if (data_rc_ != SQLITE_ROW || sqlite3_column_int64(s, 0) != n.id) return without_images();
+    const auto calibration = ColumnBytes(s, 3);
+    if (!calibration.empty() && !report_.has_camera) {
+      auto cam = ParseRtabmapCalibration(calibration);
+      if (!cam.ok()) return cam.status().Annotate(Node(n.id) + ": Data.calibration");
+      report_.camera = *cam;
+      report_.has_camera = true;
+    }
+    const auto image = ColumnBytes(s, 1);
+    const auto depth = ColumnBytes(s, 2);
+    if (image.empty() || depth.empty()) return without_images();
+    ZM_ASSIGN_OR_RETURN(cv::Mat colour, DecodeImage(image, Node(n.id) + ": Data.image"));
+    DepthImage d;
+    if (IsRvlDepth(depth)) {
+      auto rvl = DecodeRvlDepth(depth);
+      if (!rvl.ok()) return rvl.status().Annotate(Node(n.id) + ": Data.depth");
+      d.image = cv::Mat(static_cast<int>(rvl->height), static_cast<int>(rvl->width), CV_16UC1,
+                        rvl->pixels.data())
+                    .clone();
+      d.units_per_m = 1000.0;  // RTAB-Map's depth: millimetres
+    } else {
+      ZM_ASSIGN_OR_RETURN(cv::Mat m, DecodeImage(depth, Node(n.id) + ": Data.depth"));
+      if (m.type() == CV_16UC1) {
+        d.image = m;
+        d.units_per_m = 1000.0;
+      } else if (m.type() == CV_8UC4) {  // 32FC1 metres stored as the bytes of an 8UC4 PNG
+        d.image = cv::Mat(m.rows, m.cols, CV_32FC1, m.data).clone();
+      } else {
+        return without_images();  // stereo: the column holds the right image, no depth
+      }
+    }
+    if (!report_.has_camera) {
+      return FailedPrecondition(Node(n.id) + ": --features orb needs the camera (Data.calibration), "
+                                "and no node before it has one");
+    }
+    if (colour.type() != CV_8UC1 && colour.type() != CV_8UC3 && colour.type() != CV_8UC4) {
+      return InvalidArgument(Node(n.id) + ": Data.image decodes to OpenCV type " +
+                             std::to_string(colour.type()) + ", not 8-bit grey or colour");
+    }
+    if (d.image.size() != colour.size()) {  // depth registered at another resolution
+      cv::resize(d.image, d.image, colour.size(), 0, 0, cv::INTER_NEAREST);
+    }
+    // The extractor sees the image at its own size: the calibration scaled to it.
+    const CameraIntrinsics& cam = report_.camera;
+    const double sx = static_cast<double>(colour.cols) / cam.width;
+    const double sy = static_cast<double>(colour.rows) / cam.height;
+    if (!extractor_ || extractor_->camera().width != static_cast<std::uint32_t>(colour.cols) ||
+        extractor_->camera().height != static_cast<std::uint32_t>(colour.rows)) {
+      const CameraIntrinsics scaled{cam.fx * sx, cam.fy * sy, cam.cx * sx, cam.cy * sy,
+                                    static_cast<std::uint32_t>(colour.cols),
+                                    static_cast<std::uint32_t>(colour.rows)};
+      auto created = OrbExtractor::Create(options_.orb, scaled);
+      if (!created.ok()) return created.status().Annotate(Node(n.id));
+      extractor_.emplace(std::move(*created));
+    }
+    ZM_ASSIGN_OR_RETURN(OrbKeyframe kf,
+                        BuildOrbKeyframe(*extractor_, orb_features_, colour, d, id, options_.dense,
+                                         KeypointScale{1.0 / sx, 1.0 / sy}));
+    ++report_.orb_keyframes;
+    ++report_.images;
+    ++report_.depths;
+    report_.features += kf.features;
+    report_.extract_ms += kf.extract_ms;
+    return std::move(kf.payload);
+  }
+
   Status WriteKeyframes(MapDbWriter& writer, const std::vector<NodeRow>& nodes) {
     ZM_RETURN_IF_ERROR(PrepareCursors());
     std::vector<std::vector<std::byte>> payloads;
@@ -471,12 +555,17 @@ class Importer {
       return Status::Ok();
     };
     for (const NodeRow& n : nodes) {
-      ZM_RETURN_IF_ERROR(ReadFeatures(n, f));
-      ZM_RETURN_IF_ERROR(ReadDense(n, dense));
-      ZM_ASSIGN_OR_RETURN(auto payload,
-                          EncodePayload(PayloadParts{KeyframeId{n.id}, f.descriptors, f.points,
-                                                     f.keypoints, dense.format, dense.bytes,
-                                                     dense.split}));
+      std::vector<std::byte> payload;
+      if (options_.features == RtabmapFeatureSource::kOrb) {
+        ZM_ASSIGN_OR_RETURN(payload, OrbPayload(n));
+      } else {
+        ZM_RETURN_IF_ERROR(ReadFeatures(n, f));
+        ZM_RETURN_IF_ERROR(ReadDense(n, dense));
+        ZM_ASSIGN_OR_RETURN(payload,
+                            EncodePayload(PayloadParts{KeyframeId{n.id}, f.descriptors, f.points,
+                                                       f.keypoints, dense.format, dense.bytes,
+                                                       dense.split}));
+      }
       report_.largest_payload_bytes =
           std::max(report_.largest_payload_bytes, static_cast<std::uint32_t>(payload.size()));
       report_.total_payload_bytes += payload.size();
@@ -618,6 +707,8 @@ class Importer {
   int feature_rc_ = SQLITE_DONE;
   std::unordered_set<std::int64_t> imported_;
   RtabmapImportReport report_;
+  std::optional<OrbExtractor> extractor_;  // --features orb: for the images' size
+  OrbFeatures orb_features_{options_.orb.max_features};
 };
 
 void RemoveDbFiles(const std::string& path) {
@@ -741,6 +832,10 @@ Result<RtabmapImportReport> ImportRtabmap(const std::string& in_path, const std:
       return FailedPrecondition(out_path + " already exists (use --overwrite to replace it)");
     }
   }
+  if (options.features == RtabmapFeatureSource::kOrb) {
+    ZM_RETURN_IF_ERROR(ValidateOrbOptions(options.orb));
+    ZM_RETURN_IF_ERROR(ValidateMapVocabularyOptions(options.vocabulary));
+  }
   const std::string tmp = out_path + ".tmp";
   auto writer = MapDbWriter::Create(tmp, /*overwrite=*/true);
   if (!writer.ok()) return writer.status();
@@ -748,6 +843,16 @@ Result<RtabmapImportReport> ImportRtabmap(const std::string& in_path, const std:
   auto report = importer.Run(**writer);
   Status st = report.ok() ? (*writer)->Finish() : report.status();
   writer->reset();  // closes the output before it is renamed or removed
+  if (st.ok() && options.features == RtabmapFeatureSource::kOrb && report->features > 0) {
+    // The vocabulary from the keyframes just written (lib/localization/map_vocabulary.h).
+    auto vocabulary = TrainAndStoreMapVocabulary(tmp, options.vocabulary);
+    if (vocabulary.ok()) {
+      report->vocabulary = *vocabulary;
+      report->vocabulary_trained = true;
+    } else {
+      st = vocabulary.status().Annotate("training the vocabulary");
+    }
+  }
   if (st.ok()) {
     std::filesystem::rename(tmp, out_path, ec);
     if (ec) st = IoError("renaming " + tmp + " to " + out_path + ": " + ec.message());

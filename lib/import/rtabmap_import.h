@@ -6,7 +6,8 @@
 //            self links (pose prior, gravity) and landmark links (to_id < 0) skipped
 //   Data     JPEG image, RVL or PNG depth (decoded to validate them), calibration -> camera
 //   Feature  raw 32-byte binary descriptors, keypoints (pos_x, pos_y), 3-D points (depth_x/y/z
-//            in the node's frame, moved to the map frame with the node's pose)
+//            in the node's frame, moved to the map frame with the node's pose); or, with
+//            RtabmapFeatureSource::kOrb, ORB features extracted from Data.image and Data.depth
 //   Admin    opt_ids / opt_poses (zlib + 12-byte trailer) used as the map poses when present
 //   Info     the last working memory: the imported nodes whose Node.time_enter >= the last
 //            Info.time_enter, RTAB-Map's own query for its start-up with
@@ -28,11 +29,33 @@
 #include <vector>
 
 #include "common/status.h"
+#include "import/orb_keyframe.h"
+#include "localization/map_vocabulary.h"
+#include "localization/orb_extractor.h"
 #include "mapdb/map_db.h"
 
 namespace zm {
 
+// Where a keyframe's features come from.
+//   kRtabmap  RTAB-Map's own Feature rows (keypoints, 3-D points, 32-byte descriptors), as the
+//             import did before issue 26: the map keeps RTAB-Map's features exactly and the
+//             import decodes no image for them. The default, so an import of a database whose
+//             nodes have Feature rows but no images (RTAB-Map's Mem/BinDataKept=false) still
+//             has features.
+//   kOrb      zonemap's one ORB extractor (lib/localization/orb_extractor.h) on each node's
+//             Data.image and Data.depth: the keyframes then hold the same features the loop
+//             extracts from camera frames (a vocabulary and PnP against the map need that), and
+//             nodes without Feature rows get features too. Keypoints are in the calibration's
+//             pixels, 3-D points decoded from the stored depth (lib/import/orb_keyframe.h); the
+//             vocabulary is trained from the keyframes and stored. A node without an image or a
+//             depth keeps no features (counted).
+enum class RtabmapFeatureSource { kRtabmap, kOrb };
+
 struct RtabmapImportOptions {
+  RtabmapFeatureSource features = RtabmapFeatureSource::kRtabmap;
+  OrbOptions orb;                   // kOrb: the extractor's options
+  DenseKeyframeOptions dense;       // kOrb: the payload's JPEG quality and cloud step
+  MapVocabularyOptions vocabulary;  // kOrb: trained and stored after the import
   bool overwrite = false;           // replace OUT if it exists
   bool keep_dense = true;           // carry the colour/depth bytes into the payloads
   bool use_optimized_poses = true;  // Admin.opt_poses as map poses when present
@@ -64,6 +87,12 @@ struct RtabmapImportReport {
   bool last_wm_recorded = false;         // a last working memory was found (else: every node)
   std::uint64_t last_wm_nodes = 0;       // its size (imported nodes only)
   std::string last_info_time_enter;      // MAX(Info.time_enter), empty when none
+  // --features orb:
+  std::uint64_t orb_keyframes = 0;             // nodes whose features ORB extracted
+  std::uint64_t orb_nodes_without_images = 0;  // no colour or no depth: no features
+  double extract_ms = 0.0;                     // ORB extraction, total
+  bool vocabulary_trained = false;             // false: not asked, or no feature to train on
+  MapVocabularyReport vocabulary;
   double ms = 0.0;
 };
 

@@ -16,6 +16,8 @@
 #include "mapdb/mapdb_test_util.h"
 #include "import/rtabmap_test_util.h"
 #include "mapdb/rvl.h"
+#include "import/map_inspect.h"
+#include "support/tum_folder_writer.h"
 
 namespace zm {
 namespace {
@@ -127,6 +129,74 @@ TEST_CASE("one RGB-D node: features move to the map frame, images are kept and v
     CHECK(cv::countNonZero(got_depth != depth) == 0);  // lossless, also after RVL -> PNG
     const auto colour_part = dense.subspan(v.dense_split);
     CHECK(std::equal(colour_part.begin(), colour_part.end(), jpeg.begin(), jpeg.end()));
+  });
+}
+
+TEST_CASE("--features orb: ORB from the Data images in the calibration's pixels, points from depth, a vocabulary") {
+  TempDir dir;
+  const std::string in = dir.File("rtabmap.db"), out = dir.File("map.db");
+  test::TumFolderSpec tex_spec;
+  tex_spec.width = 160;  // half the calibration's 320x240: RTAB-Map's decimated images
+  tex_spec.height = 120;
+  const cv::Mat texture = test::TumTexture(tex_spec);
+  cv::Mat depth(120, 160, CV_16UC1);
+  for (int r = 0; r < depth.rows; ++r)
+    for (int c = 0; c < depth.cols; ++c) depth.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(1500 + 4 * c);
+  {
+    RtabDb r(in, test::kRtabmapSchema023);
+    for (std::int64_t id = 1; id <= 3; ++id) {
+      r.AddNode(id, 1, test::PoseBlob(PoseFromXYYaw(0.5 * static_cast<double>(id), 0.0, 0.0)));
+      if (id == 3) continue;  // no Data row: no features
+      const cv::Mat colour = texture(cv::Rect(static_cast<int>(id) * 8, 0, 160, 120)).clone();
+      const Blob depth_blob = id == 1 ? Encode(depth, ".png") : RvlOf(depth);
+      r.Run("INSERT INTO Data(id, image, depth, calibration) VALUES(?, ?, ?, ?)", id,
+            Encode(colour, ".jpg"), depth_blob, test::CalibrationBlob(250, 250, 160, 120, 320, 240));
+    }
+  }
+  RtabmapImportOptions o;
+  o.features = RtabmapFeatureSource::kOrb;
+  o.vocabulary.vocabulary.branching = 4;
+  o.vocabulary.vocabulary.depth = 3;
+  auto rep = ImportRtabmap(in, out, o);
+  REQUIRE_MESSAGE(rep.ok(), rep.status().ToString());
+  CHECK(rep->keyframes == 3);
+  CHECK(rep->orb_keyframes == 2);
+  CHECK(rep->orb_nodes_without_images == 1);
+  CHECK(rep->features >= 2 * 30);
+  CHECK(rep->vocabulary_trained);
+  CHECK(rep->vocabulary.training_keyframes == 3);
+  CHECK(rep->camera.width == 320);
+
+  auto m = InspectMap(out);
+  REQUIRE_MESSAGE(m.ok(), m.status().ToString());
+  REQUIRE(m->keyframes.size() == 3);
+  for (int i = 0; i < 2; ++i) {
+    CAPTURE(i);
+    CHECK(m->keyframes[static_cast<std::size_t>(i)].features >= 30);
+    CHECK(m->keyframes[static_cast<std::size_t>(i)].points3d == m->keyframes[static_cast<std::size_t>(i)].features);
+    CHECK(m->keyframes[static_cast<std::size_t>(i)].has_colour);
+  }
+  CHECK(m->keyframes[2].features == 0);
+  REQUIRE(m->vocabulary.has_value());
+  CHECK(m->vocabulary->words == rep->vocabulary.words);
+
+  WithKeyframe(out, 1, [&](const MapDb& db, const KeyframeView& v) {
+    CHECK(db.metadata().camera.width == 320);
+    REQUIRE(v.feature_count >= 30);
+    CHECK(v.dense_format == DenseFormat::kJpegColourRvlDepth);
+    CHECK(v.dense_width == 160);
+    float max_u = 0.0f;
+    for (std::uint32_t i = 0; i < v.feature_count; ++i) {
+      max_u = std::max(max_u, v.keypoints[2 * i]);
+      CHECK(v.keypoints[2 * i] < 320.0f);
+      CHECK(v.keypoints[2 * i + 1] < 240.0f);
+    }
+    CHECK(max_u > 160.0f);  // in the calibration's pixels, not the image's
+    // The depth at the keypoint, back-projected with the calibration: z is 1.5 m + 4 mm per
+    // image column, the image column being u / 2.
+    const float u = v.keypoints[0];
+    const float z = v.points[2];
+    CHECK(z == doctest::Approx(1.5 + 0.004 * static_cast<int>(u / 2.0f)).epsilon(0.01));
   });
 }
 
