@@ -118,6 +118,9 @@ class OrbExtractor {
 
   [[nodiscard]] const OrbOptions& options() const { return options_; }
   [[nodiscard]] FrameScratchStats scratch_stats() const { return scratch_->stats(); }
+  // The region OpenCV's per-frame work comes from, for a caller's own OpenCV calls in the tick
+  // (the front-end's PNG decoding).
+  [[nodiscard]] FrameScratch& scratch() { return *scratch_; }
   [[nodiscard]] const CameraIntrinsics& camera() const { return camera_; }
 
  private:
