@@ -21,17 +21,28 @@ double MsSince(Clock::time_point t0) {
 }  // namespace
 
 Result<std::unique_ptr<FrontEnd>> FrontEnd::Create(const OrbOptions& options,
-                                                   const CameraIntrinsics& camera) {
-  ZM_ASSIGN_OR_RETURN(OrbExtractor extractor, OrbExtractor::Create(options, camera));
-  ZM_ASSIGN_OR_RETURN(std::unique_ptr<DenseDecoder> jpeg, DenseDecoder::Create(camera));
-  return std::unique_ptr<FrontEnd>(new FrontEnd(std::move(extractor), std::move(jpeg), camera));
+                                                   const CameraIntrinsics& camera,
+                                                   std::uint32_t image_width,
+                                                   std::uint32_t image_height) {
+  if (image_width == 0 || image_height == 0) {
+    image_width = camera.width;
+    image_height = camera.height;
+  }
+  const CameraIntrinsics image = ScaledIntrinsics(camera, image_width, image_height);
+  ZM_ASSIGN_OR_RETURN(OrbExtractor extractor, OrbExtractor::Create(options, image));
+  ZM_ASSIGN_OR_RETURN(std::unique_ptr<DenseDecoder> jpeg, DenseDecoder::Create(image));
+  return std::unique_ptr<FrontEnd>(new FrontEnd(
+      std::move(extractor), std::move(jpeg), image,
+      static_cast<double>(camera.width) / image_width, static_cast<double>(camera.height) / image_height));
 }
 
 FrontEnd::FrontEnd(OrbExtractor extractor, std::unique_ptr<DenseDecoder> jpeg,
-                   const CameraIntrinsics& camera)
+                   const CameraIntrinsics& camera, double to_map_x, double to_map_y)
     : extractor_(std::move(extractor)),
       jpeg_(std::move(jpeg)),
       camera_(camera),
+      to_map_x_(static_cast<float>(to_map_x)),
+      to_map_y_(static_cast<float>(to_map_y)),
       rgb_(std::size_t{camera.width} * camera.height * 3),
       png_(static_cast<int>(camera.height), static_cast<int>(camera.width), CV_8UC3),
       grey_(static_cast<int>(camera.height), static_cast<int>(camera.width), CV_8UC1),
@@ -85,7 +96,10 @@ Status FrontEnd::Process(Frame* frame, FrontEndTimes* times) {
   frame->keypoints.resize(2 * std::size_t{n});
   if (n > 0) {
     std::memcpy(frame->descriptors.data(), features_.descriptors.data(), n * kDescriptorBytes);
-    std::memcpy(frame->keypoints.data(), features_.keypoints.data(), 2 * std::size_t{n} * sizeof(float));
+    for (std::size_t i = 0; i < n; ++i) {
+      frame->keypoints[2 * i] = features_.keypoints[2 * i] * to_map_x_;
+      frame->keypoints[2 * i + 1] = features_.keypoints[2 * i + 1] * to_map_y_;
+    }
   }
   return Status::Ok();
 }

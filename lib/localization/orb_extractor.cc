@@ -208,14 +208,17 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
     const cv::KeyPoint& kp = keypoints[src];
     std::memcpy(out->descriptors[i].data(), descriptors.ptr<std::uint8_t>(static_cast<int>(src)),
                 kDescriptorBytes);
-    out->keypoints[2 * std::size_t{i}] = kp.pt.x;
-    out->keypoints[2 * std::size_t{i} + 1] = kp.pt.y;
+    // zonemap's pixel convention (camera.h): pixel i covers [i, i + 1), so its centre is i + 0.5;
+    // OpenCV puts pixel centres at integers.
+    const float u = kp.pt.x + 0.5f;
+    const float v = kp.pt.y + 0.5f;
+    out->keypoints[2 * std::size_t{i}] = u;
+    out->keypoints[2 * std::size_t{i} + 1] = v;
     out->responses[i] = kp.response;
     double z = 0.0;
     if (has_depth) {
-      // Nearest pixel: (u, v) are continuous coordinates with pixel centres at integers (OpenCV).
-      const int x = std::clamp(static_cast<int>(std::lround(kp.pt.x)), 0, w - 1);
-      const int y = std::clamp(static_cast<int>(std::lround(kp.pt.y)), 0, h - 1);
+      const int x = std::clamp(static_cast<int>(std::floor(u)), 0, w - 1);  // the pixel holding it
+      const int y = std::clamp(static_cast<int>(std::floor(v)), 0, h - 1);
       z = depth16 ? depth.image.at<std::uint16_t>(y, x) * inv_units
                   : static_cast<double>(depth.image.at<float>(y, x));
     }
@@ -224,8 +227,8 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
     out->has_point[i] = valid ? 1 : 0;
     float* p = &out->points[3 * std::size_t{i}];
     if (valid) {
-      p[0] = static_cast<float>((static_cast<double>(kp.pt.x) - camera_.cx) * z / camera_.fx);
-      p[1] = static_cast<float>((static_cast<double>(kp.pt.y) - camera_.cy) * z / camera_.fy);
+      p[0] = static_cast<float>((static_cast<double>(u) - camera_.cx) * z / camera_.fx);
+      p[1] = static_cast<float>((static_cast<double>(v) - camera_.cy) * z / camera_.fy);
       p[2] = static_cast<float>(z);
       ++with_point;
     } else {

@@ -16,8 +16,11 @@
 //      below min_depth_m or above max_depth_m (when set) leaves the feature without a 3-D point
 //      (has_point = 0, point NaN) but keeps its keypoint and descriptor.
 //
-// Points are in the CAMERA frame (x right, y down, z forward, metres): x = (u - cx) z / fx,
-// y = (v - cy) z / fy, the inverse of Project() in camera.h for the same (u, v).
+// Keypoints are in zonemap's pixel convention (camera.h: pixel i covers [i, i + 1), its centre is
+// i + 0.5), i.e. OpenCV's keypoint + 0.5; a calibration made in OpenCV's convention (centres at
+// integers) needs 0.5 added to cx and cy to be used with them. Points are in the CAMERA frame
+// (x right, y down, z forward, metres): x = (u - cx) z / fx, y = (v - cy) z / fy, the inverse
+// of Project() in camera.h for the same (u, v), with the depth of the pixel holding (u, v).
 //
 // Allocation: the output buffer is the caller's, sized once (OrbFeatures(capacity)); the grey
 // image and the ordering permutation are members reused frame after frame. What OpenCV 4.6's ORB

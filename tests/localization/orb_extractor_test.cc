@@ -121,8 +121,9 @@ TEST_CASE("orb extractor: depth gives camera-frame points on the pinhole rays") 
   REQUIRE(limited.Extract(grey, {depth, 1000.0}, &out).ok());
   std::uint32_t flagged = 0;
   for (std::uint32_t i = 0; i < out.count; ++i) {
-    const int x = static_cast<int>(std::lround(out.keypoints[2 * i]));
-    const int y = static_cast<int>(std::lround(out.keypoints[2 * i + 1]));
+    // Keypoints are in zonemap's convention: the pixel holding (u, v) is (floor u, floor v).
+    const int x = static_cast<int>(std::floor(out.keypoints[2 * i]));
+    const int y = static_cast<int>(std::floor(out.keypoints[2 * i + 1]));
     const bool expect_point = x >= kW / 2 && y < kH - 40;
     CHECK(out.has_point[i] == (expect_point ? 1 : 0));
     if (!expect_point) {
