@@ -26,6 +26,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -42,7 +43,14 @@ namespace zm {
 // database of another version is refused at open. Not bumped by changes both ways can read: the
 // page size (any is read), the link_to index (used when present), the payload version (carried
 // by each payload, keyframe_payload.h).
-inline constexpr int kMapDbSchemaVersion = 1;
+//
+// Version 2 (issue 26) adds the vocabulary table: a map's keyframes are scored through the
+// vocabulary trained on them, and a build that predates it would localize such a map without
+// it, so older builds refuse version 2 with their "has map schema version 2" line. This build
+// reads version 1 as a map without a vocabulary; MapDbWriter::OpenExisting brings a version 1
+// map to version 2 (adds the empty table) before writing to it; new maps are version 2.
+inline constexpr int kMapDbSchemaVersion = 2;
+inline constexpr int kMapDbSchemaVersionNoVocabulary = 1;
 
 // RTAB-Map's Link.type values (basic-baseline.md §5), kept as-is on import.
 enum class LinkType : std::int32_t {
@@ -237,6 +245,12 @@ class MapReader : public KeyframeSource {
   [[nodiscard]] virtual Result<RecordedWorkingMemory> LastWorkingMemory() const {
     return RecordedWorkingMemory{};
   }
+  // The map's visual vocabulary as stored (the bytes of lib/localization's Vocabulary::ToBlob,
+  // which validates them: LoadMapVocabulary in localization/map_vocabulary.h), or nullopt when
+  // the map has none. Read once at start. The default: none.
+  [[nodiscard]] virtual Result<std::optional<std::vector<std::byte>>> VocabularyBlob() const {
+    return std::optional<std::vector<std::byte>>{};
+  }
 };
 // mmap_bytes that maps the whole file (SQLite caps it at its compile-time limit, 2 GiB on Debian;
 // pages past the limit are read with read() calls).
@@ -278,6 +292,12 @@ class MapDb final : public MapReader {
   // since "every node" could be wrong for it; a last_wm naming a keyframe the map does not hold
   // is Corrupt.
   [[nodiscard]] Result<RecordedWorkingMemory> LastWorkingMemory() const override;
+
+  // The vocabulary table's blob (schema version 2), or nullopt: a version 1 map, or none stored
+  // (`zonemap vocab` stores one). A non-blob value is Corrupt.
+  [[nodiscard]] Result<std::optional<std::vector<std::byte>>> VocabularyBlob() const override;
+  // The file's schema version: kMapDbSchemaVersion, or kMapDbSchemaVersionNoVocabulary.
+  [[nodiscard]] int schema_version() const;
 
   Result<LoadStats> LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) override;
   Result<LoadStats> LoadKeyframes(std::span<const KeyframeId> ids, Arena& arena,
@@ -350,6 +370,9 @@ class MapDbWriter {
   // `rule` says how it was decided (reports print it).
   Status SetLastWorkingMemory(std::span<const KeyframeId> ids, const std::string& rule);
   Status SetLastWorkingMemoryEveryNode(const std::string& rule);
+  // Stores the map's vocabulary (Vocabulary::ToBlob's bytes; this module does not look inside),
+  // replacing any earlier one, in one transaction. An empty blob is refused.
+  Status SetVocabulary(std::span<const std::byte> blob);
   // Called every 256 rows and at the end of each bulk insert; empty = no reports.
   void SetProgress(WriteProgressFn progress);
   // Reads back (for annotation: positions of the keyframes to assign).

@@ -211,7 +211,7 @@ TEST_CASE("a map with a bad schema or metadata is refused at open with one clear
   Fixture f;
   SUBCASE("wrong schema version") {
     Sql(f.path, "PRAGMA user_version=7");
-    ExpectOpenFails(f.path, StatusCode::kFailedPrecondition, "schema version 7; this build reads version 1");
+    ExpectOpenFails(f.path, StatusCode::kFailedPrecondition, "schema version 7; this build reads versions 1 and 2");
   }
   SUBCASE("missing table") {
     Sql(f.path, "DROP TABLE zone_member");
