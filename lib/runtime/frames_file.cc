@@ -25,7 +25,8 @@ T Get(const std::uint8_t* buf, std::size_t at) {
 // Header field offsets.
 constexpr std::size_t kOffMagic = 0, kOffVersion = 4, kOffHeaderBytes = 6, kOffCount = 8,
                       kOffMaxFeatures = 16, kOffFx = 24, kOffFy = 32, kOffCx = 40, kOffCy = 48,
-                      kOffWidth = 56, kOffHeight = 60, kOffRate = 64, kOffMaxColour = 72;
+                      kOffWidth = 56, kOffHeight = 60, kOffRate = 64, kOffMaxColour = 72,
+                      kOffImageWidth = 76, kOffImageHeight = 80;
 constexpr std::size_t kOffRecordColourBytes = 76;
 
 void EncodeHeader(const FramesFileInfo& info, std::uint8_t* buf) {
@@ -43,6 +44,8 @@ void EncodeHeader(const FramesFileInfo& info, std::uint8_t* buf) {
   Put<std::uint32_t>(buf, kOffHeight, info.camera.height);
   Put<double>(buf, kOffRate, info.rate_hz);
   Put<std::uint32_t>(buf, kOffMaxColour, info.max_colour_bytes);
+  Put<std::uint32_t>(buf, kOffImageWidth, info.max_colour_bytes > 0 ? info.image_width : 0);
+  Put<std::uint32_t>(buf, kOffImageHeight, info.max_colour_bytes > 0 ? info.image_height : 0);
 }
 
 }  // namespace
@@ -55,6 +58,8 @@ Result<FrameWriter> FrameWriter::Create(const std::string& path, const CameraInt
   w.path_ = path;
   w.info_.camera = camera;
   w.info_.rate_hz = rate_hz;
+  w.info_.image_width = camera.width;
+  w.info_.image_height = camera.height;
   std::uint8_t header[kFramesHeaderBytes];
   EncodeHeader(w.info_, header);
   if (std::fwrite(header, 1, sizeof(header), w.file_.get()) != sizeof(header)) {
@@ -170,6 +175,15 @@ Result<FrameReader> FrameReader::Open(const std::string& path) {
   info.camera.height = Get<std::uint32_t>(h, kOffHeight);
   info.rate_hz = Get<double>(h, kOffRate);
   info.max_colour_bytes = version >= 2 ? Get<std::uint32_t>(h, kOffMaxColour) : 0;
+  info.image_width = version >= 2 ? Get<std::uint32_t>(h, kOffImageWidth) : 0;
+  info.image_height = version >= 2 ? Get<std::uint32_t>(h, kOffImageHeight) : 0;
+  if (info.max_colour_bytes > 0 &&
+      (info.image_width == 0 || info.image_height == 0 || info.image_width > kMaxDenseSide ||
+       info.image_height > kMaxDenseSide)) {
+    return Corrupt("frames file " + path + " has images of " + std::to_string(info.image_width) +
+                   "x" + std::to_string(info.image_height) + ", outside [1, " +
+                   std::to_string(kMaxDenseSide) + "] per side");
+  }
   if (info.max_colour_bytes > kMaxFrameColourBytes) {
     return Corrupt("frames file " + path + " claims colour images of " +
                    std::to_string(info.max_colour_bytes) + " bytes, limit " +

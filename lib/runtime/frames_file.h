@@ -9,7 +9,9 @@
 //                frame_count, max_features (largest feature_count of any record),
 //                camera intrinsics (fx, fy, cx, cy as float64; width, height as uint32),
 //                rate_hz (float64), max_colour_bytes u32 (version 2; largest colour_bytes of
-//                any record), reserved zero bytes
+//                any record), image_width u32, image_height u32 (version 2: the colour images'
+//                size, the camera's field of view at another resolution; 0 without images),
+//                reserved zero bytes
 //   128        frame_count records, each:
 //                FrameRecordHeader (80 bytes): index u64, stamp_s f64,
 //                  odom tx ty tz qx qy qz qw (7 x f64), feature_count u32,
@@ -52,6 +54,8 @@ struct FramesFileInfo {
   std::uint64_t frame_count = 0;
   std::uint32_t max_features = 0;
   std::uint32_t max_colour_bytes = 0;  // 0: no frame carries an image
+  std::uint32_t image_width = 0;       // the images' size (same field of view as `camera`)
+  std::uint32_t image_height = 0;
   CameraIntrinsics camera;
   double rate_hz = 0.0;
 };
@@ -71,6 +75,11 @@ class FrameWriter {
   // earlier than the previous one; keypoints.size() must be 2 * descriptors.size(). A frame's
   // colour image is written when it has one, and must be JPEG.
   Status Append(const Frame& frame);
+  // The size of the frames' colour images (default: the camera's), recorded in the header.
+  void SetImageSize(std::uint32_t width, std::uint32_t height) {
+    info_.image_width = width;
+    info_.image_height = height;
+  }
   Status Finish();
   [[nodiscard]] std::uint64_t count() const { return info_.frame_count; }
 

@@ -7,6 +7,9 @@
 #include <cmath>
 #include <cstring>
 
+#include <memory>
+#include <opencv2/imgproc.hpp>
+
 #include "mapdb/dense_codec.h"
 #include "mapdb/keyframe_payload.h"
 #include "sim/appearance.h"
@@ -316,18 +319,11 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
   }
 }
 
-Status RenderKeyframe(const Building& building, const LandmarkMap& landmarks, int floor,
-                      const Pose3& t_map_body, const CameraModel& camera, const NoiseOptions& noise,
-                      const DenseOptions& dense, std::uint32_t width, std::uint32_t height,
-                      KeyframeId id, Rng& rng, RenderedKeyframe* out) {
-  std::vector<VisibleLandmark> visible;
-  landmarks.Visible(building, floor, t_map_body, camera, &visible);
-  MakeFeatures(landmarks, visible, t_map_body, camera, noise, /*with_points=*/false, rng, &out->features);
-  const std::uint64_t image_seed = rng.Next();
-  // One image buffer per worker thread, reused: no page faults and no zero-fill per keyframe.
-  thread_local RgbdImage img;
-  RenderRgbd(building, floor, t_map_body, camera, landmarks, visible, width, height, dense, image_seed,
-             &img);
+namespace {
+
+// The dense payload of a keyframe whose features are in out->features.
+Status EncodeDenseKeyframe(const RgbdImage& img, const DenseOptions& dense, std::uint32_t width,
+                           std::uint32_t height, KeyframeId id, RenderedKeyframe* out) {
   ZM_ASSIGN_OR_RETURN(std::vector<std::byte> jpeg, EncodeJpegRgb(img.rgb, width, height, dense.jpeg_quality));
   const std::vector<std::byte> rvl = EncodeRvlDepth(img.depth);
   std::vector<std::byte> both(jpeg.size() + rvl.size());
@@ -352,6 +348,55 @@ Status RenderKeyframe(const Building& building, const LandmarkMap& landmarks, in
                        width, height, dense.cloud_step, /*points_from_depth=*/true)
           .end);
   return Status::Ok();
+}
+
+}  // namespace
+
+Status RenderKeyframe(const Building& building, const LandmarkMap& landmarks, int floor,
+                      const Pose3& t_map_body, const CameraModel& camera, const NoiseOptions& noise,
+                      const DenseOptions& dense, std::uint32_t width, std::uint32_t height,
+                      KeyframeId id, Rng& rng, RenderedKeyframe* out) {
+  std::vector<VisibleLandmark> visible;
+  landmarks.Visible(building, floor, t_map_body, camera, &visible);
+  MakeFeatures(landmarks, visible, t_map_body, camera, noise, /*with_points=*/false, rng, &out->features);
+  const std::uint64_t image_seed = rng.Next();
+  // One image buffer per worker thread, reused: no page faults and no zero-fill per keyframe.
+  thread_local RgbdImage img;
+  RenderRgbd(building, floor, t_map_body, camera, landmarks, visible, width, height, dense, image_seed,
+             &img);
+  return EncodeDenseKeyframe(img, dense, width, height, id, out);
+}
+
+Status RenderKeyframeFromPixels(const Building& building, int floor, const Pose3& t_map_body,
+                                const CameraModel& camera, const DenseOptions& dense,
+                                std::uint32_t width, std::uint32_t height, KeyframeId id,
+                                std::uint64_t image_seed, OrbExtractor& extractor,
+                                RenderedKeyframe* out) {
+  static const LandmarkMap kNoLandmarks;
+  DenseOptions textured = dense;
+  textured.style = SurfaceStyle::kTextured;
+  thread_local RgbdImage img;
+  RenderRgbd(building, floor, t_map_body, camera, kNoLandmarks, {}, width, height, textured,
+             image_seed, &img);
+  thread_local cv::Mat grey;
+  const cv::Mat rgb(static_cast<int>(height), static_cast<int>(width), CV_8UC3, img.rgb.data());
+  cv::cvtColor(rgb, grey, cv::COLOR_RGB2GRAY);
+  thread_local std::unique_ptr<OrbFeatures> features;
+  if (!features || features->capacity() < extractor.options().max_features) {
+    features = std::make_unique<OrbFeatures>(extractor.options().max_features);
+  }
+  ZM_RETURN_IF_ERROR(extractor.Extract(grey, {}, features.get()));
+  const std::uint32_t n = features->count;
+  const float to_x = static_cast<float>(camera.intrinsics.width) / static_cast<float>(width);
+  const float to_y = static_cast<float>(camera.intrinsics.height) / static_cast<float>(height);
+  out->features.Clear();
+  out->features.descriptors.assign(features->descriptors.begin(), features->descriptors.begin() + n);
+  out->features.keypoints.resize(2 * std::size_t{n});
+  for (std::size_t i = 0; i < n; ++i) {
+    out->features.keypoints[2 * i] = features->keypoints[2 * i] * to_x;
+    out->features.keypoints[2 * i + 1] = features->keypoints[2 * i + 1] * to_y;
+  }
+  return EncodeDenseKeyframe(img, textured, width, height, id, out);
 }
 
 }  // namespace zm::sim

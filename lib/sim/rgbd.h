@@ -23,6 +23,7 @@
 #include "common/ids.h"
 #include "common/status.h"
 #include "geometry/pose.h"
+#include "localization/orb_extractor.h"
 #include "mapdb/rvl.h"
 #include "sim/building.h"
 #include "sim/observe.h"
@@ -100,5 +101,17 @@ struct RenderedKeyframe {
                                     const NoiseOptions& noise, const DenseOptions& dense,
                                     std::uint32_t width, std::uint32_t height, KeyframeId id,
                                     Rng& rng, RenderedKeyframe* out);
+
+// Issue 26: a keyframe whose features come from its own pixels. Renders the textured image at
+// width x height (gain 1: the mapping run's exposure), extracts ORB with `extractor` (made for
+// that image size: ScaledIntrinsics of the keypoint camera), keeps the keypoints in the keypoint
+// camera's pixels, and encodes the dense payload like RenderKeyframe (points from the depth on
+// load). Nothing of a landmark is used.
+[[nodiscard]] Status RenderKeyframeFromPixels(const Building& building, int floor,
+                                              const Pose3& t_map_body, const CameraModel& camera,
+                                              const DenseOptions& dense, std::uint32_t width,
+                                              std::uint32_t height, KeyframeId id,
+                                              std::uint64_t image_seed, OrbExtractor& extractor,
+                                              RenderedKeyframe* out);
 
 }  // namespace zm::sim
