@@ -14,38 +14,17 @@ const char* Version() { return ZM_VERSION_STRING; }
 
 namespace internal {
 
-Status ToPublic(const zm::Status& s) {
-  if (s.ok()) return Status::Ok();
-  StatusCode code = StatusCode::kInternal;
-  switch (s.code()) {
-    case zm::StatusCode::kOk: code = StatusCode::kOk; break;
-    case zm::StatusCode::kInvalidArgument: code = StatusCode::kInvalidArgument; break;
-    case zm::StatusCode::kNotFound: code = StatusCode::kNotFound; break;
-    case zm::StatusCode::kCorrupt: code = StatusCode::kCorrupt; break;
-    case zm::StatusCode::kOutOfRange: code = StatusCode::kOutOfRange; break;
-    case zm::StatusCode::kResourceExhausted: code = StatusCode::kResourceExhausted; break;
-    case zm::StatusCode::kFailedPrecondition: code = StatusCode::kFailedPrecondition; break;
-    case zm::StatusCode::kIoError: code = StatusCode::kIoError; break;
-    case zm::StatusCode::kUnsupported: code = StatusCode::kUnsupported; break;
-    case zm::StatusCode::kInternal: code = StatusCode::kInternal; break;
-  }
-  return Status(code, s.message());
-}
-
-zm::Result<zm::Pose3> ToPose3(const Pose& p, std::string_view what) {
+zm::Result<GatedPose> ToPose3(const Pose& p, std::string_view what) {
   const double v[7] = {p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw};
   for (double x : v) {
     if (!std::isfinite(x)) return zm::InvalidArgument(std::string(what) + " has a non-finite value");
   }
   const Eigen::Quaterniond q(p.qw, p.qx, p.qy, p.qz);
-  const double norm = q.norm();
-  if (norm < 0.5 || norm > 1.5) {
-    return zm::InvalidArgument(std::string(what) + ": quaternion norm " + std::to_string(norm) +
-                               " is not unit (accepted: [0.5, 1.5], normalised)");
-  }
-  zm::Pose3 out = zm::Pose3::Identity();
-  out.linear() = q.normalized().toRotationMatrix();
-  out.translation() = Eigen::Vector3d(p.x, p.y, p.z);
+  GatedPose out;
+  out.quaternion_norm = q.norm();
+  // A zero quaternion is no rotation: left as identity here, refused by the gate (its norm).
+  if (out.quaternion_norm > 1e-12) out.pose.linear() = q.normalized().toRotationMatrix();
+  out.pose.translation() = Eigen::Vector3d(p.x, p.y, p.z);
   return out;
 }
 

@@ -1,21 +1,27 @@
-// Glue between the public types (include/zonemap/, standard library only) and the core's (Eigen
-// poses, strong ids, zm::Status). Private to the API library.
+// Glue between the public pose (include/zonemap/types.h: seven doubles, standard library only)
+// and the core's Eigen isometry. Private to the API library. Status, Result, the ids and
+// LinkKind need no glue: the core uses the public types themselves (lib/common/).
 #pragma once
 
 #include <string_view>
 
 #include "common/status.h"
 #include "geometry/pose.h"
-#include "zonemap/status.h"
 #include "zonemap/types.h"
 
 namespace zonemap::internal {
 
-[[nodiscard]] Status ToPublic(const zm::Status& s);
+// A public pose as the input gate sees it: the isometry with its quaternion normalised, and
+// |q| as sent (the gate's quaternion rule, runtime/input_gate.h, decides whether it is unit
+// enough).
+struct GatedPose {
+  zm::Pose3 pose = zm::Pose3::Identity();
+  double quaternion_norm = 1.0;
+};
 
-// A public pose as an isometry: finite numbers and a quaternion of norm in [0.5, 1.5]
-// (normalised), the line protocol's rule. `what` names the pose in the error.
-[[nodiscard]] zm::Result<zm::Pose3> ToPose3(const Pose& p, std::string_view what);
+// The syntax check of a public pose: every number finite (`what` names the pose in the error).
+// Sanity, the quaternion's norm included, is the gate's.
+[[nodiscard]] zm::Result<GatedPose> ToPose3(const Pose& p, std::string_view what);
 [[nodiscard]] Pose FromPose3(const zm::Pose3& p);
 
 }  // namespace zonemap::internal

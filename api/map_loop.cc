@@ -1,7 +1,8 @@
 // MapLoop: the public complete path as a thin facade over what zonemapd runs: LoadProfile +
-// ApplyOverrides, MapDb::Open, TickLoop::Create/Tick/last_record/totals. The only new piece is
-// a FrameSource fed by the caller (Process), which copies one frame into the loop's reserved
-// Frame without allocating.
+// ApplyOverrides, MapDb::Open, the input gate (input_gate.h: Process's frames, and a replay's
+// through GatedFrameSource), TickLoop::Create/Tick/last_record/totals. The only new piece is a
+// FrameSource fed by the caller (Process), which copies one frame into the loop's reserved Frame
+// without allocating.
 #include "zonemap/map_loop.h"
 
 #include <cmath>
@@ -12,6 +13,7 @@
 #include "convert.h"
 #include "mapdb/map_db.h"
 #include "runtime/frame_source.h"
+#include "runtime/input_gate.h"
 #include "runtime/profile.h"
 #include "runtime/tick_loop.h"
 
@@ -19,7 +21,6 @@ namespace zonemap {
 
 using internal::FromPose3;
 using internal::ToPose3;
-using internal::ToPublic;
 
 namespace {
 
@@ -64,7 +65,7 @@ TickOutput ToOutput(const zm::TickRecord& r) {
   o.stamp_s = r.stamp_s;
   o.pose = FromPose3(r.pose);
   o.correction = FromPose3(r.correction);
-  o.zone = ZoneId{r.zone.value};
+  o.zone = r.zone;
   o.startup = r.startup;
   o.loop_closure = r.loop_closure;
   o.matched = KeyframeId{r.matched_keyframe};
@@ -84,10 +85,11 @@ struct MapLoop::Impl {
   zm::Profile profile;
   std::unique_ptr<zm::MapDb> db;
   std::unique_ptr<zm::FrameSource> replay;
+  std::unique_ptr<zm::GatedFrameSource> gated_replay;  // the replay through the gate
   std::unique_ptr<PushFrameSource> push;
   std::unique_ptr<zm::TickLoop> loop;
-  double last_stamp_s = -std::numeric_limits<double>::infinity();
-  std::uint64_t rejected = 0;
+  std::optional<zm::InputGate> gate;  // Process()'s frames
+  std::uint64_t rejected = 0;         // Process() calls refused (syntax or gate)
 };
 
 MapLoop::MapLoop(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -104,32 +106,40 @@ Result<std::unique_ptr<MapLoop>> MapLoop::Open(const MapLoopOptions& options) {
   }
   {
     auto p = zm::LoadProfile(options.profile);
-    if (!p.ok()) return ToPublic(p.status());
+    if (!p.ok()) return p.status();
     m.profile = std::move(p).value();
   }
   zm::ProfileOverrides ov;
   if (!options.policy.empty()) ov.policy = options.policy;
   if (!options.memory_thr.empty()) ov.memory_thr = options.memory_thr;
-  if (zm::Status s = zm::ApplyOverrides(ov, m.profile); !s.ok()) return ToPublic(s);
+  if (zm::Status s = zm::ApplyOverrides(ov, m.profile); !s.ok()) return s;
   {
     auto db = zm::MapDb::Open(options.db_path);
-    if (!db.ok()) return ToPublic(db.status());
+    if (!db.ok()) return db.status();
     m.db = std::move(db).value();
   }
   zm::FrameSource* source = nullptr;
   if (!options.frames_path.empty()) {
     auto r = zm::OpenReplaySource(options.frames_path);
-    if (!r.ok()) return ToPublic(r.status());
+    if (!r.ok()) return r.status();
     m.replay = std::move(r).value();
-    source = m.replay.get();
+    m.gated_replay = std::make_unique<zm::GatedFrameSource>(*m.replay);
+    source = m.gated_replay.get();
   } else {
     m.push = std::make_unique<PushFrameSource>(options.max_features);
     source = m.push.get();
   }
   {
     auto loop = zm::TickLoop::Create(m.profile, *m.db, *source);
-    if (!loop.ok()) return ToPublic(loop.status());
+    if (!loop.ok()) return loop.status();
     m.loop = std::move(loop).value();
+  }
+  // The gate over the map's extent, with the loop's correction (zonemapd's rules).
+  const zm::MapExtent extent = zm::ExtentOf(m.loop->map_index());
+  if (m.gated_replay) {
+    m.gated_replay->Attach(m.profile.input, extent, &m.loop->map_from_odom());
+  } else {
+    m.gate.emplace(m.profile.input, extent);
   }
   return std::unique_ptr<MapLoop>(new MapLoop(std::move(impl)));
 }
@@ -144,11 +154,7 @@ Result<TickOutput> MapLoop::Process(const FrameInput& frame) {
     ++m.rejected;
     return Status(StatusCode::kInvalidArgument, std::move(why));
   };
-  if (!std::isfinite(frame.stamp_s)) return reject("frame stamp is not finite");
-  if (!(frame.stamp_s > m.last_stamp_s)) {
-    return reject("frame stamp " + std::to_string(frame.stamp_s) +
-                  " does not increase (previous " + std::to_string(m.last_stamp_s) + ")");
-  }
+  // Syntax (the line parser's part for zonemapd): finite numbers, the feature reserve.
   if (frame.features.size() > m.push->max_features()) {
     return reject("frame has " + std::to_string(frame.features.size()) +
                   " features; max_features is " + std::to_string(m.push->max_features()));
@@ -157,15 +163,19 @@ Result<TickOutput> MapLoop::Process(const FrameInput& frame) {
     if (!std::isfinite(f.u) || !std::isfinite(f.v)) return reject("a keypoint is not finite");
   }
   auto odom = ToPose3(frame.odom, "frame odometry pose");
-  if (!odom.ok()) {
-    ++m.rejected;
-    return ToPublic(odom.status());
+  if (!odom.ok()) return reject(odom.status().message());
+  // Sanity: the input gate, zonemapd's rules.
+  zm::RejectReason why = zm::RejectReason::kSyntax;
+  if (!m.gate->AcceptFrame(frame.stamp_s, odom->pose, odom->quaternion_norm,
+                           m.loop->map_from_odom(), &why)) {
+    return reject("frame refused (" + std::string(zm::RejectReasonName(why)) +
+                  "): " + zm::RejectRule(why) + " (stamp_s " + std::to_string(frame.stamp_s) +
+                  ", quaternion norm " + std::to_string(odom->quaternion_norm) + ")");
   }
-  m.last_stamp_s = frame.stamp_s;
-  m.push->Set(&frame, &*odom);
+  m.push->Set(&frame, &odom->pose);
   auto more = m.loop->Tick();
   m.push->Set(nullptr, nullptr);
-  if (!more.ok()) return ToPublic(more.status());
+  if (!more.ok()) return more.status();
   if (!*more) return Status(StatusCode::kInternal, "the tick loop did not take the frame");
   return ToOutput(m.loop->last_record());
 }
@@ -177,7 +187,7 @@ Result<std::optional<TickOutput>> MapLoop::Step() {
                   "Step() needs a frames file (MapLoopOptions::frames_path); use Process()");
   }
   auto more = m.loop->Tick();
-  if (!more.ok()) return ToPublic(more.status());
+  if (!more.ok()) return more.status();
   if (!*more) return std::optional<TickOutput>();
   return std::optional<TickOutput>(ToOutput(m.loop->last_record()));
 }
@@ -209,7 +219,8 @@ LoopStats MapLoop::stats() const {
   s.peak_resident_keyframes = t.peak_resident_keyframes;
   s.over_budget_ticks = t.over_budget_ticks;
   s.stalled_ticks = t.stalled_ticks;
-  s.rejected_frames = impl_->rejected;
+  s.rejected_frames =
+      impl_->rejected + (impl_->gated_replay ? impl_->gated_replay->rejects().total : 0);
   s.tick_ms_mean = t.tick_ms.mean();
   s.tick_ms_p50 = t.tick_ms.Quantile(0.50);
   s.tick_ms_p99 = t.tick_ms.Quantile(0.99);

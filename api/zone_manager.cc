@@ -1,7 +1,9 @@
 // ZoneManager: the public host-store path as a thin facade over lib/memory (MapIndex,
 // MakePolicy, Plan, ExternalWorkingSet) and the runtime's start-up rules (profiles, DeriveBudget,
-// map_setup.h). Its own logic is only the glue: converting ids and poses, choosing the zone of a
-// pose, and turning the ExternalWorkingSet's lists into public ids.
+// map_setup.h), its input gate (input_gate.h) and its decide step (decide_step.h: the zone of
+// the pose and the policy's plan, as zonemapd's tick loop decides). Its own logic is only the
+// glue: converting poses, and turning the ExternalWorkingSet's lists into answers. Ids, links
+// and Status are the core's own types (one definition: lib/common/).
 #include "zonemap/zone_manager.h"
 
 #include <algorithm>
@@ -17,6 +19,8 @@
 #include "memory/plan.h"
 #include "memory/policy.h"
 #include "runtime/budget.h"
+#include "runtime/decide_step.h"
+#include "runtime/input_gate.h"
 #include "runtime/map_setup.h"
 #include "runtime/profile.h"
 #include "zones/annotate.h"
@@ -26,7 +30,6 @@
 namespace zonemap {
 
 using internal::ToPose3;
-using internal::ToPublic;
 
 struct ZoneManager::Impl {
   zm::Profile profile;
@@ -36,25 +39,17 @@ struct ZoneManager::Impl {
   zm::Budget budget;
   bool bounded = true;
   std::optional<zm::ZoneIndex> zone_index;  // polygon zones only
-  double nearest_keyframe_zone_m = 5.0;
-  std::unique_ptr<zm::MemoryPolicy> policy;
+  std::optional<zm::InputGate> gate;
+  std::unique_ptr<zm::DecideStep> decide;   // the policy, its plan, the zone and the context
   std::unique_ptr<zm::ExternalWorkingSet> residency;
-  zm::Plan plan;
-  zm::TickContext ctx;
   std::vector<zm::ZoneId> route;
   // Answer buffers, reserved to the map size at Create.
   std::vector<KeyframeId> unload_ids;
   std::vector<KeyframeId> load_ids;
   std::vector<LoadBatch> batches;
-  bool started = false;
-  double last_stamp_s = -std::numeric_limits<double>::infinity();
-  zm::Pose3 last_kept = zm::Pose3::Identity();
-  bool have_kept = false;
-  zm::ZoneId zone = zm::kNoZone;
   ManagerStats stats;
 
-  zm::ZoneId ZoneOfPose(const zm::Pose3& pose) const;
-  Result<Answer> Carry(bool startup);
+  Result<Answer> Carry(const zm::Plan& plan, bool startup);
 };
 
 namespace {
@@ -84,39 +79,19 @@ zm::Result<zm::Profile> ProfileFor(const ManagerOptions& o) {
 
 }  // namespace
 
-zm::ZoneId ZoneManager::Impl::ZoneOfPose(const zm::Pose3& pose) const {
-  if (zone_index) return zone_index->GetZone(pose, zone);
-  // Zones from memberships: the zones of the nearest keyframe, staying in the current one while
-  // that keyframe is in it (a doorway keyframe in both zones does not flip the zone).
-  zm::KfIndex best = zm::kNoKf;
-  double best_d = std::numeric_limits<double>::infinity();
-  index.ForEachWithin(pose.translation(), nearest_keyframe_zone_m, [&](zm::KfIndex k, double d) {
-    if (d < best_d || (d == best_d && k < best)) {
-      best_d = d;
-      best = k;
-    }
-  });
-  if (best == zm::kNoKf) return zone;
-  const auto of = index.ZonesOf(best);
-  if (of.empty()) return zone;
-  if (std::find(of.begin(), of.end(), zone) != of.end()) return zone;
-  return of.front();
-}
-
 Result<std::unique_ptr<ZoneManager>> ZoneManager::Create(const HostMap& map,
                                                          const ManagerOptions& options) {
   auto impl = std::make_unique<Impl>();
   Impl& m = *impl;
   {
     auto p = ProfileFor(options);
-    if (!p.ok()) return ToPublic(p.status());
+    if (!p.ok()) return p.status();
     m.profile = std::move(p).value();
   }
-  if (map.keyframes.empty()) return ToPublic(BadOptions("the host map has no keyframes"));
+  if (map.keyframes.empty()) return BadOptions("the host map has no keyframes");
   if (!(options.nearest_keyframe_zone_m > 0.0)) {
-    return ToPublic(BadOptions("nearest_keyframe_zone_m must be > 0"));
+    return BadOptions("nearest_keyframe_zone_m must be > 0");
   }
-  m.nearest_keyframe_zone_m = options.nearest_keyframe_zone_m;
 
   // Keyframes and links, as the core's metadata records.
   std::vector<zm::KeyframeMeta> keyframes;
@@ -124,16 +99,16 @@ Result<std::unique_ptr<ZoneManager>> ZoneManager::Create(const HostMap& map,
   std::uint64_t largest = 0;
   for (const KeyframeInfo& k : map.keyframes) {
     const std::string what = "keyframe " + std::to_string(k.id.value);
-    if (k.id.value == 0) return ToPublic(BadOptions("keyframe id 0 is reserved for \"none\""));
+    if (k.id.value == 0) return BadOptions("keyframe id 0 is reserved for \"none\"");
     auto pose = ToPose3(k.pose, what + " pose");
-    if (!pose.ok()) return ToPublic(pose.status());
+    if (!pose.ok()) return pose.status();
     if (k.bytes > std::numeric_limits<std::uint32_t>::max()) {
-      return ToPublic(zm::OutOfRange(what + " has " + std::to_string(k.bytes) +
-                                     " bytes; at most 4294967295 are supported"));
+      return zm::OutOfRange(what + " has " + std::to_string(k.bytes) +
+                            " bytes; at most 4294967295 are supported");
     }
     zm::KeyframeMeta meta;
-    meta.id = zm::KeyframeId{k.id.value};
-    meta.pose = *pose;
+    meta.id = k.id;
+    meta.pose = pose->pose;
     meta.weight = k.weight;
     meta.payload_bytes = static_cast<std::uint32_t>(k.bytes);
     keyframes.push_back(meta);
@@ -143,136 +118,142 @@ Result<std::unique_ptr<ZoneManager>> ZoneManager::Create(const HostMap& map,
   links.reserve(map.links.size());
   for (const KeyframeLink& l : map.links) {
     zm::LinkRecord r;
-    r.from = zm::KeyframeId{l.from.value};
-    r.to = zm::KeyframeId{l.to.value};
-    r.type = static_cast<zm::LinkType>(static_cast<std::int32_t>(l.kind));
+    r.from = l.from;
+    r.to = l.to;
+    r.type = l.kind;
     links.push_back(r);
   }
 
   // Zones: a zone file (annotated here) or the host's names and memberships.
   const bool host_zones = !map.zone_names.empty() || !map.memberships.empty();
   if (!map.zone_file.empty() && host_zones) {
-    return ToPublic(BadOptions(
-        "give zones one way: zone_file, or zone_names with memberships (both were given)"));
+    return BadOptions(
+        "give zones one way: zone_file, or zone_names with memberships (both were given)");
   }
   if (!map.zone_file.empty()) {
     auto zones = zm::LoadZoneFile(map.zone_file);
-    if (!zones.ok()) return ToPublic(zones.status());
+    if (!zones.ok()) return zones.status();
     zm::AnnotateOptions ao;
     ao.band_m = map.doorway_band_m;
     auto report = zm::AnnotateKeyframes(*zones, keyframes, ao);
-    if (!report.ok()) return ToPublic(report.status().Annotate(map.zone_file));
+    if (!report.ok()) return report.status().Annotate(map.zone_file);
     m.zones = std::move(report->zones);
     m.members = std::move(report->members);
   } else if (host_zones) {
     std::vector<std::vector<zm::KeyframeId>> lists(map.zone_names.size());
     for (const ZoneMembership& z : map.memberships) {
       if (z.zone.value < 0 || static_cast<std::size_t>(z.zone.value) >= map.zone_names.size()) {
-        return ToPublic(BadOptions("membership names zone " + std::to_string(z.zone.value) +
-                                   "; zones are 0.." +
-                                   std::to_string(static_cast<long>(map.zone_names.size()) - 1) +
-                                   " (zone_names)"));
+        return BadOptions("membership names zone " + std::to_string(z.zone.value) +
+                          "; zones are 0.." +
+                          std::to_string(static_cast<long>(map.zone_names.size()) - 1) +
+                          " (zone_names)");
       }
-      lists[static_cast<std::size_t>(z.zone.value)].push_back(zm::KeyframeId{z.keyframe.value});
-      m.members.push_back({zm::ZoneId{z.zone.value}, zm::KeyframeId{z.keyframe.value}});
+      lists[static_cast<std::size_t>(z.zone.value)].push_back(z.keyframe);
+      m.members.push_back({z.zone, z.keyframe});
     }
     for (std::size_t i = 0; i < map.zone_names.size(); ++i) {
       zm::Zone zone;
       zone.name = map.zone_names[i];
       if (zm::Status s = m.zones.Add(std::move(zone), lists[i], "zone_names[" + std::to_string(i) + "]");
           !s.ok()) {
-        return ToPublic(s);
+        return s;
       }
     }
   } else {
-    return ToPublic(zm::FailedPrecondition(
-        "the host map has no zones: give zone_file, or zone_names with memberships"));
+    return zm::FailedPrecondition(
+        "the host map has no zones: give zone_file, or zone_names with memberships");
   }
-  if (m.zones.empty()) return ToPublic(zm::FailedPrecondition("the zone set is empty"));
+  if (m.zones.empty()) return zm::FailedPrecondition("the zone set is empty");
 
   {
     auto index = zm::BuildPolicyIndex(keyframes, links, m.zones, m.members);
-    if (!index.ok()) return ToPublic(index.status());
+    if (!index.ok()) return index.status();
     m.index = std::move(index).value();
   }
 
   // K_max: the one derivation. Without keyframe sizes a byte budget cannot be applied.
   auto share = zm::MapShareBytes(m.profile);
-  if (!share.ok()) return ToPublic(share.status());
+  if (!share.ok()) return share.status();
+  const zm::PolicyTraits& traits = zm::Traits(m.profile.policy.kind);
   if (largest == 0 && m.profile.map.slot_bytes == 0) {
-    if (*share != 0 && m.profile.policy.policy != "unbounded") {
-      return ToPublic(BadOptions(
+    if (*share != 0 && traits.has_budget) {
+      return BadOptions(
           "the budget is in bytes (map share " + zm::FormatBytes(*share) + " from " +
           m.profile.source + ") but no keyframe gives its size: set KeyframeInfo::bytes, or "
-          "map.slot_bytes in the profile, or budget by count (memory_thr_keyframes)"));
+          "map.slot_bytes in the profile, or budget by count (memory_thr_keyframes)");
     }
     largest = 1;  // count-only budget: the slot size is never used
   }
   {
     auto budget = zm::DeriveBudget(m.profile, largest, keyframes.size());
-    if (!budget.ok()) return ToPublic(budget.status());
+    if (!budget.ok()) return budget.status();
     m.budget = *budget;
   }
-  m.bounded = zm::IsBoundedPolicy(m.profile.policy.policy);
+  m.bounded = traits.bounded;
 
   std::vector<zm::ZoneId> future;
   future.reserve(options.oracle_future.size());
   for (ZoneId z : options.oracle_future) {
     if (z != kNoZone && (z.value < 0 || z.value >= m.index.zone_count())) {
-      return ToPublic(BadOptions("oracle_future names zone " + std::to_string(z.value) +
-                                 "; zones are 0.." + std::to_string(m.index.zone_count() - 1)));
+      return BadOptions("oracle_future names zone " + std::to_string(z.value) + "; zones are 0.." +
+                        std::to_string(m.index.zone_count() - 1));
     }
-    future.push_back(zm::ZoneId{z.value});
+    future.push_back(z);
   }
+  if (!m.zones.has_keyframe_lists()) m.zone_index.emplace(m.zones, m.profile.zones);
+  m.route.reserve(4 * static_cast<std::size_t>(m.index.zone_count()));
   {
     zm::PolicyOptions popt = zm::PolicyOptionsFor(m.profile, m.budget, keyframes, std::move(future));
     auto policy = zm::MakePolicy(m.index, popt);
-    if (!policy.ok()) return ToPublic(policy.status());
-    m.policy = std::move(policy).value();
+    if (!policy.ok()) return policy.status();
+    m.decide = std::make_unique<zm::DecideStep>(
+        m.index, std::move(policy).value(),
+        zm::DecideOptions{.small_displacement_m = m.profile.loop.small_displacement_m,
+                          .small_displacement_rad = m.profile.loop.small_displacement_rad,
+                          .nearest_keyframe_zone_m = options.nearest_keyframe_zone_m},
+        m.zone_index ? &*m.zone_index : nullptr, m.route);
   }
-  if (!m.zones.has_keyframe_lists()) m.zone_index.emplace(m.zones, m.profile.zones);
+  // The pose is in the map frame already: the gate's correction is the identity.
+  m.gate.emplace(m.profile.input, zm::ExtentOf(m.index));
 
   m.residency = std::make_unique<zm::ExternalWorkingSet>(m.index);
-  m.plan.Reserve(m.index);
   m.unload_ids.reserve(m.index.keyframe_count());
   m.load_ids.reserve(m.index.keyframe_count());
   m.batches.reserve((static_cast<std::size_t>(m.index.zone_count()) + 2) * 2);
-  m.route.reserve(4 * static_cast<std::size_t>(m.index.zone_count()));
-  m.ctx.route = m.route;
   return std::unique_ptr<ZoneManager>(new ZoneManager(std::move(impl)));
 }
 
 ZoneManager::ZoneManager(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 ZoneManager::~ZoneManager() = default;
 
-Result<Answer> ZoneManager::Impl::Carry(bool startup) {
-  if (zm::Status s = residency->Apply(plan); !s.ok()) return ToPublic(s);
+Result<Answer> ZoneManager::Impl::Carry(const zm::Plan& plan, bool startup) {
+  if (zm::Status s = residency->Apply(plan); !s.ok()) return s;
   unload_ids.clear();
   load_ids.clear();
   batches.clear();
-  for (zm::KfIndex k : residency->unloads()) unload_ids.push_back(KeyframeId{index.id(k).value});
-  for (zm::KfIndex k : residency->loads()) load_ids.push_back(KeyframeId{index.id(k).value});
+  for (zm::KfIndex k : residency->unloads()) unload_ids.push_back(index.id(k));
+  for (zm::KfIndex k : residency->loads()) load_ids.push_back(index.id(k));
   for (const auto& b : residency->load_batches()) {
-    batches.push_back(LoadBatch{ZoneId{b.zone.value}, b.begin, b.end});
+    batches.push_back(LoadBatch{b.zone, b.begin, b.end});
   }
   Answer a;
   a.unload = unload_ids;
   a.load = load_ids;
   a.batches = batches;
-  a.zone = ZoneId{zone.value};
+  a.zone = decide->zone();
   a.startup = startup;
   a.resident_before = residency->resident_before();
   a.resident_after = residency->resident_count();
   a.peak = residency->peak_during_apply();
   stats.keyframes_loaded += load_ids.size();
   stats.keyframes_unloaded += unload_ids.size();
-  stats.zone_loads = policy->zone_loads();
+  stats.zone_loads = decide->policy().zone_loads();
   stats.peak_resident = std::max(stats.peak_resident, a.peak);
   if (a.peak > budget.k_max) {
     ++stats.over_budget_steps;
     if (bounded) {
       return Status(StatusCode::kInternal,
-                    "the " + std::string(policy->name()) + " policy's answer holds " +
+                    "the " + std::string(decide->policy().name()) + " policy's answer holds " +
                         std::to_string(a.peak) + " keyframes at once, above K_max " +
                         std::to_string(budget.k_max) + " (a bug: please report it)");
     }
@@ -282,68 +263,42 @@ Result<Answer> ZoneManager::Impl::Carry(bool startup) {
 
 Result<Answer> ZoneManager::Update(const TickInput& input) {
   Impl& m = *impl_;
-  if (!std::isfinite(input.stamp_s)) {
-    return Status(StatusCode::kInvalidArgument, "stamp_s is not finite");
-  }
-  if (input.stamp_s < m.last_stamp_s) {
-    return Status(StatusCode::kInvalidArgument,
-                  "stamp_s " + std::to_string(input.stamp_s) + " is before the previous " +
-                      std::to_string(m.last_stamp_s) + " (stamps must not decrease)");
-  }
+  // Syntax first (finite numbers, a zone that exists), then the input gate's rules (zonemapd's):
+  // a refusal changes nothing, the stamp included.
   auto pose = ToPose3(input.pose, "TickInput pose");
-  if (!pose.ok()) return ToPublic(pose.status());
+  if (!pose.ok()) return pose.status();
   if (input.zone != kNoZone && (input.zone.value < 0 || input.zone.value >= m.index.zone_count())) {
     return Status(StatusCode::kInvalidArgument,
                   "TickInput zone " + std::to_string(input.zone.value) + "; zones are 0.." +
                       std::to_string(m.index.zone_count() - 1) + " (or kNoZone)");
   }
-  m.last_stamp_s = input.stamp_s;
-  m.zone = input.zone != kNoZone ? zm::ZoneId{input.zone.value} : m.ZoneOfPose(*pose);
-
-  bool small = false;
-  if (m.have_kept) small = zm::IsSmallDisplacement(m.last_kept, *pose, m.profile.loop);
-  if (!small) {
-    m.last_kept = *pose;
-    m.have_kept = true;
+  zm::RejectReason why = zm::RejectReason::kSyntax;
+  if (!m.gate->AcceptFrame(input.stamp_s, pose->pose, pose->quaternion_norm,
+                           zm::Pose3::Identity(), &why)) {
+    return Status(StatusCode::kInvalidArgument,
+                  "TickInput refused (" + std::string(zm::RejectReasonName(why)) + "): " +
+                      zm::RejectRule(why) + " (stamp_s " + std::to_string(input.stamp_s) +
+                      ", quaternion norm " + std::to_string(pose->quaternion_norm) + ")");
   }
-  m.ctx.tick = m.stats.updates;
-  m.ctx.now_s = input.stamp_s;
-  m.ctx.pose = *pose;
-  m.ctx.zone = m.zone;
-  m.ctx.small_displacement = small;
-  m.ctx.highest_hypothesis = zm::KeyframeId{0};
-  m.ctx.localized_on = zm::KeyframeId{0};
-  m.ctx.route = m.route;
-
-  m.plan.Clear();
-  const bool startup = !m.started;
-  if (startup) {
-    m.policy->Start(m.ctx, &m.plan);
-    m.started = true;
-  } else {
-    m.policy->PlanBeforeLocalize(m.ctx, &m.plan);
-  }
+  const bool startup = !m.decide->started();
+  const zm::Plan& plan = m.decide->Before(input.stamp_s, pose->pose, input.zone);
   ++m.stats.updates;
-  return m.Carry(startup);
+  return m.Carry(plan, startup);
 }
 
 Result<Answer> ZoneManager::AfterLocalization(const LocalizationInput& input) {
   Impl& m = *impl_;
-  if (!m.started) {
+  if (!m.decide->started()) {
     return Status(StatusCode::kFailedPrecondition, "AfterLocalization before the first Update");
   }
   for (KeyframeId id : {input.highest_hypothesis, input.localized_on}) {
-    if (id.value != 0 && m.index.Find(zm::KeyframeId{id.value}) == zm::kNoKf) {
+    if (id.value != 0 && m.index.Find(id) == zm::kNoKf) {
       return Status(StatusCode::kInvalidArgument,
                     "LocalizationInput names keyframe " + std::to_string(id.value) +
                         ", which is not in the host map");
     }
   }
-  m.ctx.highest_hypothesis = zm::KeyframeId{input.highest_hypothesis.value};
-  m.ctx.localized_on = zm::KeyframeId{input.localized_on.value};
-  m.plan.Clear();
-  m.policy->PlanAfterLocalize(m.ctx, &m.plan);
-  return m.Carry(false);
+  return m.Carry(m.decide->After(input.highest_hypothesis, input.localized_on), false);
 }
 
 Status ZoneManager::SetRoute(std::span<const ZoneId> route) {
@@ -355,36 +310,33 @@ Status ZoneManager::SetRoute(std::span<const ZoneId> route) {
                         std::to_string(m.index.zone_count() - 1));
     }
   }
-  m.route.clear();
-  for (ZoneId z : route) m.route.push_back(zm::ZoneId{z.value});
-  m.ctx.route = m.route;
+  m.route.assign(route.begin(), route.end());
+  m.decide->SetRoute(m.route);
   return Status::Ok();
 }
 
-std::string_view ZoneManager::policy() const { return impl_->policy->name(); }
+std::string_view ZoneManager::policy() const { return impl_->decide->policy().name(); }
 std::uint32_t ZoneManager::k_max() const { return impl_->budget.k_max; }
 bool ZoneManager::bounded() const { return impl_->bounded; }
 std::uint32_t ZoneManager::keyframe_count() const { return impl_->index.keyframe_count(); }
 std::uint32_t ZoneManager::resident_count() const { return impl_->residency->resident_count(); }
 bool ZoneManager::IsResident(KeyframeId id) const {
-  const zm::KfIndex k = impl_->index.Find(zm::KeyframeId{id.value});
+  const zm::KfIndex k = impl_->index.Find(id);
   return k != zm::kNoKf && impl_->residency->IsResident(k);
 }
-ZoneId ZoneManager::current_zone() const { return ZoneId{impl_->zone.value}; }
+ZoneId ZoneManager::current_zone() const { return impl_->decide->zone(); }
 std::int32_t ZoneManager::zone_count() const { return impl_->index.zone_count(); }
 std::string_view ZoneManager::zone_name(ZoneId zone) const {
   if (zone.value < 0 || zone.value >= impl_->index.zone_count()) return {};
-  return impl_->zones.zone(zm::ZoneId{zone.value}).name;
+  return impl_->zones.zone(zone).name;
 }
 ZoneId ZoneManager::FindZone(std::string_view name) const {
-  return ZoneId{impl_->zones.Find(name).value};
+  return impl_->zones.Find(name);
 }
 std::vector<ZoneMembership> ZoneManager::Memberships() const {
   std::vector<ZoneMembership> out;
   out.reserve(impl_->members.size());
-  for (const zm::ZoneMember& z : impl_->members) {
-    out.push_back({ZoneId{z.zone.value}, KeyframeId{z.keyframe.value}});
-  }
+  for (const zm::ZoneMember& z : impl_->members) out.push_back({z.zone, z.keyframe});
   return out;
 }
 ManagerStats ZoneManager::stats() const { return impl_->stats; }

@@ -130,14 +130,15 @@ void AddBudgetCommand(CLI::App& app, CommandContext& ctx) {
     if (o->json) {
       nlohmann::json j = BudgetJson(o->map, b);
       j["profile"] = core.source;
-      j["policy"] = core.policy.policy;
+      j["policy"] = std::string(PolicyName(core.policy.kind));
       j["model"] = core.model.name;
       j["device_scale"] = o->device_scale;
       std::printf("%s\n", j.dump(2).c_str());
       return;
     }
     std::printf("budget: K_max %u keyframes (%s), arena %u slots x %s (%s)\n", b->k_max,
-                core.policy.policy.c_str(), b->arena_slots, FormatBytes(b->slot_bytes).c_str(),
+                PolicyName(core.policy.kind).data(), b->arena_slots,
+                FormatBytes(b->slot_bytes).c_str(),
                 b->bounded ? "bounded: residency never exceeds K_max" : "the whole map");
     std::printf("budget: map share %s, %s of it for keyframes (%s)\n",
                 b->map_share_bytes != 0 ? FormatBytes(b->map_share_bytes).c_str() : "unlimited",

@@ -51,9 +51,9 @@ World MakeWorld(int n) {
     k.pose = zm::PoseFromXYYaw(20.0 * col + 2.0 * (j % 7), 20.0 * row + 2.0 * (j / 7), 0.0);
     k.payload_bytes = 16384;
     members.push_back({zm::ZoneId{z}, k.id});
-    if (i > 0) links.push_back({zm::KeyframeId{i}, k.id, zm::LinkType::kNeighbor, {}, {}});
+    if (i > 0) links.push_back({zm::KeyframeId{i}, k.id, zm::LinkKind::kNeighbor, {}, {}});
     if (i >= 7 && i % 10 == 0) {
-      links.push_back({zm::KeyframeId{i - 6}, k.id, zm::LinkType::kGlobalClosure, {}, {}});
+      links.push_back({zm::KeyframeId{i - 6}, k.id, zm::LinkKind::kGlobalClosure, {}, {}});
     }
   }
   std::vector<std::vector<zm::ZoneId>> adj(static_cast<std::size_t>(zones));
@@ -86,7 +86,7 @@ void BM_Policy(benchmark::State& state, const char* policy) {
     return static_cast<zm::KfIndex>((tick * stride + tick / count) % count);
   };
   zm::PolicyOptions o;
-  o.policy = policy;
+  o.kind = *zm::ParsePolicyKind(policy);
   o.k_max = kKMax;
   for (std::uint64_t t = 0; t < kFutureTicks; ++t) o.oracle.future.push_back(w.zone_of[kf_at(t)]);
   for (zm::KfIndex k = 0; k < std::min<std::uint32_t>(kKMax, count); ++k) {

@@ -135,6 +135,7 @@ bool ReadAll(int fd, void* p, std::size_t n) {
   run.telemetry.flush_ticks = 1;
   run.verify_checksums = request.verify_checksums;
   run.profile_name = request.profile.core.source;
+  run.input = request.profile.core.input;  // the input gate, as zonemapd applies it
   run.time_compression = request.time_compression;
   run.on_ready = [&](const TickLoop& l) -> Result<double> {
     // What a summary needs if this process does not live to write one (the budget, the arena).

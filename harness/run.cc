@@ -11,7 +11,8 @@
 #include "geometry/trajectory.h"
 #include "harness/cotenant.h"
 #include "harness/realtime_frames.h"
-#include "runtime/estimate_writer.h"
+#include "runtime/tick_publisher.h"
+#include "runtime/input_gate.h"
 #include "runtime/summary.h"
 #include "sim/scenario.h"
 
@@ -40,8 +41,6 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<MapDb> db,
                       MapDb::Open(scenario.map_db, {.verify_checksums = request.verify_checksums}));
   ZM_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> frames, OpenReplaySource(scenario.frames_bin));
-  TelemetryWriter telemetry;
-  ZM_RETURN_IF_ERROR(telemetry.Open(request.out_dir + "/ticks.jsonl"));
 
   // Planned route (predictive) and the per-tick future (oracle), from the patrol's tasks.
   std::vector<ZoneId> route;
@@ -74,12 +73,21 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
                                                   .time_compression = request.time_compression}));
     source = rt.get();
   }
+  // The input gate in front of the loop, as in zonemapd (input_gate.h): a recorded frame that
+  // breaks a rule is counted and skipped.
+  GatedFrameSource gated(*source);
   ZM_ASSIGN_OR_RETURN(
       std::unique_ptr<TickLoop> loop,
-      TickLoop::Create(config, *db, *source,
+      TickLoop::Create(config, *db, gated,
                        {.route = std::move(route), .oracle_future = std::move(future)}));
-  EstimateWriter estimate_out;
-  ZM_RETURN_IF_ERROR(estimate_out.Open(request.out_dir + "/estimate.tum"));
+  gated.Attach(request.input, ExtentOf(loop->map_index()), &loop->map_from_odom());
+  // Each tick's record to ticks.jsonl and estimate.tum (streamed: a process killed mid-run
+  // leaves the poses it produced), as zonemapd publishes it (tick_publisher.h).
+  TickPublisher publisher;
+  ZM_RETURN_IF_ERROR(publisher.Open(
+      {.telemetry_path = request.out_dir + "/ticks.jsonl",
+       .estimate_path = request.out_dir + "/estimate.tum",
+       .flush_ticks = std::max<std::uint32_t>(1, request.telemetry.flush_ticks)}));
   // The estimate: one pose per processed frame (a replay is finite: reserved for all of them).
   Trajectory estimate;
   estimate.stamps_s.reserve(scenario.frames);
@@ -90,7 +98,6 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     ZM_ASSIGN_OR_RETURN(origin, request.on_ready(*loop));
   }
   if (rt) rt->set_origin_mono_s(origin);
-  const std::uint32_t flush = std::max<std::uint32_t>(1, request.telemetry.flush_ticks);
   for (;;) {
     if (stop != nullptr && stop->load()) {
       interrupted = true;
@@ -109,18 +116,13 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     const TickRecord& rec = loop->last_record();
     estimate.stamps_s.push_back(rec.stamp_s);
     estimate.poses.push_back(rec.pose);
-    (void)estimate_out.Write(rec.stamp_s, rec.pose);
     TickClock clock;
     clock.wall_s = MonotonicSeconds() - origin;
     clock.frames_arrived = rt ? rt->frames_arrived() : rec.tick + 1;
     clock.frames_dropped = rt ? rt->frames_dropped() : 0;
     const std::string_view extra =
         request.on_tick ? request.on_tick(*loop, clock) : std::string_view();
-    telemetry.Write(rec, extra);
-    if ((rec.tick + 1) % flush == 0) {
-      estimate_out.Flush();  // first: a tick on disk always has its pose on disk
-      telemetry.Flush();
-    }
+    (void)publisher.Publish(rec, extra);
     // The idle part of the tick (time-sliced loads): until the next frame arrives (real-time
     // frames; it also stops as soon as one is waiting), else one frame period after this tick
     // started.
@@ -136,9 +138,7 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
     }
   }
   const double wall_s = MonotonicSeconds() - origin;
-  telemetry.Flush();
-  telemetry.Close();
-  estimate_out.Close();
+  publisher.Close();
 
   // Trajectory metrics: the estimate lives in the map frame, so ATE unaligned, and SE(3)-aligned
   // beside it (docs/evaluation.md).
@@ -152,6 +152,7 @@ Result<nlohmann::json> RunScenario(const RunRequest& request, const std::atomic<
   s["frames_arrived"] = rt ? rt->frames_arrived() : t.ticks;
   s["frames_dropped"] = rt ? rt->frames_dropped() : 0;
   s["frames_not_taken"] = rt ? rt->frames_not_taken() : 0;
+  s["frames_refused"] = gated.rejects().total;  // by the input gate
   s["wall_s"] = wall_s;
   s["wall_origin_mono_s"] = origin;
   if (realtime) {

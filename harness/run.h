@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "common/status.h"
+#include "runtime/input_gate.h"
 #include "runtime/telemetry.h"
 #include "runtime/tick_loop.h"
 
@@ -29,6 +30,7 @@ struct RunRequest {
   std::string out_dir;
   LoopConfig loop;
   TelemetryOptions telemetry;
+  InputOptions input;             // the input gate's rules ([input]; input_gate.h)
   std::string profile_name;       // for the summary only
   bool verify_checksums = false;  // CRC-check payloads as they land (MapDbOptions)
   // Real-time frames (harness/realtime_frames.h): > 0 = frames arrive on the clock at the

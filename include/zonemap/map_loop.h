@@ -115,15 +115,17 @@ class MapLoop {
   // from SQLite straight into arena slots), localization on the resident keyframes, basic's
   // retrieval/transfer. Cost: one tick of zonemapd (3-11 ms on the simulated hospital on the
   // build VM, README; dominated by loads when a zone is entered, docs/mapdb.md). Allocates
-  // nothing once warm. A bad frame (non-increasing or non-finite stamp, non-finite pose,
-  // quaternion norm outside [0.5, 1.5], too many features, non-finite keypoint) is
-  // kInvalidArgument, counted in stats().rejected_frames and not processed. kFailedPrecondition
-  // in replay mode.
+  // nothing once warm. A bad frame is kInvalidArgument, counted in stats().rejected_frames and
+  // not processed: too many features, a non-finite keypoint or pose value, then zonemapd's input
+  // gate (a stamp not finite, beyond 2^32 s or not greater than the last accepted one; | |q| - 1 |
+  // above the profile's [input] quaternion_tolerance; a position beyond the map's extent +
+  // [input] max_distance_from_map_m; docs/api.md). kFailedPrecondition in replay mode.
   [[nodiscard]] Result<TickOutput> Process(const FrameInput& frame);
 
   // Replay mode (MapLoopOptions::frames_path): the next recorded frame's tick; nullopt at the
   // end of the file. kFailedPrecondition without a frames file; I/O and corrupt-file errors
-  // from the frames file.
+  // from the frames file. A recorded frame the input gate refuses is skipped and counted in
+  // stats().rejected_frames.
   [[nodiscard]] Result<std::optional<TickOutput>> Step();
 
   // Queries: O(1), no allocation unless stated.

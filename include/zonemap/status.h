@@ -6,8 +6,13 @@
 // and the limit ("keyframe 17 appears twice", "map.slot_bytes 4096 is smaller than the largest
 // keyframe (2200000 bytes)").
 //
+// One definition: these are the library's own error types too (zm::Status in lib/common/status.h
+// is this one), so a message reads the same from zonemapd, the command line and the API.
+// StatusCodeName, ToString and Annotate are defined in the library (libzonemap); the rest is
+// inline. Standard library only.
+//
 // Cost: an OK Status holds an empty std::string and never allocates; only an error allocates its
-// message. Header-only, standard library only.
+// message.
 #pragma once
 
 #include <cassert>
@@ -25,27 +30,14 @@ enum class StatusCode {
   kCorrupt,             // data on disk is damaged or inconsistent
   kOutOfRange,          // a size or count beyond a limit (slot size, budget)
   kResourceExhausted,   // out of memory, arena full
-  kFailedPrecondition,  // wrong state (a call out of order, a map without zones)
+  kFailedPrecondition,  // wrong state (a call out of order, a map without zones, a schema)
   kIoError,             // the OS or SQLite refused an operation
   kUnsupported,         // valid but not handled by this build
   kInternal,            // a bug in zonemap: please report it
 };
 
-[[nodiscard]] inline std::string_view StatusCodeName(StatusCode code) {
-  switch (code) {
-    case StatusCode::kOk: return "ok";
-    case StatusCode::kInvalidArgument: return "invalid argument";
-    case StatusCode::kNotFound: return "not found";
-    case StatusCode::kCorrupt: return "corrupt";
-    case StatusCode::kOutOfRange: return "out of range";
-    case StatusCode::kResourceExhausted: return "resource exhausted";
-    case StatusCode::kFailedPrecondition: return "failed precondition";
-    case StatusCode::kIoError: return "i/o error";
-    case StatusCode::kUnsupported: return "unsupported";
-    case StatusCode::kInternal: return "internal";
-  }
-  return "unknown";
-}
+// "ok", "invalid argument", ..., "I/O error", "unsupported", "internal error".
+[[nodiscard]] std::string_view StatusCodeName(StatusCode code);
 
 class [[nodiscard]] Status {
  public:
@@ -57,10 +49,9 @@ class [[nodiscard]] Status {
   [[nodiscard]] StatusCode code() const { return code_; }
   [[nodiscard]] const std::string& message() const { return message_; }
   // "<code>: <message>", or "ok".
-  [[nodiscard]] std::string ToString() const {
-    if (ok()) return "ok";
-    return std::string(StatusCodeName(code_)) + ": " + message_;
-  }
+  [[nodiscard]] std::string ToString() const;
+  // The same error with context in front ("loading zone 3: <message>"), code kept; ok stays ok.
+  [[nodiscard]] Status Annotate(std::string_view context) const;
 
  private:
   StatusCode code_ = StatusCode::kOk;
@@ -77,7 +68,10 @@ class [[nodiscard]] Result {
   }
   [[nodiscard]] bool ok() const { return std::holds_alternative<T>(v_); }
   // Ok when there is a value.
-  [[nodiscard]] Status status() const { return ok() ? Status() : std::get<Status>(v_); }
+  [[nodiscard]] const Status& status() const {
+    static const Status kOkStatus;
+    return ok() ? kOkStatus : std::get<Status>(v_);
+  }
   [[nodiscard]] T& value() & { assert(ok()); return std::get<T>(v_); }
   [[nodiscard]] const T& value() const& { assert(ok()); return std::get<T>(v_); }
   [[nodiscard]] T&& value() && { assert(ok()); return std::get<T>(std::move(v_)); }

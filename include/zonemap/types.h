@@ -8,6 +8,9 @@
 // ABI hazard, and RTAB-Map, ROS and PCL hosts each convert from their own pose type anyway. Seven
 // doubles are what TUM files and zonemapd's line protocol carry already.
 //
+// One definition: the library's core uses these very types (lib/common/ids.h aliases them), so
+// an id or a link kind crosses the API unconverted.
+//
 // Header-only, standard library only; trivially copyable; no allocation.
 #pragma once
 
@@ -35,9 +38,25 @@ struct ZoneId {
 };
 inline constexpr ZoneId kNoZone{-1};
 
+// Link kinds between keyframes, numbered as RTAB-Map's Link::Type (and stored so in zonemap's
+// map database), so an RTAB-Map host can cast.
+enum class LinkKind : std::int32_t {
+  kNeighbor = 0,
+  kGlobalClosure = 1,
+  kLocalSpaceClosure = 2,
+  kLocalTimeClosure = 3,
+  kUserClosure = 4,
+  kVirtualClosure = 5,
+  kNeighborMerged = 6,
+  kPosePrior = 7,
+  kLandmark = 8,
+  kGravity = 9,
+};
+
 // A rigid-body pose in the map frame: metres, and a unit quaternion with w last (TUM order,
-// as in trajectory files and zonemapd's line protocol). A quaternion whose norm is within
-// [0.5, 1.5] is normalised by zonemap; anything else, or a non-finite number, is rejected.
+// as in trajectory files and zonemapd's line protocol). A quaternion within the profile's
+// [input] quaternion_tolerance of unit norm (0.01 by default) is normalised by zonemap; anything
+// else, or a non-finite number, is rejected (zonemapd's input gate; docs/api.md).
 struct Pose {
   double x = 0.0, y = 0.0, z = 0.0;
   double qx = 0.0, qy = 0.0, qz = 0.0, qw = 1.0;

@@ -56,16 +56,7 @@ struct KeyframeInfo {
   std::uint64_t bytes = 0;   // its size in the host's memory; needed only for a byte budget
 };
 
-// Link kinds, numbered as RTAB-Map's Link::Type so an RTAB-Map host can cast.
-enum class LinkKind : std::int32_t {
-  kNeighbor = 0,
-  kGlobalClosure = 1,
-  kLocalSpaceClosure = 2,
-  kLocalTimeClosure = 3,
-  kUserClosure = 4,
-  kNeighborMerged = 6,
-};
-
+// A link between two keyframes (LinkKind: zonemap/types.h).
 struct KeyframeLink {
   KeyframeId from;
   KeyframeId to;
@@ -117,7 +108,7 @@ struct ManagerOptions {
 };
 
 struct TickInput {
-  double stamp_s = 0.0;   // seconds; must not decrease (basic ages keyframes by it)
+  double stamp_s = 0.0;   // seconds; must increase (basic ages keyframes by it)
   Pose pose;              // the host's current pose estimate, map frame
   ZoneId zone = kNoZone;  // the host's own zone for this pose; kNoZone = zonemap decides
 };
@@ -183,8 +174,11 @@ class ZoneManager {
   // Cost: the zone lookup (constant time, ~20 ns) plus the policy's decision (semantic 0.01-0.2
   // µs, radius up to ~6 µs; docs/memory.md) plus O(keyframes in the answer): a steady tick
   // (Update + AfterLocalization) ~0.2 µs whatever the map size, ~6 ns more per id in the answer
-  // (zm_api_bench, docs/api.md). Allocates nothing (after the first call). A bad pose (non-finite, quaternion norm outside [0.5, 1.5]), a
-  // decreasing stamp or an unknown zone id is kInvalidArgument and changes nothing.
+  // (zm_api_bench, docs/api.md). Allocates nothing (after the first call). Bad input is
+  // kInvalidArgument and changes nothing: a non-finite pose value or an unknown zone id, then
+  // zonemapd's input gate (a stamp not finite, beyond 2^32 s or not greater than the last
+  // accepted one; | |q| - 1 | above the profile's [input] quaternion_tolerance; a pose beyond the
+  // map's extent + [input] max_distance_from_map_m; docs/api.md).
   [[nodiscard]] Result<Answer> Update(const TickInput& input);
 
   // The same tick, after the host localized: basic's retrieval around the highest hypothesis
@@ -197,9 +191,10 @@ class ZoneManager {
   // is kInvalidArgument.
   [[nodiscard]] Result<Answer> AfterLocalization(const LocalizationInput& input);
 
-  // The planned zone sequence (predictive prefetch and eviction follow it); replaces the
-  // previous one. Cost O(route). Allocates only when the route is longer than any before (the
-  // buffer is reserved for 4 x zone_count() at Create). Unknown zone ids are kInvalidArgument.
+  // The planned zone sequence (predictive prefetch and eviction follow it, from the current
+  // zone's place on it); replaces the previous one. Cost O(route). Allocates only when the route
+  // is longer than any before (the buffer is reserved for 4 x zone_count() at Create). Unknown
+  // zone ids are kInvalidArgument.
   [[nodiscard]] Status SetRoute(std::span<const ZoneId> route);
 
   // Queries: O(1) unless stated, no allocation unless stated.

@@ -1,12 +1,17 @@
 // Strong ids: keyframe, zone and slot numbers are different types, so one cannot be passed
 // where another is expected (docs/style.md §3). Trivially copyable, hashable, ordered.
+//
+// KeyframeId, ZoneId (with kNoZone) and LinkKind are the public API's (include/zonemap/types.h):
+// one definition each, so the core and a host share them without conversion. SlotIndex is the
+// arena's, which knows nothing of ours. StrongId makes the ids private to one module (WordId).
 #pragma once
 
 #include <compare>
 #include <cstdint>
 #include <functional>
 
-#include "arena/arena.h"  // SlotIndex is defined by the arena, which knows nothing of ours.
+#include "arena/arena.h"
+#include "zonemap/types.h"
 
 namespace zm {
 
@@ -20,14 +25,14 @@ struct StrongId {
   friend constexpr auto operator<=>(StrongId, StrongId) = default;
 };
 
-struct KeyframeIdTag {};
-struct ZoneIdTag {};
-
-// Keyframe ids are RTAB-Map node ids when imported (positive, 32-bit there); 64-bit here.
-using KeyframeId = StrongId<KeyframeIdTag, std::int64_t>;
-// Zone ids are dense 0..N-1 within a map, so they index arrays directly.
-using ZoneId = StrongId<ZoneIdTag, std::int32_t>;
-inline constexpr ZoneId kNoZone{-1};
+// Keyframe ids are RTAB-Map node ids when imported (positive, 32-bit there); 64-bit here. 0 means
+// "none" where an id is optional.
+using KeyframeId = zonemap::KeyframeId;
+// Zone ids are dense 0..N-1 within a map, so they index arrays directly; default kNoZone.
+using ZoneId = zonemap::ZoneId;
+using zonemap::kNoZone;
+// RTAB-Map's Link.type values, kept as-is on import.
+using LinkKind = zonemap::LinkKind;
 
 }  // namespace zm
 

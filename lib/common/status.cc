@@ -1,6 +1,8 @@
-#include "common/status.h"
+// The out-of-line part of the one Status (include/zonemap/status.h): the code names, read the
+// same by zonemapd, the command line and the public API.
+#include "zonemap/status.h"
 
-namespace zm {
+namespace zonemap {
 
 std::string_view StatusCodeName(StatusCode code) {
   switch (code) {
@@ -34,4 +36,4 @@ Status Status::Annotate(std::string_view context) const {
   return {code_, std::move(m)};
 }
 
-}  // namespace zm
+}  // namespace zonemap

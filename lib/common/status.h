@@ -1,49 +1,23 @@
 // Errors are values on library APIs (docs/style.md §5): a Status carries a code and one
 // human-readable line that names the thing and the limit; Result<T> is a value or a Status.
 // Nothing here throws. Constructing an error allocates its message; the OK path never does.
+//
+// The types are the public API's (include/zonemap/status.h, installed): one definition, so the
+// core's errors reach an API caller as they are and read the same everywhere. This header adds
+// what only the core uses: the constructors by code and the early-return macros.
 #pragma once
 
-#include <cassert>
 #include <string>
-#include <string_view>
 #include <utility>
-#include <variant>
+
+#include "zonemap/status.h"
 
 namespace zm {
 
-enum class StatusCode {
-  kOk = 0,
-  kInvalidArgument,    // bad input from the caller or a file
-  kNotFound,           // a named thing does not exist
-  kCorrupt,            // data on disk is damaged or inconsistent
-  kOutOfRange,         // a size or count beyond a limit (slot size, budget)
-  kResourceExhausted,  // out of memory, arena full
-  kFailedPrecondition, // wrong schema version, wrong state
-  kIoError,            // the OS or SQLite refused an operation
-  kUnsupported,        // valid but not handled by this build
-  kInternal,           // a bug
-};
-
-[[nodiscard]] std::string_view StatusCodeName(StatusCode code);
-
-class [[nodiscard]] Status {
- public:
-  Status() = default;
-  Status(StatusCode code, std::string message) : code_(code), message_(std::move(message)) {}
-  static Status Ok() { return {}; }
-
-  [[nodiscard]] bool ok() const { return code_ == StatusCode::kOk; }
-  [[nodiscard]] StatusCode code() const { return code_; }
-  [[nodiscard]] const std::string& message() const { return message_; }
-  // "<code>: <message>", for logs and the CLI's one-line errors.
-  [[nodiscard]] std::string ToString() const;
-  // Prefixes context ("loading zone 3: ...") while keeping the code.
-  [[nodiscard]] Status Annotate(std::string_view context) const;
-
- private:
-  StatusCode code_ = StatusCode::kOk;
-  std::string message_;
-};
+using zonemap::Result;
+using zonemap::Status;
+using zonemap::StatusCode;
+using zonemap::StatusCodeName;
 
 inline Status InvalidArgument(std::string m) { return {StatusCode::kInvalidArgument, std::move(m)}; }
 inline Status NotFound(std::string m) { return {StatusCode::kNotFound, std::move(m)}; }
@@ -54,30 +28,6 @@ inline Status FailedPrecondition(std::string m) { return {StatusCode::kFailedPre
 inline Status IoError(std::string m) { return {StatusCode::kIoError, std::move(m)}; }
 inline Status Unsupported(std::string m) { return {StatusCode::kUnsupported, std::move(m)}; }
 inline Status Internal(std::string m) { return {StatusCode::kInternal, std::move(m)}; }
-
-template <class T>
-class [[nodiscard]] Result {
- public:
-  Result(T value) : v_(std::move(value)) {}            // NOLINT: implicit by design
-  Result(Status status) : v_(std::move(status)) {      // NOLINT: implicit by design
-    assert(!std::get<Status>(v_).ok() && "Result needs a value or an error");
-  }
-  [[nodiscard]] bool ok() const { return std::holds_alternative<T>(v_); }
-  [[nodiscard]] const Status& status() const {
-    static const Status kOkStatus;
-    return ok() ? kOkStatus : std::get<Status>(v_);
-  }
-  [[nodiscard]] T& value() & { assert(ok()); return std::get<T>(v_); }
-  [[nodiscard]] const T& value() const& { assert(ok()); return std::get<T>(v_); }
-  [[nodiscard]] T&& value() && { assert(ok()); return std::get<T>(std::move(v_)); }
-  T* operator->() { return &value(); }
-  const T* operator->() const { return &value(); }
-  T& operator*() & { return value(); }
-  const T& operator*() const& { return value(); }
-
- private:
-  std::variant<T, Status> v_;
-};
 
 }  // namespace zm
 

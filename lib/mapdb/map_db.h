@@ -52,19 +52,9 @@ namespace zm {
 inline constexpr int kMapDbSchemaVersion = 2;
 inline constexpr int kMapDbSchemaVersionNoVocabulary = 1;
 
-// RTAB-Map's Link.type values (basic-baseline.md §5), kept as-is on import.
-enum class LinkType : std::int32_t {
-  kNeighbor = 0,
-  kGlobalClosure = 1,
-  kLocalSpaceClosure = 2,
-  kLocalTimeClosure = 3,
-  kUserClosure = 4,
-  kVirtualClosure = 5,
-  kNeighborMerged = 6,
-  kPosePrior = 7,
-  kLandmark = 8,
-  kGravity = 9,
-};
+// RTAB-Map's Link.type values (basic-baseline.md §5), kept as-is on import: the one LinkKind
+// (common/ids.h). The map database's code still says LinkType.
+using LinkType = LinkKind;
 
 struct KeyframeMeta {
   KeyframeId id;

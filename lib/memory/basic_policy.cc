@@ -9,8 +9,8 @@
 namespace zm {
 namespace {
 
-bool IsNeighborLink(LinkType t) {
-  return t == LinkType::kNeighbor || t == LinkType::kNeighborMerged;
+bool IsNeighborLink(LinkKind t) {
+  return t == LinkKind::kNeighbor || t == LinkKind::kNeighborMerged;
 }
 
 }  // namespace

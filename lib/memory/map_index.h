@@ -41,7 +41,7 @@ struct MapIndexInput {
 
 struct GraphEdge {
   KfIndex to = kNoKf;
-  LinkType type = LinkType::kNeighbor;
+  LinkKind type = LinkKind::kNeighbor;
 };
 
 class MapIndex {

@@ -26,6 +26,7 @@
 #include "geometry/pose.h"
 #include "memory/map_index.h"
 #include "memory/plan.h"
+#include "memory/policy_kind.h"
 
 namespace zm {
 
@@ -102,7 +103,7 @@ struct OracleOptions {
 };
 
 struct PolicyOptions {
-  std::string policy = "semantic";  // semantic|basic|radius|predictive|oracle|unbounded
+  PolicyKind kind = PolicyKind::kSemantic;  // parsed once (policy_kind.h)
   std::uint32_t k_max = 0;          // copied into every policy's budget
   SemanticOptions semantic;
   BasicOptions basic;
@@ -111,20 +112,13 @@ struct PolicyOptions {
   OracleOptions oracle;
 };
 
-// The policy names ("semantic", "basic", "radius", "predictive", "oracle", "unbounded"); an
-// unknown name is an error listing them.
-[[nodiscard]] Status ValidatePolicyName(std::string_view name);
-// Bounded policies never hold more than K_max keyframes (their arena has exactly K_max slots);
-// basic and unbounded model RTAB-Map's growing heap (their arena holds the whole map).
-[[nodiscard]] bool IsBoundedPolicy(std::string_view name);
-
 class LtmGraph;
 
-// Makes the named policy over `index` (which must outlive it). Allocates everything it will
-// ever need here. Errors name the unknown policy or the bad option. `ltm_graph` is where basic
-// reads the long-term-memory nodes its graph searches admit (the run-time passes the map's
-// SourceLtmGraph, which must outlive the policy); null = the MapIndex stands in (tests and the
-// decision benchmark). The other policies ignore it.
+// Makes the policy of options.kind over `index` (which must outlive it). Allocates everything
+// it will ever need here. Errors name the bad option. `ltm_graph` is where basic reads the
+// long-term-memory nodes its graph searches admit (the run-time passes the map's SourceLtmGraph,
+// which must outlive the policy); null = the MapIndex stands in (tests and the decision
+// benchmark). The other policies ignore it.
 [[nodiscard]] Result<std::unique_ptr<MemoryPolicy>> MakePolicy(const MapIndex& index,
                                                                const PolicyOptions& options,
                                                                LtmGraph* ltm_graph = nullptr);

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cstdio>
 
-#include "memory/policy.h"
+#include "memory/policy_kind.h"
 
 namespace zm {
 
@@ -39,7 +39,7 @@ Result<std::uint64_t> MapShareBytes(const DeviceOptions& device, const ModelOpti
 }
 
 BudgetInputs BudgetInputsFor(const DeviceOptions& device, const ModelOptions& model,
-                             const MapOptions& map, std::string_view policy,
+                             const MapOptions& map, PolicyKind policy,
                              std::uint64_t largest_keyframe_bytes, std::uint64_t keyframe_count) {
   BudgetInputs in;
   in.device = device;
@@ -47,8 +47,8 @@ BudgetInputs BudgetInputsFor(const DeviceOptions& device, const ModelOptions& mo
   in.map = map;
   in.largest_keyframe_bytes = largest_keyframe_bytes;
   in.keyframe_count = keyframe_count;
-  in.bounded_policy = IsBoundedPolicy(policy);
-  in.unbounded_policy = policy == "unbounded";
+  in.bounded_policy = Traits(policy).bounded;
+  in.unbounded_policy = !Traits(policy).has_budget;
   return in;
 }
 

@@ -24,6 +24,7 @@
 #include <string_view>
 
 #include "common/status.h"
+#include "memory/policy_kind.h"
 
 namespace zm {
 
@@ -86,11 +87,10 @@ struct Budget {
                                                   const ModelOptions& model, const MapOptions& map);
 
 // The inputs for a map of `keyframe_count` keyframes whose largest resident keyframe is
-// `largest_keyframe_bytes`, under the policy named `policy` (which decides bounded and
-// unbounded). The one place a run's options become BudgetInputs: the tick loop and a profile's
-// DeriveBudget both call it.
+// `largest_keyframe_bytes`, under `policy` (whose traits decide bounded and unbounded). The one
+// place a run's options become BudgetInputs: the tick loop and a profile's DeriveBudget call it.
 [[nodiscard]] BudgetInputs BudgetInputsFor(const DeviceOptions& device, const ModelOptions& model,
-                                           const MapOptions& map, std::string_view policy,
+                                           const MapOptions& map, PolicyKind policy,
                                            std::uint64_t largest_keyframe_bytes,
                                            std::uint64_t keyframe_count);
 

@@ -31,21 +31,10 @@ bool WriteAll(int fd, std::string_view bytes) {
 
 bool IsPowerOfTwo(std::uint64_t n) { return n != 0 && (n & (n - 1)) == 0; }
 
-MapExtent ExtentOf(const MapIndex& index) {
-  MapExtent e;
-  if (index.keyframe_count() == 0) return e;
-  e.min = e.max = index.position(0);
-  for (KfIndex k = 1; k < index.keyframe_count(); ++k) {
-    e.min = e.min.cwiseMin(index.position(k));
-    e.max = e.max.cwiseMax(index.position(k));
-  }
-  return e;
-}
-
 }  // namespace
 
 Daemon::Daemon(const Profile& profile, const DaemonOptions& options, std::uint32_t max_features)
-    : profile_(profile), options_(options), staged_(max_features), tracker_(profile.output) {}
+    : profile_(profile), options_(options), staged_(max_features) {}
 
 Daemon::~Daemon() = default;
 
@@ -81,14 +70,11 @@ Result<std::unique_ptr<Daemon>> Daemon::Create(const Profile& profile, MapReader
   d->loop_->ReserveRoute(waypoints);
   d->gate_ = std::make_unique<InputGate>(profile.input, ExtentOf(d->loop_->map_index()));
   d->out_.resize(std::max(kPoseLineMaxBytes, RouteAckMaxBytes(waypoints)));
-  if (!options.telemetry_path.empty()) {
-    ZM_RETURN_IF_ERROR(d->telemetry_.Open(options.telemetry_path));
-    d->has_telemetry_ = true;
-  }
-  if (!options.estimate_path.empty()) {
-    ZM_RETURN_IF_ERROR(d->estimate_.Open(options.estimate_path));
-    d->has_estimate_ = true;
-  }
+  ZM_RETURN_IF_ERROR(d->publisher_.Open({.telemetry_path = options.telemetry_path,
+                                         .estimate_path = options.estimate_path,
+                                         .flush_ticks = profile.telemetry.flush_ticks,
+                                         .track_status = true,
+                                         .output = profile.output}));
   d->counters_.k_max_min = d->loop_->k_max();
   return d;
 }
@@ -103,8 +89,9 @@ void Daemon::Hello() {
       buf, sizeof buf,
       "hello zonemapd %d policy %s k_max %u arena_slots %u slot_bytes %llu keyframes %u "
       "zones %zu max_features %u max_route_waypoints %u input %s\n",
-      kPoseProtocolVersion, l.config().policy.policy.c_str(), l.k_max(), l.arena().capacity(),
-      static_cast<unsigned long long>(l.slot_bytes()), l.map_index().keyframe_count(),
+      kPoseProtocolVersion, PolicyName(l.config().policy.kind).data(), l.k_max(),
+      l.arena().capacity(), static_cast<unsigned long long>(l.slot_bytes()),
+      l.map_index().keyframe_count(),
       l.zone_set().size(), staged_.max_features(), profile_.input.max_route_waypoints, input);
   if (n > 0 && static_cast<std::size_t>(n) < sizeof buf) {
     if (options_.pose_fd >= 0 && !WriteAll(options_.pose_fd, {buf, static_cast<std::size_t>(n)})) {
@@ -165,24 +152,7 @@ void Daemon::Dispatch(std::string_view line) {
 void Daemon::HandleFrame(double quaternion_norm) {
   RejectReason why = RejectReason::kSyntax;
   if (!gate_->AcceptFrame(input_.frame, quaternion_norm, loop_->map_from_odom(), &why)) {
-    const char* what = "";
-    switch (why) {
-      case RejectReason::kStampNotIncreasing:
-        what = "stamp not greater than the last processed frame's";
-        break;
-      case RejectReason::kStampOutOfRange:
-        what = "stamp beyond 2^32 s";
-        break;
-      case RejectReason::kQuaternionNotUnit:
-        what = "quaternion length beyond [input] quaternion_tolerance";
-        break;
-      case RejectReason::kPositionOutsideMap:
-        what = "position beyond the map's extent + [input] max_distance_from_map_m";
-        break;
-      default:
-        break;
-    }
-    Refuse(why, what, 0);
+    Refuse(why, RejectRule(why), 0);
     return;
   }
   std::swap(input_.frame, staged_.staging());  // both reserved: no allocation
@@ -211,48 +181,19 @@ bool Daemon::Waiting() {
 }
 
 void Daemon::AfterTick(const TickRecord& r) {
-  tracker_.Update(r);
-  const LocalizationStatus status = tracker_.status();
-  ++counters_.status_frames[static_cast<int>(status)];
-
-  PoseLine p;
-  p.stamp_s = r.stamp_s;
-  p.pose = r.pose;
-  p.map_from_odom = loop_->map_from_odom();
-  p.status = status;
-  p.frames_since_fix = tracker_.frames_since_fix();
-  p.zone = r.zone.value;
-  p.loop_closure = r.loop_closure;
-  p.inliers = r.inliers;
-  p.resident_keyframes = r.resident_keyframes;
-  p.k_max = loop_->k_max();
-  p.tick_ms = r.tick_ms;
-  p.malformed = rejects_.total;
-  p.covariance = tracker_.covariance();
-  const std::size_t n = FormatPoseLine(p, out_.data(), out_.size());
-  if (n > 0) {
-    Emit({out_.data(), n});
+  const std::string_view line = publisher_.Publish(r);
+  ++counters_.status_frames[static_cast<int>(publisher_.tracker().status())];
+  if (!line.empty()) {
+    Emit(line);
     ++counters_.pose_lines;
   }
-
-  if (has_telemetry_) {
-    TextLine extra(extra_, sizeof extra_);
-    extra.Str("\"status\":\"").Str(LocalizationStatusName(status)).Str("\",\"frames_since_fix\":");
-    extra.U64(tracker_.frames_since_fix()).Str(",\"sigma_xy_m\":").General(tracker_.sigma_xy_m(), 6);
-    extra.Str(",\"k_max\":").U64(loop_->k_max()).Str(",\"malformed\":").U64(rejects_.total);
-    telemetry_.Write(r, extra.ok() ? extra.view() : std::string_view());
-  }
-  if (has_estimate_) estimate_.Write(r.stamp_s, r.pose);
-  const std::uint32_t every = profile_.telemetry.flush_ticks;
-  if (every != 0 && (r.tick + 1) % every == 0) Flush();
 }
 
 void Daemon::HandleRoute() {
   const auto waypoints = static_cast<std::uint64_t>(input_.waypoints.size());
   bool ok = gate_->AcceptRoute(input_.waypoints);
   if (!ok) {
-    Refuse(RejectReason::kRouteOutsideMap,
-           "a waypoint beyond the map's extent + [input] max_distance_from_map_m", 0);
+    Refuse(RejectReason::kRouteOutsideMap, RejectRule(RejectReason::kRouteOutsideMap), 0);
   } else if (!loop_->SetRoute(input_.waypoints)) {
     ok = false;
     Refuse(RejectReason::kRouteTooLong, "the route crosses more zones than reserved", 0);
@@ -311,10 +252,7 @@ void Daemon::Diagnose(std::string_view text) {
   if (options_.diagnostics_fd >= 0) (void)WriteAll(options_.diagnostics_fd, text);
 }
 
-void Daemon::Flush() {
-  if (has_telemetry_) telemetry_.Flush();
-  if (has_estimate_) estimate_.Flush();
-}
+void Daemon::Flush() { publisher_.Flush(); }
 
 nlohmann::json Daemon::Summary(bool interrupted) const {
   nlohmann::json s = LoopSummary(*loop_, interrupted);

@@ -6,9 +6,9 @@
 // Step() reads one line of the live protocol (line_protocol.h) from stdin/a pipe or a UDP socket
 // (or one frame of a recorded frames file) and:
 //   frame   -> the input gate (input_gate.h); refused: counted per reason, stderr, nothing
-//              else; accepted: staged for the loop, one Tick(), then one pose line to the robot
-//              (pose_output.h: stdout, and for UDP one datagram back to the sender), one
-//              ticks.jsonl line, one estimate.tum line;
+//              else; accepted: staged for the loop, one Tick(), then its record published
+//              (tick_publisher.h): one pose line to the robot (pose_output.h: stdout, and for
+//              UDP one datagram back to the sender), one ticks.jsonl line, one estimate.tum line;
 //   route   -> waypoints checked against the map's extent, TickLoop::SetRoute, `ack route`;
 //   budget  -> TickLoop::SetBudget, `ack budget`;
 //   other   -> a counted malformed line (its reason), never fatal.
@@ -29,7 +29,6 @@
 
 #include "common/status.h"
 #include "mapdb/map_db.h"
-#include "runtime/estimate_writer.h"
 #include "runtime/frame_source.h"
 #include "runtime/frames_file.h"
 #include "runtime/input_gate.h"
@@ -37,8 +36,8 @@
 #include "runtime/line_protocol.h"
 #include "runtime/pose_output.h"
 #include "runtime/profile.h"
-#include "runtime/telemetry.h"
 #include "runtime/tick_loop.h"
+#include "runtime/tick_publisher.h"
 
 namespace zm {
 
@@ -100,7 +99,7 @@ class Daemon final : private InputProbe {
   [[nodiscard]] const TickLoop& loop() const { return *loop_; }
   [[nodiscard]] const RejectCounts& rejects() const { return rejects_; }
   [[nodiscard]] const DaemonCounters& counters() const { return counters_; }
-  [[nodiscard]] const PoseTracker& tracker() const { return tracker_; }
+  [[nodiscard]] const PoseTracker& tracker() const { return publisher_.tracker(); }
   [[nodiscard]] const InputGate& gate() const { return *gate_; }
   // The UDP port bound (kUdp), else 0.
   [[nodiscard]] std::uint16_t udp_port() const;
@@ -126,15 +125,10 @@ class Daemon final : private InputProbe {
   InputLine input_;
   std::unique_ptr<TickLoop> loop_;  // reads staged_: declared after it
   std::unique_ptr<InputGate> gate_;
-  PoseTracker tracker_;
-  TelemetryWriter telemetry_;
-  EstimateWriter estimate_;
-  bool has_telemetry_ = false;
-  bool has_estimate_ = false;
+  TickPublisher publisher_;          // pose line, telemetry, estimate: from the tick's record
   bool ended_ = false;                // Tick() reported the end (max_ticks)
   Status fatal_;                      // a Tick() error, returned by the next Step()
-  std::vector<char> out_;             // one output line (pose line or the longest route ack)
-  char extra_[256] = {};              // telemetry's extra members
+  std::vector<char> out_;             // one acknowledgement (the longest route ack)
   char diag_[512] = {};               // one stderr line
   RejectCounts rejects_;
   DaemonCounters counters_;

@@ -1,13 +1,14 @@
 // The estimate, streamed: one TUM line per processed frame (`stamp tx ty tz qx qy qz qw`, the
-// corrected body pose in the map frame), written through a stdio buffer set once at open, so a
-// daemon that runs for months keeps no trajectory in memory and a warm Write() never allocates.
+// corrected body pose in the map frame), written through a BufferedFile (buffer set once at
+// open), so a daemon that runs for months keeps no trajectory in memory and a warm Write() never
+// allocates.
 #pragma once
 
-#include <cstdio>
 #include <string>
 
 #include "common/status.h"
 #include "geometry/pose.h"
+#include "runtime/buffered_file.h"
 
 namespace zm {
 
@@ -16,7 +17,6 @@ class EstimateWriter {
   EstimateWriter() = default;
   EstimateWriter(const EstimateWriter&) = delete;
   EstimateWriter& operator=(const EstimateWriter&) = delete;
-  ~EstimateWriter();
 
   // Opens (truncates) `path` and writes the TUM header comment.
   [[nodiscard]] Status Open(const std::string& path);
@@ -26,8 +26,7 @@ class EstimateWriter {
   void Close();
 
  private:
-  std::FILE* file_ = nullptr;
-  char* stdio_buffer_ = nullptr;
+  BufferedFile file_;
 };
 
 }  // namespace zm

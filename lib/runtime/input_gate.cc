@@ -3,7 +3,37 @@
 
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 namespace zm {
+
+MapExtent ExtentOf(const MapIndex& index) {
+  Eigen::AlignedBox3d box;  // empty until extended
+  for (KfIndex k = 0; k < index.keyframe_count(); ++k) box.extend(index.position(k));
+  MapExtent e;
+  if (!box.isEmpty()) {
+    e.min = box.min();
+    e.max = box.max();
+  }
+  return e;
+}
+
+const char* RejectRule(RejectReason reason) {
+  switch (reason) {
+    case RejectReason::kStampNotIncreasing:
+      return "stamp not greater than the last accepted frame's";
+    case RejectReason::kStampOutOfRange:
+      return "stamp not finite or beyond 2^32 s";
+    case RejectReason::kQuaternionNotUnit:
+      return "quaternion length beyond [input] quaternion_tolerance";
+    case RejectReason::kPositionOutsideMap:
+      return "position beyond the map's extent + [input] max_distance_from_map_m";
+    case RejectReason::kRouteOutsideMap:
+      return "a waypoint beyond the map's extent + [input] max_distance_from_map_m";
+    default:
+      return "";
+  }
+}
 
 InputGate::InputGate(const InputOptions& options, const MapExtent& extent)
     : options_(options), extent_(extent) {
@@ -18,9 +48,9 @@ bool InputGate::InsideExtent(const Eigen::Vector3d& p) const {
          p.z() >= lo_.z() && p.z() <= hi_.z();
 }
 
-bool InputGate::AcceptFrame(const Frame& frame, double quaternion_norm, const Pose3& map_from_odom,
-                            RejectReason* why) {
-  const double stamp = frame.stamp_s;
+bool InputGate::AcceptFrame(double stamp_s, const Pose3& odom, double quaternion_norm,
+                            const Pose3& map_from_odom, RejectReason* why) {
+  const double stamp = stamp_s;
   if (!(std::abs(stamp) <= kMaxStampS)) {
     *why = RejectReason::kStampOutOfRange;
     return false;
@@ -33,7 +63,7 @@ bool InputGate::AcceptFrame(const Frame& frame, double quaternion_norm, const Po
     *why = RejectReason::kQuaternionNotUnit;
     return false;
   }
-  if (!InsideExtent(map_from_odom * frame.odom.translation())) {
+  if (!InsideExtent(map_from_odom * odom.translation())) {
     *why = RejectReason::kPositionOutsideMap;
     return false;
   }
@@ -47,6 +77,23 @@ bool InputGate::AcceptRoute(std::span<const Eigen::Vector3d> waypoints) const {
     if (!InsideExtent(p)) return false;
   }
   return true;
+}
+
+void GatedFrameSource::Attach(const InputOptions& options, const MapExtent& extent,
+                              const Pose3* map_from_odom) {
+  gate_.emplace(options, extent);
+  map_from_odom_ = map_from_odom;
+}
+
+Result<bool> GatedFrameSource::Next(Frame* frame) {
+  for (;;) {
+    ZM_ASSIGN_OR_RETURN(const bool more, inner_.Next(frame));
+    if (!more || !gate_) return more;
+    RejectReason why = RejectReason::kSyntax;
+    // A recorded pose is a rotation matrix already: its quaternion is unit.
+    if (gate_->AcceptFrame(*frame, 1.0, *map_from_odom_, &why)) return true;
+    rejects_.Add(why);
+  }
 }
 
 }  // namespace zm

@@ -26,7 +26,7 @@ Result<MapIndex> BuildPolicyIndex(std::span<const KeyframeMeta> keyframes,
 }
 
 bool StartsFromLastWorkingMemory(const PolicyOptions& policy) {
-  return policy.policy == "basic" && !policy.basic.init_wm_with_all_nodes &&
+  return Traits(policy.kind).may_start_from_last_wm && !policy.basic.init_wm_with_all_nodes &&
          policy.basic.initial_wm.empty();
 }
 
@@ -36,7 +36,7 @@ PolicyOptions PolicyOptionsFor(const LoopConfig& config, const Budget& budget,
   PolicyOptions popt = config.policy;
   popt.k_max = budget.k_max;
   popt.oracle.future = std::move(oracle_future);
-  if (popt.policy == "basic") {
+  if (popt.kind == PolicyKind::kBasic) {
     // Memory management is on when MemoryThr is set (RTAB-Map: MemoryThr > 0).
     const bool any_limit = config.map.memory_thr_keyframes != 0 || budget.map_share_bytes != 0;
     popt.basic.memory_thr = any_limit ? budget.k_max : 0;
@@ -51,13 +51,6 @@ PolicyOptions PolicyOptionsFor(const LoopConfig& config, const Budget& budget,
     }
   }
   return popt;
-}
-
-bool IsSmallDisplacement(const Pose3& last_kept, const Pose3& now, const LoopOptions& options) {
-  const Pose3 delta = last_kept.inverse() * now;
-  const double angle = Eigen::AngleAxisd(delta.linear()).angle();
-  return delta.translation().norm() < options.small_displacement_m &&
-         angle < options.small_displacement_rad;
 }
 
 }  // namespace zm

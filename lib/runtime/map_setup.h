@@ -1,11 +1,10 @@
 // Start-up pieces shared by the tick loop (TickLoop::Create and Tick call them) and the public
 // API's host path (include/zonemap/ZoneManager, which has no database, arena or frame source):
-// the MapIndex the policies decide on, the policy's options for one budget, and RTAB-Map's
-// small-displacement rule. One implementation each (docs/style.md §14), so a host driving
-// zonemap with its own keyframes gets exactly the policy zonemapd runs.
+// the MapIndex the policies decide on and the policy's options for one budget. One
+// implementation each (docs/style.md §14), so a host driving zonemap with its own keyframes gets
+// exactly the policy zonemapd runs (and the same decide step: decide_step.h).
 //
-// BuildPolicyIndex and PolicyOptionsFor allocate (start-up only); IsSmallDisplacement is a
-// per-tick function and allocates nothing.
+// Both allocate (start-up only).
 #pragma once
 
 #include <span>
@@ -47,10 +46,5 @@ namespace zm {
                                              std::span<const KeyframeMeta> keyframes,
                                              std::vector<ZoneId> oracle_future,
                                              RecordedWorkingMemory* recorded = nullptr);
-
-// RGBD/LinearUpdate and RGBD/AngularUpdate: `now` moved less than both thresholds of `options`
-// from `last_kept`, the last pose that was not a small displacement.
-[[nodiscard]] bool IsSmallDisplacement(const Pose3& last_kept, const Pose3& now,
-                                       const LoopOptions& options);
 
 }  // namespace zm

@@ -130,6 +130,24 @@ void PoseTracker::Update(const TickRecord& record) {
   }
 }
 
+PoseLine PoseLineOf(const TickRecord& r, const PoseTracker& tracker) {
+  PoseLine p;
+  p.stamp_s = r.stamp_s;
+  p.pose = r.pose;
+  p.map_from_odom = r.map_from_odom;
+  p.status = tracker.status();
+  p.frames_since_fix = tracker.frames_since_fix();
+  p.zone = r.zone.value;
+  p.loop_closure = r.loop_closure;
+  p.inliers = r.inliers;
+  p.resident_keyframes = r.resident_keyframes;
+  p.k_max = r.k_max;
+  p.tick_ms = r.tick_ms;
+  p.malformed = r.malformed_lines;
+  p.covariance = tracker.covariance();
+  return p;
+}
+
 std::size_t FormatPoseLine(const PoseLine& l, char* buf, std::size_t capacity) {
   TextLine t(buf, capacity);
   t.Str("pose").Sp().Fixed(l.stamp_s, 6);

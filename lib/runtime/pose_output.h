@@ -122,6 +122,10 @@ struct PoseLine {
   Covariance6 covariance = Covariance6::Zero();
 };
 
+// The pose line of one tick: the record's fields and the tracker's status and covariance (after
+// tracker.Update(record)). The one place a tick becomes a pose line.
+[[nodiscard]] PoseLine PoseLineOf(const TickRecord& record, const PoseTracker& tracker);
+
 // One pose line ending in '\n' into buf. Returns its length, 0 if it does not fit (use
 // kPoseLineMaxBytes). Never allocates.
 [[nodiscard]] std::size_t FormatPoseLine(const PoseLine& line, char* buf, std::size_t capacity);

@@ -69,10 +69,14 @@ Result<Profile> ReadProfile(ProfileDocument& doc) {
   map.Finish();
 
   TableReader policy = top.Sub("policy");
-  policy.String("name", p.policy.policy);
+  std::string policy_name(PolicyName(p.policy.kind));
+  policy.String("name", policy_name);
   if (policy.ok()) {
-    if (Status known = ValidatePolicyName(p.policy.policy); !known.ok()) {
-      policy.FailKey("name", known.message());
+    Result<PolicyKind> kind = ParsePolicyKind(policy_name);  // parsed once, here
+    if (kind.ok()) {
+      p.policy.kind = *kind;
+    } else {
+      policy.FailKey("name", kind.status().message());
     }
   }
   policy.Double("hysteresis_m", p.zones.hysteresis_m, 0.0, 100.0);
@@ -176,7 +180,7 @@ Result<Budget> DeriveBudget(const Profile& profile, std::uint64_t largest_keyfra
                             std::uint64_t keyframe_count) {
   Result<Budget> b =
       DeriveBudget(BudgetInputsFor(profile.device, profile.model, profile.map,
-                                   profile.policy.policy, largest_keyframe_bytes, keyframe_count));
+                                   profile.policy.kind, largest_keyframe_bytes, keyframe_count));
   if (!b.ok()) return b.status().Annotate(profile.source);
   return b;
 }
@@ -217,8 +221,7 @@ Result<MemoryThr> ParseMemoryThr(std::string_view text) {
 
 Status ApplyOverrides(const ProfileOverrides& o, Profile& profile) {
   if (o.policy) {
-    ZM_RETURN_IF_ERROR(ValidatePolicyName(*o.policy));
-    profile.policy.policy = *o.policy;
+    ZM_ASSIGN_OR_RETURN(profile.policy.kind, ParsePolicyKind(*o.policy));
   }
   if (o.memory_thr) {
     ZM_ASSIGN_OR_RETURN(const MemoryThr thr, ParseMemoryThr(*o.memory_thr));

@@ -6,7 +6,7 @@ namespace zm {
 nlohmann::json LoopSummary(const TickLoop& loop, bool interrupted) {
   const LoopTotals& t = loop.totals();
   nlohmann::json s;
-  s["policy"] = loop.config().policy.policy;
+  s["policy"] = std::string(PolicyName(loop.config().policy.kind));
   s["k_max"] = loop.k_max();
   s["slot_bytes"] = loop.slot_bytes();
   s["arena_slots"] = loop.arena().capacity();

@@ -1,15 +1,8 @@
 #include "runtime/telemetry.h"
 
-#include <cerrno>
-#include <cstdlib>
-#include <cstring>
-
 #include "runtime/text_line.h"
 
 namespace zm {
-namespace {
-constexpr std::size_t kStdioBufferBytes = 1 << 16;
-}
 
 const char* TickStepName(TickStep step) {
   switch (step) {
@@ -25,22 +18,13 @@ const char* TickStepName(TickStep step) {
   return "?";
 }
 
-TelemetryWriter::~TelemetryWriter() { Close(); }
-
 Status TelemetryWriter::Open(const std::string& path) {
-  Close();
-  file_ = std::fopen(path.c_str(), "w");
-  if (file_ == nullptr) {
-    return IoError("cannot open telemetry file '" + path + "': " + std::strerror(errno));
-  }
-  stdio_buffer_ = static_cast<char*>(std::malloc(kStdioBufferBytes));
-  if (stdio_buffer_ != nullptr) std::setvbuf(file_, stdio_buffer_, _IOFBF, kStdioBufferBytes);
   lines_ = 0;
-  return Status::Ok();
+  return file_.Open(path, "telemetry file");
 }
 
 bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
-  if (file_ == nullptr) return false;
+  if (!file_.is_open()) return false;
   // std::to_chars through TextLine, not snprintf: glibc's printf takes a slow path that mallocs
   // its spec table once a format has more than a handful of conversions (this line has about 30), and
   // the C locale could turn "1.5" into "1,5".
@@ -84,22 +68,12 @@ bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
   if (!extra.empty()) t.Char(',').Str(extra);
   t.Str("}\n");
   if (!t.ok()) return false;
-  if (std::fwrite(line_, 1, t.size(), file_) != t.size()) return false;
+  if (!file_.Write(t.view())) return false;
   ++lines_;
   return true;
 }
 
-void TelemetryWriter::Flush() {
-  if (file_ != nullptr) std::fflush(file_);
-}
-
-void TelemetryWriter::Close() {
-  if (file_ != nullptr) {
-    std::fclose(file_);
-    file_ = nullptr;
-  }
-  std::free(stdio_buffer_);
-  stdio_buffer_ = nullptr;
-}
+void TelemetryWriter::Flush() { file_.Flush(); }
+void TelemetryWriter::Close() { file_.Close(); }
 
 }  // namespace zm

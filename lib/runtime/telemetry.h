@@ -1,18 +1,20 @@
-// Per-tick telemetry: one fixed-size record per tick (what TickLoop fills), written as one JSON
-// line to RUNDIR/ticks.jsonl. Formatting goes through std::to_chars (text_line.h) into a member
-// buffer and a FILE* whose buffer is set once at open, so writing a tick never allocates (not
-// even inside glibc's printf, which mallocs for formats of many conversions). SIGINT/SIGTERM handling only
+// Per-tick telemetry: one fixed-size record per tick (what TickLoop fills, once: the pose line,
+// ticks.jsonl, estimate.tum and the statistics all read this one record, tick_publisher.h),
+// written as one JSON line to RUNDIR/ticks.jsonl. Formatting goes through std::to_chars
+// (text_line.h) into a member buffer and a BufferedFile (buffer set once at open), so writing a
+// tick never allocates (not even inside glibc's printf, which mallocs for formats of many
+// conversions). SIGINT/SIGTERM handling only
 // sets a flag; the loop then flushes and closes the file normally.
 #pragma once
 
 #include <cstdint>
-#include <cstdio>
 #include <string>
 #include <string_view>
 
 #include "common/ids.h"
 #include "common/status.h"
 #include "geometry/pose.h"
+#include "runtime/buffered_file.h"
 
 namespace zm {
 
@@ -40,6 +42,11 @@ struct TickRecord {
   double stamp_s = 0.0;
   Pose3 pose = Pose3::Identity();        // corrected body pose in the map frame (the estimate)
   Pose3 correction = Pose3::Identity();  // T_map_odom applied to this frame's odometry
+  // T_map_odom in force after this tick (a closure accepted on it changes it): pose = this *
+  // odometry. The pose line's map->odom transform.
+  Pose3 map_from_odom = Pose3::Identity();
+  std::uint32_t k_max = 0;               // the budget in force (MemoryThr, keyframes)
+  std::uint64_t malformed_lines = 0;     // input refused before this tick, so far (the source's)
   double x_m = 0.0, y_m = 0.0, yaw_rad = 0.0;  // the same pose, for plots
   bool startup = false;                  // this tick carried the start-up load
   ZoneId zone = kNoZone;
@@ -87,7 +94,6 @@ class TelemetryWriter {
   TelemetryWriter() = default;
   TelemetryWriter(const TelemetryWriter&) = delete;
   TelemetryWriter& operator=(const TelemetryWriter&) = delete;
-  ~TelemetryWriter();
 
   // Opens (truncates) `path`. The stdio buffer is allocated here, once.
   [[nodiscard]] Status Open(const std::string& path);
@@ -101,8 +107,7 @@ class TelemetryWriter {
   [[nodiscard]] std::uint64_t lines() const { return lines_; }
 
  private:
-  std::FILE* file_ = nullptr;
-  char* stdio_buffer_ = nullptr;
+  BufferedFile file_;
   char line_[2048] = {};
   std::uint64_t lines_ = 0;
 };

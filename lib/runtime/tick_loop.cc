@@ -29,7 +29,6 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
                                                    LoopPlanInputs plan_inputs) {
   const MapMetadata& meta = map.metadata();
   if (meta.keyframe_count == 0) return InvalidArgument("the map database has no keyframes");
-  ZM_RETURN_IF_ERROR(ValidatePolicyName(config.policy.policy));
   if (!(config.loop.rate_hz > 0.0)) return InvalidArgument("loop rate_hz must be > 0");
   const LoadSliceOptions& lo = config.loads;
   if (!(lo.tick_ms >= 0.0) || !(lo.idle_ms >= 0.0) || !(lo.margin_ms >= 0.0)) {
@@ -51,7 +50,7 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   // The one derivation of K_max and the arena (budget.h).
   ZM_ASSIGN_OR_RETURN(const Budget budget,
                       DeriveBudget(BudgetInputsFor(config.device, config.model, config.map,
-                                                   config.policy.policy,
+                                                   config.policy.kind,
                                                    meta.largest_payload_bytes,
                                                    meta.keyframe_count)));
 
@@ -84,7 +83,13 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
                                         std::move(plan_inputs.oracle_future), &recorded);
   // basic reads the long-term-memory nodes its graph searches admit from the map database.
   loop->ltm_graph_ = std::make_unique<SourceLtmGraph>(loop->map_index_, map);
-  ZM_ASSIGN_OR_RETURN(loop->policy_, MakePolicy(loop->map_index_, popt, loop->ltm_graph_.get()));
+  ZM_ASSIGN_OR_RETURN(std::unique_ptr<MemoryPolicy> policy,
+                      MakePolicy(loop->map_index_, popt, loop->ltm_graph_.get()));
+  loop->decide_ = std::make_unique<DecideStep>(
+      loop->map_index_, std::move(policy),
+      DecideOptions{.small_displacement_m = config.loop.small_displacement_m,
+                    .small_displacement_rad = config.loop.small_displacement_rad},
+      &loop->zone_index_, loop->route_);
   loop->working_set_ =
       std::make_unique<WorkingSet>(loop->map_index_, loop->arena_, map,
                                                      budget.k_max, config.loads.sliced);
@@ -96,7 +101,6 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   loop->localizer_ = std::make_unique<Localizer>(lc, meta.camera);
 
   loop->frame_.Reserve(std::max<std::uint32_t>(frames.max_features(), 1));
-  loop->plan_.Reserve(loop->map_index_);
   loop->resident_views_.reserve(budget.arena_slots);
   loop->frame_period_s_ = 1.0 / config.loop.rate_hz;
   // Keyframe body poses in MapIndex order (ascending id), for the localizer's heading gate.
@@ -104,7 +108,6 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
             [](const KeyframeMeta& a, const KeyframeMeta& b) { return a.id < b.id; });
   loop->keyframe_poses_.reserve(keyframes.size());
   for (const KeyframeMeta& k : keyframes) loop->keyframe_poses_.push_back(k.pose);
-  loop->ctx_.route = loop->route_;
   return loop;
 }
 
@@ -158,53 +161,30 @@ Result<bool> TickLoop::Tick() {
   record_.stalled = std::exchange(idle_error_, false);
   const bool idle_over_budget = std::exchange(idle_over_budget_, false);
 
-  // 2. Update the pose: odometry composed with the current correction.
-  t0 = Clock::now();
+  // 2.-4. The decide step: the pose (odometry composed with the current correction), its zone
+  //        (constant time, hysteresis, own floor only), the policy's plan: unload, then load
+  //        (the start-up load on the first frame).
   const Pose3 correction = t_map_odom_;
   const Pose3 predicted = correction * frame_.odom;
-  const bool small =
-      have_kept_pose_ && IsSmallDisplacement(last_kept_pose_, predicted, config_.loop);
-  if (!small) {
-    last_kept_pose_ = predicted;
-    have_kept_pose_ = true;
-  }
-  record_.step_ms[static_cast<int>(TickStep::kPoseUpdate)] = MsSince(t0);
-
-  // 3. Look up the zone (constant time, hysteresis, own floor only).
-  t0 = Clock::now();
-  zone_ = zone_index_.GetZone(predicted, zone_);
-  record_.step_ms[static_cast<int>(TickStep::kZoneLookup)] = MsSince(t0);
-
-  ctx_.tick = totals_.ticks;
-  ctx_.now_s = frame_.stamp_s;
-  ctx_.pose = predicted;
-  ctx_.zone = zone_;
-  ctx_.small_displacement = small;
-  ctx_.highest_hypothesis = KeyframeId{0};
-  ctx_.localized_on = KeyframeId{0};
-
-  // 4. The policy plans: unload, then load (start-up load on the first frame).
-  t0 = Clock::now();
-  plan_.Clear();
-  if (startup) {
-    policy_->Start(ctx_, &plan_);
-  } else {
-    policy_->PlanBeforeLocalize(ctx_, &plan_);
-  }
-  record_.step_ms[static_cast<int>(TickStep::kPlan)] = MsSince(t0);
+  DecideStep::Times times;
+  const Plan& plan = decide_->Before(frame_.stamp_s, predicted, kNoZone, &times);
+  const ZoneId zone = decide_->zone();
+  record_.step_ms[static_cast<int>(TickStep::kPoseUpdate)] = times.pose_ms;
+  record_.step_ms[static_cast<int>(TickStep::kZoneLookup)] = times.zone_ms;
+  record_.step_ms[static_cast<int>(TickStep::kPlan)] = times.plan_ms;
 
   // 5. Apply the plan: releases at once, loads queued (unsliced: loaded). Then the robot's own
   //    zone first: at start-up its load to the end (the start-up load); afterwards an in-tick
   //    slice of it, so the zone just entered starts loading now, not after the tick.
   t0 = Clock::now();
-  if (!plan_.empty()) {
-    const Status s = working_set_->Apply(plan_, &tel_);
+  if (!plan.empty()) {
+    const Status s = working_set_->Apply(plan, &tel_);
     if (!s.ok()) NoteError(s);
   }
   if (working_set_->loading()) {
-    working_set_->Prioritize(zone_);
+    working_set_->Prioritize(zone);
     LoadSlice slice;
-    slice.zone = zone_;  // the robot's zone (or a keyframe batch); kNoZone: whatever is first
+    slice.zone = zone;  // the robot's zone (or a keyframe batch); kNoZone: whatever is first
     if (!startup) {
       const LoadSliceOptions& lo = config_.loads;
       slice.min_keyframes = 1;  // progress even when a tick has no time left
@@ -246,12 +226,10 @@ Result<bool> TickLoop::Tick() {
     ++totals_.loop_closures;
   }
   totals_.closures_rejected += loc.closures_rejected;
-  ctx_.highest_hypothesis = loc.highest_hypothesis;
-  ctx_.localized_on = loc.accepted ? loc.matched : KeyframeId{0};
-  plan_.Clear();
-  policy_->PlanAfterLocalize(ctx_, &plan_);
-  if (!plan_.empty()) {
-    const Status s = working_set_->Apply(plan_, &tel_);
+  const Plan& after =
+      decide_->After(loc.highest_hypothesis, loc.accepted ? loc.matched : KeyframeId{0});
+  if (!after.empty()) {
+    const Status s = working_set_->Apply(after, &tel_);
     if (!s.ok()) NoteError(s);
   }
   record_.step_ms[static_cast<int>(TickStep::kLocalize)] = MsSince(t0);
@@ -282,10 +260,13 @@ Result<bool> TickLoop::Tick() {
   record_.startup = startup;
   record_.pose = estimate;
   record_.correction = correction;
+  record_.map_from_odom = t_map_odom_;
+  record_.k_max = budget_.k_max;
+  record_.malformed_lines = frames_.malformed_lines();
   record_.x_m = estimate.translation().x();
   record_.y_m = estimate.translation().y();
   record_.yaw_rad = Yaw(estimate);
-  record_.zone = zone_;
+  record_.zone = zone;
   record_.resident_keyframes = resident;
   record_.resident_bytes = resident_bytes;
   record_.keyframes_loaded = tel_.keyframes_loaded;
@@ -386,7 +367,7 @@ void TickLoop::ReserveRoute(std::size_t zones) {
   route_.reserve(zones);
   route_scratch_.reserve(std::max(zones, route_.capacity()));
   route_.reserve(route_scratch_.capacity());
-  ctx_.route = route_;
+  decide_->RebindRoute(route_);
 }
 
 bool TickLoop::SetRoute(std::span<const Eigen::Vector3d> waypoints) {
@@ -413,8 +394,7 @@ bool TickLoop::SetRoute(std::span<const Eigen::Vector3d> waypoints) {
   }
   if (!fits) return false;
   std::swap(route_, route_scratch_);  // capacities travel with the buffers: both reserved
-  ctx_.route = route_;
-  policy_->RouteChanged(ctx_);
+  decide_->SetRoute(route_);
   return true;
 }
 
@@ -427,24 +407,22 @@ BudgetChange TickLoop::SetBudget(std::uint64_t k_max) {
     c.outcome = BudgetChange::Outcome::kRefused;
     return c;
   }
-  if (config_.policy.policy == "unbounded") {
+  if (!Traits(config_.policy.kind).has_budget) {
     c.outcome = BudgetChange::Outcome::kIgnored;
     return c;
   }
   const std::uint32_t capacity = arena_.capacity();
   const auto applied = static_cast<std::uint32_t>(std::min<std::uint64_t>(k_max, capacity));
   c.outcome = k_max > capacity ? BudgetChange::Outcome::kClamped : BudgetChange::Outcome::kApplied;
-  plan_.Clear();
-  policy_->ChangeBudget(applied, ctx_, &plan_);
+  const Plan& plan = decide_->ChangeBudget(applied);
   TickTelemetry t;
-  if (!plan_.empty()) {
-    const Status s = working_set_->Apply(plan_, &t);
+  if (!plan.empty()) {
+    const Status s = working_set_->Apply(plan, &t);
     if (!s.ok()) {
       ++totals_.step_errors;
       if (totals_.first_error.ok()) totals_.first_error = s;
     }
   }
-  plan_.Clear();
   totals_.keyframes_unloaded += t.keyframes_unloaded;
   totals_.unload_ms += t.unload_ms;
   budget_.k_max = applied;

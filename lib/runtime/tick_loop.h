@@ -6,13 +6,15 @@
 //   3. look up the zone                   ZoneIndex::GetZone with hysteresis
 //   4. the policy plans                   MemoryPolicy::PlanBeforeLocalize (unload, then load);
 //                                         on the first frame MemoryPolicy::Start (start-up load)
+//                                         (2-4's decisions: DecideStep::Before, decide_step.h,
+//                                         the one decide step the public API drives too)
 //   5. apply the plan                     WorkingSet::Apply: releases at once, loads queued;
 //                                         then the in-tick slice (LoadSliceOptions::tick_ms,
 //                                         tick_bytes) of the robot's own zone, nearest batch
 //                                         first, so the zone just entered starts loading at once
 //   6. localize on the resident set       Localizer::Localize over views of resident slots only
 //                                         (complete keyframes; a zone still loading is used
-//                                         keyframe by keyframe); then PlanAfterLocalize + Apply
+//                                         keyframe by keyframe); then DecideStep::After + Apply
 //                                         (basic's retrieval and transfer, as in RTAB-Map)
 //   7. record                             fill the TickRecord and the totals
 // and, between ticks, the idle part (Idle(), called by the driver after it has written the
@@ -70,6 +72,7 @@
 #include "memory/policy.h"
 #include "memory/working_set.h"
 #include "runtime/budget.h"
+#include "runtime/decide_step.h"
 #include "runtime/frame_source.h"
 #include "runtime/streaming_stats.h"
 #include "runtime/telemetry.h"
@@ -227,7 +230,7 @@ class TickLoop {
   [[nodiscard]] std::uint64_t slot_bytes() const { return arena_.slot_bytes(); }
   [[nodiscard]] const Arena& arena() const { return arena_; }
   [[nodiscard]] const WorkingSet& working_set() const { return *working_set_; }
-  [[nodiscard]] const MemoryPolicy& policy() const { return *policy_; }
+  [[nodiscard]] const MemoryPolicy& policy() const { return decide_->policy(); }
   [[nodiscard]] const Localizer& localizer() const { return *localizer_; }
   [[nodiscard]] const MapIndex& map_index() const { return map_index_; }
   [[nodiscard]] const ZoneSet& zone_set() const { return zone_set_; }
@@ -250,6 +253,8 @@ class TickLoop {
   // reserve. An empty list clears the route. No allocation.
   [[nodiscard]] bool SetRoute(std::span<const Eigen::Vector3d> waypoints);
   [[nodiscard]] std::span<const ZoneId> route() const { return route_; }
+  // The decide step's context of the last tick (zone, pose, small displacement, ...).
+  [[nodiscard]] const TickContext& context() const { return decide_->context(); }
   static constexpr double kRouteSampleStepM = 0.25;
   // Changes MemoryThr from now on. Down: the policy unloads at once until the working set fits
   // (MemoryPolicy::ChangeBudget; releases only, so residency never exceeds the new budget at any
@@ -285,8 +290,8 @@ class TickLoop {
   Budget budget_;
   ZoneSet zone_set_;
   ZoneIndex zone_index_;
-  std::unique_ptr<LtmGraph> ltm_graph_;  // before policy_: the policy reads through it
-  std::unique_ptr<MemoryPolicy> policy_;
+  std::unique_ptr<LtmGraph> ltm_graph_;  // before decide_: its policy reads through it
+  std::unique_ptr<DecideStep> decide_;   // the policy, its plan and the tick's context
   std::unique_ptr<WorkingSet> working_set_;
   std::unique_ptr<Localizer> localizer_;
   std::vector<ZoneId> route_;
@@ -295,16 +300,11 @@ class TickLoop {
 
   // Per-tick state, reserved in Create.
   Frame frame_;
-  Plan plan_;
   TickTelemetry tel_;
-  TickContext ctx_;
   TickRecord record_;
   std::vector<ResidentKeyframe> resident_views_;
   std::vector<Pose3> keyframe_poses_;  // by KfIndex
   Pose3 t_map_odom_ = Pose3::Identity();
-  Pose3 last_kept_pose_ = Pose3::Identity();
-  bool have_kept_pose_ = false;
-  ZoneId zone_ = kNoZone;
   std::uint64_t over_budget_run_ = 0;
   FrameWaiting frame_waiting_{frames_};
   std::chrono::steady_clock::time_point tick_start_{};

@@ -411,7 +411,7 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
       LinkRecord l;
       l.from = KeyframeId(static_cast<std::int64_t>(i));
       l.to = KeyframeId(static_cast<std::int64_t>(i + 1));
-      l.type = LinkType::kNeighbor;
+      l.type = LinkKind::kNeighbor;
       l.transform = kf_samples[i - 1].pose().inverse() * kf_samples[i].pose();
       // Odometry-like uncertainty: 2 cm, 0.01 rad.
       for (int d = 0; d < 6; ++d) l.information[static_cast<std::size_t>(d * 7)] = d < 3 ? 2500.0 : 10000.0;

@@ -185,6 +185,43 @@ TEST_CASE("map loop: a bad frame is refused, counted and not processed") {
   CHECK(l.Step().status().code() == StatusCode::kFailedPrecondition);
 }
 
+TEST_CASE("map loop: the input gate's rules, as zonemapd applies them") {
+  zm::test::ApiScenario s;
+  zm::test::BuildApiScenario(&s, 1, "gate");
+  MapLoopOptions o;
+  o.db_path = s.db;
+  o.memory_thr = "40";
+  o.max_features = 64;
+  auto loop = MapLoop::Open(o);
+  REQUIRE_MESSAGE(loop.ok(), loop.status().ToString());
+  MapLoop& l = **loop;
+  std::mt19937 rng(2);
+  const std::vector<Feature> f = RandomFeatures(rng, 10);
+  REQUIRE(l.Process({.stamp_s = 1.0, .odom = zm::test::XYYaw(3, 5, 0), .features = f}).ok());
+  auto refused = [&](const FrameInput& in, const std::string& reason) {
+    auto r = l.Process(in);
+    REQUIRE_FALSE(r.ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK_MESSAGE(r.status().message().find(reason) != std::string::npos, r.status().message());
+  };
+  const Pose here = zm::test::XYYaw(3, 5, 0);
+  refused({.stamp_s = 1.0, .odom = here, .features = f}, "stamp_not_increasing");
+  refused({.stamp_s = 1e300, .odom = here, .features = f}, "stamp_out_of_range");
+  Pose q = zm::test::XYYaw(3, 5, 0);
+  q.qw *= 1.02;  // within [0.5, 1.5], accepted before issue 25; beyond the tolerance 0.01
+  q.qz *= 1.02;
+  refused({.stamp_s = 2.0, .odom = q, .features = f}, "quaternion_not_unit");
+  refused({.stamp_s = 2.0, .odom = zm::test::XYYaw(1e4, 5, 0), .features = f},
+          "position_outside_map");
+  CHECK(l.stats().rejected_frames == 4);
+  CHECK(l.stats().ticks == 1);
+  Pose near_unit = zm::test::XYYaw(4, 5, 0);
+  near_unit.qw *= 1.005;
+  near_unit.qz *= 1.005;
+  CHECK(l.Process({.stamp_s = 2.0, .odom = near_unit, .features = f}).ok());
+  CHECK(l.stats().ticks == 2);
+}
+
 TEST_CASE("map loop: Open names what is wrong") {
   zm::test::ApiScenario s;
   zm::test::BuildApiScenario(&s, 1, "open");

@@ -286,6 +286,43 @@ TEST_CASE("zone manager: bad input is one clear error and changes nothing") {
   CHECK(m.stats().updates == 1);
 }
 
+TEST_CASE("zone manager: the input gate's rules, as zonemapd applies them") {
+  zm::test::ApiScenario s;
+  zm::test::BuildApiScenario(&s, 1, "gate");
+  ManagerOptions o;
+  o.memory_thr_keyframes = 40;
+  auto mgr = ZoneManager::Create(MembershipMap(s), o);
+  REQUIRE(mgr.ok());
+  ZoneManager& m = **mgr;
+  auto refused = [&](const TickInput& in, const std::string& reason) {
+    auto r = m.Update(in);
+    REQUIRE_FALSE(r.ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK_MESSAGE(r.status().message().find(reason) != std::string::npos, r.status().message());
+  };
+  REQUIRE(m.Update({.stamp_s = 5, .pose = zm::test::XYYaw(3, 5, 0)}).ok());
+  // Stamps: an equal one is refused too (issue 25: was accepted), and beyond 2^32 s.
+  refused({.stamp_s = 5, .pose = zm::test::XYYaw(3, 5, 0)}, "stamp_not_increasing");
+  refused({.stamp_s = 1e300, .pose = zm::test::XYYaw(3, 5, 0)}, "stamp_out_of_range");
+  refused({.stamp_s = std::nan(""), .pose = zm::test::XYYaw(3, 5, 0)}, "stamp_out_of_range");
+  // Quaternions: within [input] quaternion_tolerance (0.01) of unit; 1.02 was accepted before.
+  Pose q = zm::test::XYYaw(3, 5, 0);
+  q.qw *= 1.02;
+  q.qz *= 1.02;
+  refused({.stamp_s = 6, .pose = q}, "quaternion_not_unit");
+  Pose zero = zm::test::XYYaw(3, 5, 0);
+  zero.qw = zero.qx = zero.qy = zero.qz = 0.0;
+  refused({.stamp_s = 6, .pose = zero}, "quaternion_not_unit");
+  // Positions: within the keyframes' extent + [input] max_distance_from_map_m (50 m).
+  refused({.stamp_s = 6, .pose = zm::test::XYYaw(1e4, 5, 0)}, "position_outside_map");
+  CHECK(m.stats().updates == 1);  // nothing refused moved the clock
+  Pose near_unit = zm::test::XYYaw(4, 5, 0);
+  near_unit.qw *= 1.005;
+  near_unit.qz *= 1.005;
+  CHECK(m.Update({.stamp_s = 6, .pose = near_unit}).ok());
+  CHECK(m.stats().updates == 2);
+}
+
 TEST_CASE("zone manager: a warm Update and AfterLocalization allocate nothing") {
   zm::test::ApiScenario s;
   zm::test::BuildApiScenario(&s, 400, "alloc");

@@ -22,7 +22,7 @@ TEST_CASE("no allocation per tick once warm / for every policy") {
       s.positions.emplace_back(30.0 * (z % 4) + 2.0 * (i % 5), 30.0 * (z / 4) + 2.0 * (i / 5), 0.0);
       const auto id = static_cast<std::int64_t>(s.positions.size());
       members.push_back(id);
-      if (id > 1) s.links.emplace_back(id - 1, id, LinkType::kNeighbor);
+      if (id > 1) s.links.emplace_back(id - 1, id, LinkKind::kNeighbor);
     }
     if (z > 0) members.push_back(members.front() - 1);
     s.zones.push_back(members);
@@ -41,7 +41,7 @@ TEST_CASE("no allocation per tick once warm / for every policy") {
   for (const char* name : {"semantic", "predictive", "oracle", "radius", "basic", "unbounded"}) {
     CAPTURE(name);
     PolicyOptions o;
-    o.policy = name;
+    o.kind = *ParsePolicyKind(name);
     o.k_max = 45;
     o.radius.map_radius_m = 20;
     o.radius.update_distance_m = 5;

@@ -68,7 +68,7 @@ TEST_CASE("basic: InitWMWithAllNodes with N > MemoryThr takes N - MemoryThr tick
 TEST_CASE("basic: ages are truncated to whole seconds / ties broken by id") {
   // WM {1,2,3} chained 1-2-3, MemoryThr 2, node 4 in LTM (so not all nodes are in WM).
   test::MapSpec s = Spread(4, 20);
-  s.links = {{1, 2, LinkType::kNeighbor}, {2, 3, LinkType::kNeighbor}, {3, 4, LinkType::kNeighbor}};
+  s.links = {{1, 2, LinkKind::kNeighbor}, {2, 3, LinkKind::kNeighbor}, {3, 4, LinkKind::kNeighbor}};
   s.positions[3] = {500, 0, 0};
   BasicOptions o;
   o.memory_thr = 2;
@@ -115,7 +115,7 @@ TEST_CASE("basic: weight orders the transfer before age") {
 // A chain 1-2-...-20, 15 m apart; WM starts as {1..5}, MemoryThr 5.
 test::MapSpec Chain() {
   test::MapSpec s = Spread(20, 15);
-  for (int i = 1; i < 20; ++i) s.links.emplace_back(i, i + 1, LinkType::kNeighbor);
+  for (int i = 1; i < 20; ++i) s.links.emplace_back(i, i + 1, LinkKind::kNeighbor);
   return s;
 }
 
@@ -167,9 +167,9 @@ TEST_CASE("basic: at most MaxRetrieved + |local| loaded per tick") {
   // loop closure to LTM node 13.
   test::MapSpec s;
   for (int i = 1; i <= 13; ++i) s.positions.emplace_back(i == 1 ? 0.0 : 500.0 + i, 0, 0);
-  s.links = {{1, 2, LinkType::kNeighbor},  {1, 3, LinkType::kNeighbor},
-             {1, 4, LinkType::kNeighbor},  {10, 11, LinkType::kNeighbor},
-             {10, 12, LinkType::kNeighbor}, {10, 13, LinkType::kGlobalClosure}};
+  s.links = {{1, 2, LinkKind::kNeighbor},  {1, 3, LinkKind::kNeighbor},
+             {1, 4, LinkKind::kNeighbor},  {10, 11, LinkKind::kNeighbor},
+             {10, 12, LinkKind::kNeighbor}, {10, 13, LinkKind::kGlobalClosure}};
   BasicOptions o;
   o.memory_thr = 100;
   o.initial_wm = {KeyframeId{1}, KeyframeId{10}};
@@ -223,7 +223,7 @@ TEST_CASE("basic: the second local pass admits MaxLocalRetrieved - |local| + 1 L
   // 2/3): 2 and then 3 are read (4 statements) and 3 joins local. With 2 - 1 = 1 the search
   // would stop at 2 itself: local = [2], 1 node retrieved, 4 statements.
   test::MapSpec s = Spread(4, 50);
-  s.links = {{1, 2, LinkType::kNeighbor}, {2, 3, LinkType::kNeighbor}, {3, 4, LinkType::kNeighbor}};
+  s.links = {{1, 2, LinkKind::kNeighbor}, {2, 3, LinkKind::kNeighbor}, {3, 4, LinkKind::kNeighbor}};
   BasicOptions o;
   o.memory_thr = 10;
   o.initial_wm = {KeyframeId{1}};
@@ -257,14 +257,14 @@ RunDigest RandomRun() {
     for (int i = 0; i < 12; ++i) {
       s.positions.emplace_back(25.0 * room + 2.0 * (i % 4), 2.0 * (i / 4), 0.0);
       const auto id = static_cast<std::int64_t>(s.positions.size());
-      if (id > 1) s.links.emplace_back(id - 1, id, LinkType::kNeighbor);
+      if (id > 1) s.links.emplace_back(id - 1, id, LinkKind::kNeighbor);
     }
   }
   const auto n = static_cast<std::int64_t>(s.positions.size());
   for (int i = 0; i < 20; ++i) {
     const std::int64_t a = 1 + static_cast<std::int64_t>(rng() % static_cast<unsigned>(n));
     const std::int64_t b = 1 + static_cast<std::int64_t>(rng() % static_cast<unsigned>(n));
-    if (a != b) s.links.emplace_back(a, b, i % 3 == 0 ? LinkType::kLocalSpaceClosure : LinkType::kGlobalClosure);
+    if (a != b) s.links.emplace_back(a, b, i % 3 == 0 ? LinkKind::kLocalSpaceClosure : LinkKind::kGlobalClosure);
   }
   BasicOptions o;
   o.memory_thr = 20;

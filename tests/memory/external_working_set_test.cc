@@ -103,7 +103,7 @@ World MakeWorld(std::uint32_t seed) {
                                     0.0);
       const auto id = static_cast<std::int64_t>(w.spec.positions.size());
       members.push_back(id);
-      if (i > 0) w.spec.links.emplace_back(id - 1, id, LinkType::kNeighbor);
+      if (i > 0) w.spec.links.emplace_back(id - 1, id, LinkKind::kNeighbor);
     }
     if (z > 0) members.push_back(members.front() - 1);  // overlap with the previous room
     w.spec.zones.push_back(members);
@@ -125,10 +125,10 @@ TEST_CASE("external working set property: every policy's plans give WorkingSet's
     for (const char* name : {"semantic", "predictive", "oracle", "radius", "basic", "unbounded"}) {
       CAPTURE(seed);
       CAPTURE(name);
-      const bool bounded = IsBoundedPolicy(name);
+      const bool bounded = Traits(*ParsePolicyKind(name)).bounded;
       const std::uint32_t k_max = 30;
       PolicyOptions o;
-      o.policy = name;
+      o.kind = *ParsePolicyKind(name);
       o.k_max = k_max;
       o.radius.map_radius_m = 14;
       o.radius.update_distance_m = 4;
@@ -198,7 +198,7 @@ TEST_CASE("external working set: Apply allocates nothing") {
   const World w = MakeWorld(4);
   const MapIndex index = test::BuildIndex(w.spec);
   PolicyOptions o;
-  o.policy = "semantic";
+  o.kind = PolicyKind::kSemantic;
   o.k_max = 30;
   auto policy = MakePolicy(index, o);
   REQUIRE(policy.ok());

@@ -70,8 +70,8 @@ struct TestMap {
   }
 };
 
-std::vector<std::tuple<KfIndex, LinkType>> Sorted(std::span<const GraphEdge> edges) {
-  std::vector<std::tuple<KfIndex, LinkType>> out;
+std::vector<std::tuple<KfIndex, LinkKind>> Sorted(std::span<const GraphEdge> edges) {
+  std::vector<std::tuple<KfIndex, LinkKind>> out;
   for (const GraphEdge& e : edges) out.emplace_back(e.to, e.type);
   std::sort(out.begin(), out.end());
   return out;

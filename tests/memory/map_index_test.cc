@@ -17,8 +17,8 @@ TEST_CASE("map index: lookup / zones both ways / links both ways / adjacency") {
   test::MapSpec s = test::LineMap({3, 3});
   s.zones[1].push_back(3);  // keyframe 3 in both zones
   s.zones[1].push_back(3);  // duplicate member: ignored
-  s.links = {{1, 2, LinkType::kNeighbor}, {2, 1, LinkType::kNeighbor}, {2, 5, LinkType::kGlobalClosure},
-             {1, 99, LinkType::kLandmark}};
+  s.links = {{1, 2, LinkKind::kNeighbor}, {2, 1, LinkKind::kNeighbor}, {2, 5, LinkKind::kGlobalClosure},
+             {1, 99, LinkKind::kLandmark}};
   s.adjacency = {{ZoneId{1}}, {}};
   MapIndex m = test::BuildIndex(s);
   CHECK(m.keyframe_count() == 6);
@@ -85,19 +85,18 @@ TEST_CASE("MakePolicy: every name / and a clear error for an unknown one") {
   MapIndex m = test::BuildIndex(test::LineMap({2, 2}));
   for (const char* name : {"semantic", "basic", "radius", "predictive", "oracle", "unbounded"}) {
     PolicyOptions o;
-    o.policy = name;
+    o.kind = *ParsePolicyKind(name);
     o.k_max = 4;
     auto p = MakePolicy(m, o);
     REQUIRE(p.ok());
     CHECK((*p)->name() == name);
   }
+  // An unknown name is refused where it is parsed (once: profile, --policy, the API's options).
+  auto lru = ParsePolicyKind("lru");
+  REQUIRE_FALSE(lru.ok());
+  CHECK(lru.status().message().find("unknown memory policy 'lru'") != std::string::npos);
   PolicyOptions o;
-  o.policy = "lru";
-  o.k_max = 4;
-  auto p = MakePolicy(m, o);
-  REQUIRE_FALSE(p.ok());
-  CHECK(p.status().message().find("unknown memory policy 'lru'") != std::string::npos);
-  o.policy = "semantic";
+  o.kind = PolicyKind::kSemantic;
   o.k_max = 0;
   CHECK_FALSE(MakePolicy(m, o).ok());
 }

@@ -24,7 +24,7 @@ namespace zm::test {
 struct MapSpec {
   std::vector<Eigen::Vector3d> positions;           // keyframe id = index + 1
   std::vector<std::vector<std::int64_t>> zones;     // member ids per zone
-  std::vector<std::tuple<std::int64_t, std::int64_t, LinkType>> links;
+  std::vector<std::tuple<std::int64_t, std::int64_t, LinkKind>> links;
   std::vector<std::int32_t> weights;                // empty = all 0
   std::vector<std::vector<ZoneId>> adjacency;
 };

@@ -321,7 +321,7 @@ TEST_CASE("sliced property: every zone policy / loads behind its plans / never a
       for (int w : walk) future.push_back(w < 0 ? kNoZone : ZoneId{w});
       const auto k_max = static_cast<std::uint32_t>(1 + rng() % static_cast<std::uint32_t>(n));
       PolicyOptions o;
-      o.policy = name;
+      o.kind = *ParsePolicyKind(name);
       o.k_max = k_max;
       o.oracle.future = future;
       o.radius.tile_m = 10;

@@ -68,7 +68,7 @@ struct TinyMap {
 
 LoopConfig Basic(std::uint64_t memory_thr, bool all_nodes) {
   LoopConfig c;
-  c.policy.policy = "basic";
+  c.policy.kind = PolicyKind::kBasic;
   c.map.memory_thr_keyframes = memory_thr;
   c.policy.basic.init_wm_with_all_nodes = all_nodes;
   c.localizer.reserve_features = 8;
@@ -191,7 +191,7 @@ TEST_CASE("basic's database work by hand: start-up, then searches and loads, one
 TEST_CASE("semantic's zone load counts its blob reads in the same unit") {
   TinyMap m("semantic", nullptr, "sim tiny", 2);
   LoopConfig c = Basic(6, false);
-  c.policy.policy = "semantic";
+  c.policy.kind = PolicyKind::kSemantic;
   Opened o = Open(m, c);
   REQUIRE_MESSAGE(o.loop.ok(), o.loop.status().ToString());
   TickLoop& loop = **o.loop;

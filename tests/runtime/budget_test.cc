@@ -58,19 +58,19 @@ TEST_CASE("basic and unbounded: the arena holds the whole map, residency is meas
 TEST_CASE("a run's options become budget inputs by the policy's name") {
   const BudgetInputs orin = Orin(2'000'000, 10'000);
   for (const char* bounded : {"semantic", "predictive", "radius", "oracle"}) {
-    const BudgetInputs in =
-        BudgetInputsFor(orin.device, orin.model, orin.map, bounded, 2'000'000, 10'000);
+    const BudgetInputs in = BudgetInputsFor(orin.device, orin.model, orin.map,
+                                            *ParsePolicyKind(bounded), 2'000'000, 10'000);
     CHECK_MESSAGE(in.bounded_policy, bounded);
     CHECK_FALSE(in.unbounded_policy);
     CHECK(in.largest_keyframe_bytes == 2'000'000);
     CHECK(in.keyframe_count == 10'000);
   }
   const BudgetInputs basic =
-      BudgetInputsFor(orin.device, orin.model, orin.map, "basic", 2'000'000, 10'000);
+      BudgetInputsFor(orin.device, orin.model, orin.map, PolicyKind::kBasic, 2'000'000, 10'000);
   CHECK_FALSE(basic.bounded_policy);
   CHECK_FALSE(basic.unbounded_policy);
   const BudgetInputs unbounded =
-      BudgetInputsFor(orin.device, orin.model, orin.map, "unbounded", 2'000'000, 10'000);
+      BudgetInputsFor(orin.device, orin.model, orin.map, PolicyKind::kUnbounded, 2'000'000, 10'000);
   CHECK_FALSE(unbounded.bounded_policy);
   CHECK(unbounded.unbounded_policy);
   CHECK(DeriveBudget(unbounded)->k_max == 10'000);

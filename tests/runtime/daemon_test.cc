@@ -33,7 +33,7 @@ using test::RoomsMap;
 Profile MakeProfile(const std::string& policy, std::uint64_t k_max) {
   Profile p;
   p.source = "daemon_test";
-  p.policy.policy = policy;
+  p.policy.kind = *ParsePolicyKind(policy);
   p.map.memory_thr_keyframes = k_max;
   p.policy.basic.init_wm_with_all_nodes = true;
   p.policy.radius.map_radius_m = 15.0;

@@ -4,6 +4,8 @@
 
 #include <doctest/doctest.h>
 
+#include <vector>
+
 #include "support/counting_allocator.h"
 
 namespace zm {
@@ -94,6 +96,76 @@ TEST_CASE("a route with a waypoint off the map is refused whole") {
   CHECK(g.AcceptRoute(std::vector<Eigen::Vector3d>{}));
   CHECK_FALSE(g.AcceptRoute(std::vector<Eigen::Vector3d>{{0, 0, 0}, {1e308, 0, 0}}));
   CHECK_FALSE(g.AcceptRoute(std::vector<Eigen::Vector3d>{{0, 0, 0}, {50, 5, 30}}));
+}
+
+// A recorded replay of fixed frames (zonemap run's and MapLoop::Step's source, in miniature).
+class ListSource final : public FrameSource {
+ public:
+  explicit ListSource(std::vector<Frame> frames) : frames_(std::move(frames)) {}
+  Result<bool> Next(Frame* frame) override {
+    if (next_ == frames_.size()) return false;
+    *frame = frames_[next_++];
+    return true;
+  }
+  [[nodiscard]] std::uint32_t max_features() const override { return 0; }
+
+ private:
+  std::vector<Frame> frames_;
+  std::size_t next_ = 0;
+};
+
+TEST_CASE("a gated replay skips and counts the frames the gate refuses, with the same rules") {
+  ListSource frames({At(1, 5), At(1, 6), At(0.5, 6), At(2, 1e308), At(3, 7), At(1e300, 7),
+                     At(4, 8)});
+  GatedFrameSource gated(frames);
+  InputOptions o;
+  o.max_distance_from_map_m = 10.0;
+  MapExtent e;
+  e.min = {0, 0, 0};
+  e.max = {100, 20, 0};
+  Pose3 correction = Pose3::Identity();
+  gated.Attach(o, e, &correction);
+  std::vector<double> stamps;
+  Frame f;
+  for (;;) {
+    auto more = gated.Next(&f);
+    REQUIRE(more.ok());
+    if (!*more) break;
+    stamps.push_back(f.stamp_s);
+  }
+  CHECK(stamps == std::vector<double>{1, 3, 4});
+  CHECK(gated.rejects()[RejectReason::kStampNotIncreasing] == 2);
+  CHECK(gated.rejects()[RejectReason::kPositionOutsideMap] == 1);
+  CHECK(gated.rejects()[RejectReason::kStampOutOfRange] == 1);
+  CHECK(gated.rejects().total == 4);
+  CHECK(gated.malformed_lines() == 4);
+}
+
+TEST_CASE("a gated replay uses the loop's current correction") {
+  ListSource frames({At(1, 250), At(2, 250)});
+  GatedFrameSource gated(frames);
+  MapExtent e;
+  e.max = {100, 20, 0};
+  Pose3 correction = Pose3::Identity();  // 250 m of odometry: off the map ...
+  gated.Attach(InputOptions{}, e, &correction);
+  Frame f;
+  CHECK_FALSE(*gated.Next(&f));          // ... both refused
+  CHECK(gated.rejects()[RejectReason::kPositionOutsideMap] == 2);
+  ListSource again({At(1, 250)});
+  GatedFrameSource shifted(again);
+  correction.translation() = Eigen::Vector3d(-200, 0, 0);  // ... 50 m in the map under it
+  shifted.Attach(InputOptions{}, e, &correction);
+  CHECK(*shifted.Next(&f));
+}
+
+TEST_CASE("every gate rule has its words, the same at every entry point") {
+  for (RejectReason r : {RejectReason::kStampNotIncreasing, RejectReason::kStampOutOfRange,
+                         RejectReason::kQuaternionNotUnit, RejectReason::kPositionOutsideMap,
+                         RejectReason::kRouteOutsideMap}) {
+    CHECK(std::string(RejectRule(r)).size() > 10);
+  }
+  CHECK(std::string(RejectRule(RejectReason::kQuaternionNotUnit)).find("quaternion_tolerance") !=
+        std::string::npos);
 }
 
 TEST_CASE("the gate allocates nothing") {

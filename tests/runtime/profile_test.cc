@@ -55,7 +55,7 @@ TEST_CASE("orin-nano-8gb splits 8 GiB into OS, model, headroom and the map share
   Result<Profile> p = LoadProfile("orin-nano-8gb");
   REQUIRE_MESSAGE(p.ok(), p.status().ToString());
   CHECK(p->device.memory_bytes == 8ULL << 30);
-  CHECK(p->policy.policy == "semantic");
+  CHECK(p->policy.kind == PolicyKind::kSemantic);
   CHECK(p->policy.basic.max_retrieved == 2);
   CHECK(p->model.name == "qwen3-vl-2b");
   CHECK(p->model.weights_bytes == 1'900'000'000ULL);
@@ -168,7 +168,7 @@ TEST_CASE("wrong types and bad values are errors naming the key") {
 TEST_CASE("an empty profile is all defaults with no byte limit") {
   Result<Profile> p = ParseProfile("", "empty.toml");
   REQUIRE(p.ok());
-  CHECK(p->policy.policy == "semantic");
+  CHECK(p->policy.kind == PolicyKind::kSemantic);
   CHECK(p->loop.rate_hz == 1.0);
   CHECK(*MapShareBytes(*p) == 0);
 }
@@ -210,7 +210,7 @@ TEST_CASE("overrides replace profile values and K_max = min(count, bytes / slot)
   REQUIRE(loaded.ok());
   Profile p = *loaded;
   REQUIRE(ApplyOverrides(Overrides("basic", "300,1GiB"), p).ok());
-  CHECK(p.policy.policy == "basic");
+  CHECK(p.policy.kind == PolicyKind::kBasic);
   CHECK(p.map.memory_thr_keyframes == 300);
   CHECK(p.map.map_share_bytes == 1ULL << 30);
   Result<Budget> b = DeriveBudget(p, 1 << 20, 5000);  // 1 MiB keyframes, 5,000 of them

@@ -26,7 +26,7 @@ Loop Open(const RoomsMap& map, const std::string& policy, std::uint64_t k_max) {
   l.db = std::move(db).value();
   l.frames = std::make_unique<StagedFrameSource>(64);
   LoopConfig c;
-  c.policy.policy = policy;
+  c.policy.kind = *ParsePolicyKind(policy);
   c.map.memory_thr_keyframes = k_max;
   c.policy.basic.init_wm_with_all_nodes = true;
   c.localizer.reserve_features = 64;

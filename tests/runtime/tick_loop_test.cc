@@ -55,7 +55,7 @@ void Build(Scenario* s, int patrol_frames) {
 
 LoopConfig Config(const std::string& policy, std::uint64_t k_max) {
   LoopConfig c;
-  c.policy.policy = policy;
+  c.policy.kind = *ParsePolicyKind(policy);
   c.map.memory_thr_keyframes = k_max;
   c.policy.basic.init_wm_with_all_nodes = true;
   c.zones.hysteresis_m = 0.5;

@@ -127,7 +127,7 @@ inline Building WriteBuilding(const std::string& db_path, const BuildingSpec& sp
         map.members.push_back({ZoneId{0}, m.id});
       }
       if (spec.neighbour_links && id > 1) {
-        map.links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkType::kNeighbor});
+        map.links.push_back(LinkRecord{KeyframeId{id - 1}, KeyframeId{id}, LinkKind::kNeighbor});
       }
     }
   }
@@ -136,7 +136,7 @@ inline Building WriteBuilding(const std::string& db_path, const BuildingSpec& sp
     const std::int64_t a = 1 + static_cast<std::int64_t>(rng() % n);
     const std::int64_t b = 1 + static_cast<std::int64_t>(rng() % n);
     if (a == b) continue;
-    const LinkType t = i % 3 == 0 ? LinkType::kLocalSpaceClosure : LinkType::kGlobalClosure;
+    const LinkKind t = i % 3 == 0 ? LinkKind::kLocalSpaceClosure : LinkKind::kGlobalClosure;
     map.links.push_back(LinkRecord{KeyframeId{a}, KeyframeId{b}, t});
     if (i % 2 == 0) map.links.push_back(LinkRecord{KeyframeId{b}, KeyframeId{a}, t});
   }
