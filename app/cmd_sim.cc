@@ -19,6 +19,7 @@ struct SimOpts {
   std::string dense = "640x480";
   std::string depth_noise;  // A,B,C
   std::string image = "640x480";
+  std::string features = "oracle";
   double hfov_deg = 90.0;
   bool quiet = false;
   // hospital
@@ -73,6 +74,21 @@ void AddScenarioOptions(CLI::App* cmd, SimOpts* o) {
   cmd->add_option("--odom-heading-noise", s.drift.heading_noise_deg_per_m, "heading noise, deg per metre")->capture_default_str();
   cmd->add_option("--odom-heading-bias", s.drift.heading_bias_deg_per_m, "heading bias, deg per metre")->capture_default_str();
   cmd->add_option("--threads", s.threads, "worker threads (output does not depend on it)")->capture_default_str();
+  cmd->add_option("--features", o->features,
+                  "where features come from: orb (from rendered pixels: keyframes at mapping, "
+                  "frames in the loop; textured look, a vocabulary in the map) or oracle (each "
+                  "landmark's own descriptor, for comparison)")
+      ->check(CLI::IsMember({"orb", "oracle"}))
+      ->capture_default_str();
+  cmd->add_option("--orb-features", s.orb.max_features, "orb: features kept per image (Vis/MaxFeatures)")
+      ->capture_default_str();
+  cmd->add_option("--lighting-spread", s.lighting.gain_spread,
+                  "orb: the localization run's gain differs from the mapping run's by up to this")
+      ->capture_default_str();
+  cmd->add_option("--exposure", s.lighting.exposure_s,
+                  "orb: exposure time for motion blur, seconds (0: no blur)")
+      ->capture_default_str();
+  cmd->add_option("--decor-seed", s.dense.decor_seed, "orb: the building's décor")->capture_default_str();
   cmd->add_flag("--quiet", o->quiet, "no progress bar");
 }
 
@@ -108,6 +124,13 @@ std::string Finalize(SimOpts* o, const std::string& source) {
     return "--keyframe-distance and --keyframe-angle must be positive";
   }
   if (s.threads < 1 || s.threads > 64) return "--threads must be in [1, 64]";
+  s.features = o->features == "orb" ? sim::FeatureSource::kOrb : sim::FeatureSource::kOracle;
+  if (!(s.lighting.gain_spread >= 0.0 && s.lighting.gain_spread < 0.9)) {
+    return "--lighting-spread must be in [0, 0.9)";
+  }
+  if (!(s.lighting.exposure_s >= 0.0 && s.lighting.exposure_s <= 0.2)) {
+    return "--exposure must be in [0, 0.2] seconds";
+  }
   s.progress = !o->quiet;
   s.source = source;
   return "";
@@ -141,6 +164,15 @@ void Run(const sim::Building& building, SimOpts* o, const char* name, CommandCon
               static_cast<unsigned long long>(r.tasks), static_cast<unsigned long long>(r.frames),
               r.localization_length_m, r.localization_duration_s,
               static_cast<unsigned long long>(r.mean_features_per_frame));
+  if (o->scenario.features == sim::FeatureSource::kOrb) {
+    std::printf("  frames     %ux%u JPEG, %u bytes on average, %.1f frames/s rendered and encoded "
+                "(%d threads); lighting gain %.2f offset %+.1f\n",
+                r.dense_width, r.dense_height, r.frame_jpeg_bytes_mean,
+                r.frames_s > 0.0 ? static_cast<double>(r.frames) / r.frames_s : 0.0,
+                o->scenario.threads, r.lighting_gain, r.lighting_offset);
+    std::printf("  vocabulary %u words, %llu bytes, trained in %.2f s\n", r.vocabulary_words,
+                static_cast<unsigned long long>(r.vocabulary_bytes), r.vocabulary_s);
+  }
   std::printf("  time       %.2f s building + %.2f s scenario, of which %.2f s keyframes (%d threads)\n",
               build_s, s, r.keyframes_s, o->scenario.threads);
 }

@@ -26,8 +26,8 @@ RealtimeFrameSource::RealtimeFrameSource(FrameSource& inner, const RealtimeFrame
       options_(options),
       now_(options.now_mono_s != nullptr ? options.now_mono_s : &MonotonicSeconds),
       period_s_(1.0 / options.rate_hz) {
-  ahead_.Reserve(inner.max_features());
-  spare_.Reserve(inner.max_features());
+  ahead_.Reserve(inner.max_features(), inner.images().max_colour_bytes);
+  spare_.Reserve(inner.max_features(), inner.images().max_colour_bytes);
 }
 
 double RealtimeFrameSource::Arrival(double stamp_s) const noexcept {

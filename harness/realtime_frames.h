@@ -43,6 +43,7 @@ class RealtimeFrameSource final : public FrameSource {
   // arrived yet, the next one regardless (call WaitForFrame() first). false at the end.
   Result<bool> Next(Frame* frame) override;
   [[nodiscard]] std::uint32_t max_features() const override { return inner_.max_features(); }
+  [[nodiscard]] Images images() const override { return inner_.images(); }
   [[nodiscard]] std::uint64_t malformed_lines() const override { return inner_.malformed_lines(); }
   // The next frame has arrived (never blocks).
   bool FrameWaiting() override;

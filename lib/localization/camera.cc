@@ -30,4 +30,12 @@ bool Project(const CameraIntrinsics& k, const Eigen::Vector3d& p_cam, Eigen::Vec
   return true;
 }
 
+CameraIntrinsics ScaledIntrinsics(const CameraIntrinsics& k, std::uint32_t width,
+                                  std::uint32_t height) {
+  const double sx = static_cast<double>(width) / k.width;
+  const double sy = static_cast<double>(height) / k.height;
+  return {.fx = k.fx * sx, .fy = k.fy * sy, .cx = k.cx * sx, .cy = k.cy * sy, .width = width,
+          .height = height};
+}
+
 }  // namespace zm

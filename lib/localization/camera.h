@@ -34,6 +34,12 @@ inline constexpr double kMinDepthM = 0.1;
 
 // Projects a point given in the camera frame. Returns false (uv untouched) when it is behind
 // the camera or closer than kMinDepthM, or falls outside the width x height image.
+// The same camera at another resolution with the same field of view. With pixel i covering
+// [i, i + 1) (Project's convention: the pixel holding u is floor(u)) this is a plain scale of
+// fx, cx by width / k.width and fy, cy by height / k.height.
+[[nodiscard]] CameraIntrinsics ScaledIntrinsics(const CameraIntrinsics& k, std::uint32_t width,
+                                                std::uint32_t height);
+
 [[nodiscard]] bool Project(const CameraIntrinsics& k, const Eigen::Vector3d& p_cam,
                            Eigen::Vector2d* uv);
 

@@ -2,6 +2,7 @@
 #include "localization/localizer.h"
 
 #include <cassert>
+#include <chrono>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -14,6 +15,11 @@ namespace {
 double HeadingDiff(double a, double b) {
   double d = std::remainder(a - b, 2.0 * std::numbers::pi);  // in [-pi, pi]
   return std::abs(d);
+}
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
 PnpParams PnpParamsFrom(const LocalizerConfig& c) {
@@ -47,6 +53,10 @@ Status ValidateLocalizerConfig(const LocalizerConfig& c, const CameraIntrinsics&
       !(c.ransac_confidence > 0.0 && c.ransac_confidence < 1.0)) {
     return InvalidArgument("localizer RANSAC parameters out of range");
   }
+  if (c.word_features == 0) return InvalidArgument("localizer word_features must be >= 1");
+  if (!(c.min_likelihood >= 0.0f && c.min_likelihood <= 1.0f)) {
+    return InvalidArgument("localizer min_likelihood must be in [0, 1]");
+  }
   if (!(c.max_correction_m >= 0.0))
     return InvalidArgument("localizer max_correction_m must be >= 0");
   if (!(k.fx > 0.0 && k.fy > 0.0) || k.width == 0 || k.height == 0) {
@@ -64,6 +74,96 @@ Localizer::Localizer(LocalizerConfig config, CameraIntrinsics camera)
   assert(ValidateLocalizerConfig(config_, camera_).ok());
   object_points_.reserve(config.reserve_features);
   image_points_.reserve(config.reserve_features);
+}
+
+Status Localizer::UseVocabulary(const Vocabulary* vocabulary, std::uint32_t max_slots) {
+  if (vocabulary == nullptr || vocabulary->word_count() == 0) {
+    return InvalidArgument("localizer vocabulary is empty");
+  }
+  const InvertedIndexOptions o{.word_count = vocabulary->word_count(),
+                               .max_keyframes = max_slots,
+                               .max_words_per_keyframe = config_.word_features};
+  ZM_RETURN_IF_ERROR(ValidateInvertedIndexOptions(o));
+  vocabulary_ = vocabulary;
+  index_ = std::make_unique<InvertedIndex>(o);
+  bag_ = BowVector(config_.word_features);
+  slot_id_.assign(max_slots, 0);
+  slot_seen_.assign(max_slots, 0);
+  slot_resident_.assign(max_slots, 0);
+  indexed_slots_.clear();
+  indexed_slots_.reserve(max_slots);
+  top_.resize(kMaxIndexCandidates);
+  scores_f_.assign(std::max<std::size_t>(config_.reserve_keyframes, max_slots), 0.0f);
+  return Status::Ok();
+}
+
+std::size_t Localizer::index_memory_bytes() const {
+  if (index_ == nullptr) return 0;
+  return index_->memory_bytes() +
+         slot_id_.capacity() * (sizeof(std::int64_t) + sizeof(std::uint64_t) + 2 * sizeof(std::uint32_t));
+}
+
+void Localizer::SyncIndex(std::span<const ResidentKeyframe> resident, LocalizeResult* r) {
+  const std::uint64_t tick = stats_.ticks;  // already counted: > 0, so 0 means "never seen"
+  const auto slots = static_cast<std::uint32_t>(slot_id_.size());
+  for (std::size_t i = 0; i < resident.size(); ++i) {
+    const ResidentKeyframe& kf = resident[i];
+    const std::uint32_t s = kf.slot.value;
+    if (s >= slots) continue;  // no slot given: it cannot be indexed, and scores 0
+    slot_seen_[s] = tick;
+    slot_resident_[s] = static_cast<std::uint32_t>(i);
+    if (slot_id_[s] == kf.id.value) continue;
+    if (slot_id_[s] != 0) {  // another keyframe now lives in this slot
+      (void)index_->Remove(kf.slot);
+      ++r->index_removed;
+    } else {
+      indexed_slots_.push_back(s);
+    }
+    const std::uint32_t words = std::min(kf.view.feature_count, config_.word_features);
+    slot_id_[s] = kf.id.value;
+    if (vocabulary_->Transform(kf.view.descriptors, words, &bag_).ok() &&
+        index_->Add(kf.slot, kf.id, bag_).ok()) {
+      ++r->index_added;
+    }
+  }
+  // Keyframes no longer resident leave the index.
+  for (std::size_t j = 0; j < indexed_slots_.size();) {
+    const std::uint32_t s = indexed_slots_[j];
+    if (slot_seen_[s] == tick) {
+      ++j;
+      continue;
+    }
+    if (index_->contains(SlotIndex{s})) (void)index_->Remove(SlotIndex{s});
+    slot_id_[s] = 0;
+    ++r->index_removed;
+    indexed_slots_[j] = indexed_slots_.back();
+    indexed_slots_.pop_back();
+  }
+}
+
+void Localizer::ScoreByVocabulary(const Frame& frame, std::span<const ResidentKeyframe> resident,
+                                  LocalizeResult* r) {
+  auto t0 = Clock::now();
+  const std::uint32_t words = std::min(frame.feature_count(), config_.word_features);
+  const bool bag_ok = vocabulary_->Transform(frame.descriptors.front().data(), words, &bag_).ok();
+  r->quantize_ms = MsSince(t0);
+  t0 = Clock::now();
+  std::fill(scores_f_.begin(), scores_f_.begin() + static_cast<std::ptrdiff_t>(resident.size()), 0.0f);
+  if (bag_ok) {
+    const std::size_t k = index_->Score(bag_, kMaxIndexCandidates, top_);
+    r->postings_walked = index_->last_postings_walked();
+    for (std::size_t c = 0; c < k; ++c) {
+      const std::uint32_t i = slot_resident_[top_[c].slot.value];
+      scores_f_[i] = top_[c].score;
+    }
+    // Top candidates come best first, ties to the larger id: the first is the hypothesis.
+    if (k > 0 && top_[0].score >= config_.min_likelihood) {
+      r->highest_hypothesis = top_[0].id;
+      r->highest_likelihood = top_[0].score;
+      r->highest_score = static_cast<std::uint32_t>(std::lround(top_[0].score * 1000.0f));
+    }
+  }
+  r->likelihood_ms = MsSince(t0);
 }
 
 void Localizer::Offer(const Candidate& c, std::uint32_t limit,
@@ -90,15 +190,29 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
     ++stats_.bad_frames;
     return r;
   }
-  if (resident.empty() || n == 0) return r;
+  if (n == 0) return r;
+  if (resident.empty()) {
+    if (vocabulary_ != nullptr) SyncIndex(resident, &r);  // an emptied working set leaves it too
+    return r;
+  }
   const std::uint8_t* frame_desc = frame.descriptors.front().data();
   if (scores_.size() < resident.size()) scores_.resize(resident.size());  // grows once
   if (matches_.size() < n) matches_.resize(n);                            // grows once
 
-  // 1. Appearance scores of every resident keyframe, and the highest hypothesis.
+  // 1. Appearance scores of every resident keyframe, and the highest hypothesis: the
+  //    vocabulary's likelihood through the inverted index, or the binary-word scorer.
+  const bool vocab = vocabulary_ != nullptr;
+  if (vocab) {
+    if (scores_f_.size() < resident.size()) scores_f_.resize(resident.size());  // grows once
+    const auto t_index = Clock::now();
+    SyncIndex(resident, &r);
+    r.index_ms = MsSince(t_index);
+    if (config_.use_appearance) ScoreByVocabulary(frame, resident, &r);
+  }
+  const auto t_verify = Clock::now();
   std::uint32_t best_score = 0;
   std::int64_t best_id = 0;
-  if (config_.use_appearance) {
+  if (config_.use_appearance && !vocab) {
     appearance_.SetQuery(frame_desc, n);
     for (std::size_t i = 0; i < resident.size(); ++i) {
       const KeyframeView& v = resident[i].view;
@@ -115,14 +229,22 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
       r.highest_score = best_score;
     }
   }
+  // One appearance key per resident keyframe, and whether it may be a candidate at all.
+  const auto appearance_key = [&](std::size_t i) {
+    return vocab ? static_cast<double>(scores_f_[i]) : static_cast<double>(scores_[i]);
+  };
+  const auto appearance_ok = [&](std::size_t i) {
+    return vocab ? scores_f_[i] >= config_.min_likelihood && scores_f_[i] > 0.0f
+                 : scores_[i] >= config_.min_appearance_score;
+  };
 
   // 2. Candidates: the top appearance keyframes anywhere, and the pose-gated ones.
   std::array<Candidate, kMaxLocalizerCandidates> global{};
   std::uint32_t global_size = 0;
   if (config_.use_appearance && config_.appearance_candidates > 0) {
     for (std::size_t i = 0; i < resident.size(); ++i) {
-      if (scores_[i] < config_.min_appearance_score) continue;
-      Offer({static_cast<std::uint32_t>(i), static_cast<double>(scores_[i]), resident[i].id.value},
+      if (!appearance_ok(i)) continue;
+      Offer({static_cast<std::uint32_t>(i), appearance_key(i), resident[i].id.value},
             config_.appearance_candidates, &global, &global_size);
     }
   }
@@ -138,8 +260,8 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
     bool in_global = false;
     for (std::uint32_t g = 0; g < global_size; ++g) in_global = in_global || global[g].index == i;
     if (!in_gate && !in_global) continue;
-    if (config_.use_appearance && scores_[i] < config_.min_appearance_score) continue;
-    const double key = config_.use_appearance ? static_cast<double>(scores_[i]) : -dist;
+    if (config_.use_appearance && !appearance_ok(i)) continue;
+    const double key = config_.use_appearance ? appearance_key(i) : -dist;
     Offer({static_cast<std::uint32_t>(i), key, resident[i].id.value}, config_.max_candidates, &list,
           &list_size);
   }
@@ -210,6 +332,7 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
     r.reprojection_rms_px = solved.rms_px;
     r.closures_accepted = 1;
   }
+  r.verify_ms = MsSince(t_verify);
   stats_.closures_accepted += r.closures_accepted;
   stats_.closures_rejected += r.closures_rejected;
   stats_.candidates_examined += r.candidates_examined;

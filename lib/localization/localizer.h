@@ -33,6 +33,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <opencv2/core/types.hpp>
 #include <span>
 #include <vector>
@@ -42,12 +43,16 @@
 #include "geometry/pose.h"
 #include "localization/appearance.h"
 #include "localization/frame.h"
+#include "localization/inverted_index.h"
 #include "localization/pnp.h"
+#include "localization/vocabulary.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/map_db.h"
 #include "simd/hamming.h"
 
 namespace zm {
+
+inline constexpr std::uint32_t kNoResidentSlot = 0xFFFFFFFFu;
 
 // One resident keyframe as the runtime passes it: id, body pose in the map, and the view into
 // its arena slot.
@@ -55,6 +60,7 @@ struct ResidentKeyframe {
   KeyframeId id;
   Pose3 pose = Pose3::Identity();  // T_map_body of the keyframe
   KeyframeView view;
+  SlotIndex slot{kNoResidentSlot};  // its arena slot: the vocabulary's inverted index is per slot
 };
 
 inline constexpr std::uint32_t kMaxLocalizerCandidates = 16;
@@ -77,6 +83,12 @@ struct LocalizerConfig {
   double max_correction_m = 0.0;          // reject a pose this far from the prediction; 0 = off
   std::uint32_t reserve_features = 2048;  // scratch sizes: no allocation below these
   std::uint32_t reserve_keyframes = 4096;
+  // With a vocabulary (UseVocabulary): the first word_features descriptors of a frame and of a
+  // keyframe are its words (the extractor orders them strongest first: RTAB-Map's
+  // Kp/MaxFeatures), and a keyframe whose DBoW2 L1 score is below min_likelihood is neither the
+  // highest hypothesis nor a candidate (it replaces min_appearance_score's role).
+  std::uint32_t word_features = 500;
+  float min_likelihood = 0.02f;
 };
 
 // Checks ranges (counts, ratio in (0, 1], positive thresholds) and the camera; names the field.
@@ -101,6 +113,18 @@ struct LocalizeResult {
   std::uint32_t closures_rejected = 0;  // candidates examined and not accepted this tick
   std::uint32_t pnp_errors = 0;         // PnP input errors or all-degenerate samples (rejections)
   bool bad_frame = false;               // keypoints.size() != 2 * descriptors.size()
+  // With a vocabulary: the best resident keyframe's likelihood, the index's work, and where the
+  // time went (ms): syncing the index with the resident set (keyframes entering or leaving:
+  // their bags are computed here), the frame's bag, the likelihood over the index, and the
+  // candidates' matching and PnP. Without one, verify_ms still holds steps 2-3.
+  float highest_likelihood = 0.0f;
+  std::uint64_t postings_walked = 0;
+  std::uint32_t index_added = 0;
+  std::uint32_t index_removed = 0;
+  double index_ms = 0.0;
+  double quantize_ms = 0.0;
+  double likelihood_ms = 0.0;
+  double verify_ms = 0.0;
 };
 
 // Totals since construction, for telemetry and the run summary.
@@ -123,6 +147,17 @@ class Localizer {
   [[nodiscard]] LocalizeResult Localize(const Frame& frame, const Pose3& predicted_map_pose,
                                         std::span<const ResidentKeyframe> resident);
 
+  // From now on the appearance step is the vocabulary's likelihood: the frame's bag of words
+  // scores the resident keyframes through an inverted index over arena slots (< max_slots: the
+  // arena's slot count), which Localize keeps equal to the resident set it is handed (a
+  // keyframe's bag is computed when it first appears in a slot, its postings dropped when it
+  // leaves). `vocabulary` is not owned and must outlive the localizer. Allocates the index and
+  // the bags here; kInvalidArgument when max_slots or the vocabulary is unusable.
+  [[nodiscard]] Status UseVocabulary(const Vocabulary* vocabulary, std::uint32_t max_slots);
+  [[nodiscard]] bool has_vocabulary() const { return vocabulary_ != nullptr; }
+  // The index's memory (0 without a vocabulary): counted in the budget with the vocabulary's.
+  [[nodiscard]] std::size_t index_memory_bytes() const;
+
   [[nodiscard]] const LocalizerStats& stats() const { return stats_; }
   [[nodiscard]] const LocalizerConfig& config() const { return config_; }
 
@@ -136,9 +171,26 @@ class Localizer {
   static void Offer(const Candidate& c, std::uint32_t limit,
                     std::array<Candidate, kMaxLocalizerCandidates>* list, std::uint32_t* size);
 
+  // Brings the index to exactly `resident`'s keyframes; fills slot_resident_ (slot -> index into
+  // resident, for the scores).
+  void SyncIndex(std::span<const ResidentKeyframe> resident, LocalizeResult* r);
+  // Scores every resident keyframe into scores_f_ (0 outside the index's top candidates) and
+  // sets the highest hypothesis.
+  void ScoreByVocabulary(const Frame& frame, std::span<const ResidentKeyframe> resident,
+                         LocalizeResult* r);
+
   LocalizerConfig config_;
   CameraIntrinsics camera_;
   AppearanceScorer appearance_;
+  const Vocabulary* vocabulary_ = nullptr;
+  std::unique_ptr<InvertedIndex> index_;
+  BowVector bag_{0};                             // the frame's, then each new keyframe's
+  std::vector<std::int64_t> slot_id_;            // per slot: the keyframe indexed there (0: none)
+  std::vector<std::uint64_t> slot_seen_;         // per slot: the last tick it was resident
+  std::vector<std::uint32_t> slot_resident_;     // per slot: its index into this tick's resident
+  std::vector<std::uint32_t> indexed_slots_;     // the slots in the index (unordered)
+  std::vector<IndexCandidate> top_;              // Score's output
+  std::vector<float> scores_f_;                  // per resident index: likelihood
   PnpRansac pnp_;
   std::vector<std::uint32_t> scores_;
   std::vector<simd::DescriptorMatch> matches_;

@@ -6,9 +6,12 @@
 #include <cstring>
 #include <exception>
 #include <limits>
+#include <opencv2/core/ocl.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
+
+#include "localization/scratch_mat_allocator.h"
 
 namespace zm {
 namespace {
@@ -20,6 +23,13 @@ std::string TypeName(int type) { return cv::typeToString(type); }
 std::string Size(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
 }  // namespace
+
+std::size_t FrameScratchBytesFor(const CameraIntrinsics& camera) {
+  // Measured high water at 640x480 with the default options: see docs/localization.md. The
+  // pyramid and its blurred copies scale with the pixels; keypoint vectors with max_features.
+  const std::size_t pixels = std::size_t{camera.width} * camera.height;
+  return 8 * pixels + (std::size_t{2} << 20);
+}
 
 Status ValidateOrbOptions(const OrbOptions& o) {
   if (o.max_features < 1 || o.max_features > kMaxOrbFeatures) {
@@ -71,28 +81,40 @@ Result<OrbExtractor> OrbExtractor::Create(const OrbOptions& options,
   try {
     // Process-wide: OpenCV's parallel loops run on the calling thread (see the header).
     cv::setNumThreads(0);
+    // No OpenCL device on the targets; probing for one would allocate in the first tick.
+    cv::ocl::setUseOpenCL(false);
+    UseScratchForMatData();
     cv::Ptr<cv::ORB> orb = cv::ORB::create(
         static_cast<int>(options.max_features), options.scale_factor,
         static_cast<int>(options.levels), static_cast<int>(options.edge_threshold),
         /*firstLevel=*/0, /*WTA_K=*/2, cv::ORB::HARRIS_SCORE, static_cast<int>(options.patch_size),
         static_cast<int>(options.fast_threshold));
-    return OrbExtractor(options, camera, std::move(orb));
+    std::string error;
+    std::unique_ptr<FrameScratch> scratch = FrameScratch::Create(
+        options.scratch_bytes != 0 ? options.scratch_bytes : FrameScratchBytesFor(camera), &error);
+    if (scratch == nullptr) return ResourceExhausted("orb extractor: " + error);
+    OrbExtractor extractor(options, camera, std::move(orb), std::move(scratch));
+    // One extraction on a synthetic textured frame, on the heap: OpenCV's one-time set-up
+    // (thread-local data, lazily built tables) happens here and not in the first tick.
+    cv::Mat warm(static_cast<int>(camera.height), static_cast<int>(camera.width), CV_8UC1);
+    cv::randu(warm, 0, 256);
+    std::vector<cv::KeyPoint> keypoints;
+    cv::Mat descriptors;
+    extractor.orb_->detectAndCompute(warm, cv::noArray(), keypoints, descriptors);
+    return extractor;
   } catch (const std::exception& e) {
     return Internal(std::string("cv::ORB::create failed: ") + e.what());
   }
 }
 
 OrbExtractor::OrbExtractor(const OrbOptions& options, const CameraIntrinsics& camera,
-                           cv::Ptr<cv::ORB> orb)
+                           cv::Ptr<cv::ORB> orb, std::unique_ptr<FrameScratch> scratch)
     : options_(options),
       camera_(camera),
       orb_(std::move(orb)),
+      scratch_(std::move(scratch)),
       grey_(static_cast<int>(camera.height), static_cast<int>(camera.width), CV_8UC1),
-      order_(2 * std::size_t{options.max_features}) {
-  keypoints_.reserve(2 * std::size_t{options.max_features});
-  descriptors_.create(static_cast<int>(options.max_features), static_cast<int>(kDescriptorBytes),
-                      CV_8UC1);
-}
+      order_(2 * std::size_t{options.max_features}) {}
 
 Status OrbExtractor::CheckInputs(const cv::Mat& colour, const DepthImage& depth,
                                  const OrbFeatures& out) const {
@@ -136,6 +158,11 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
   out->with_point = 0;
   ZM_RETURN_IF_ERROR(CheckInputs(colour, depth, *out));
 
+  // Everything OpenCV allocates from here on comes from the scratch, and is freed before the
+  // scope closes: the detector's outputs are locals declared after the scope.
+  ScratchScope scope(*scratch_);
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
   try {
     const cv::Mat* grey = &colour;  // grey input is read in place, never written
     if (colour.type() != CV_8UC1) {
@@ -143,16 +170,16 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
                    colour.type() == CV_8UC3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
       grey = &grey_;
     }
-    orb_->detectAndCompute(*grey, cv::noArray(), keypoints_, descriptors_);
+    orb_->detectAndCompute(*grey, cv::noArray(), keypoints, descriptors);
   } catch (const std::exception& e) {
     return Internal(std::string("ORB extraction failed: ") + e.what());
   }
-  const auto detected = static_cast<std::uint32_t>(keypoints_.size());
+  const auto detected = static_cast<std::uint32_t>(keypoints.size());
   if (detected == 0) return Status::Ok();
-  if (descriptors_.rows != static_cast<int>(detected) ||
-      descriptors_.cols != static_cast<int>(kDescriptorBytes) || descriptors_.type() != CV_8UC1) {
-    return Internal("ORB returned " + std::to_string(descriptors_.rows) + "x" +
-                    std::to_string(descriptors_.cols) + " descriptors for " +
+  if (descriptors.rows != static_cast<int>(detected) ||
+      descriptors.cols != static_cast<int>(kDescriptorBytes) || descriptors.type() != CV_8UC1) {
+    return Internal("ORB returned " + std::to_string(descriptors.rows) + "x" +
+                    std::to_string(descriptors.cols) + " descriptors for " +
                     std::to_string(detected) + " keypoints");
   }
 
@@ -160,8 +187,8 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
   if (order_.size() < detected) order_.resize(detected);  // only if ORB exceeded 2x max_features
   for (std::uint32_t i = 0; i < detected; ++i) order_[i] = i;
   std::sort(order_.begin(), order_.begin() + detected, [&](std::uint32_t a, std::uint32_t b) {
-    const cv::KeyPoint& ka = keypoints_[a];
-    const cv::KeyPoint& kb = keypoints_[b];
+    const cv::KeyPoint& ka = keypoints[a];
+    const cv::KeyPoint& kb = keypoints[b];
     if (ka.response != kb.response) return ka.response > kb.response;
     if (ka.pt.y != kb.pt.y) return ka.pt.y < kb.pt.y;
     if (ka.pt.x != kb.pt.x) return ka.pt.x < kb.pt.x;
@@ -178,17 +205,20 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
   std::uint32_t with_point = 0;
   for (std::uint32_t i = 0; i < n; ++i) {
     const std::uint32_t src = order_[i];
-    const cv::KeyPoint& kp = keypoints_[src];
-    std::memcpy(out->descriptors[i].data(), descriptors_.ptr<std::uint8_t>(static_cast<int>(src)),
+    const cv::KeyPoint& kp = keypoints[src];
+    std::memcpy(out->descriptors[i].data(), descriptors.ptr<std::uint8_t>(static_cast<int>(src)),
                 kDescriptorBytes);
-    out->keypoints[2 * std::size_t{i}] = kp.pt.x;
-    out->keypoints[2 * std::size_t{i} + 1] = kp.pt.y;
+    // zonemap's pixel convention (camera.h): pixel i covers [i, i + 1), so its centre is i + 0.5;
+    // OpenCV puts pixel centres at integers.
+    const float u = kp.pt.x + 0.5f;
+    const float v = kp.pt.y + 0.5f;
+    out->keypoints[2 * std::size_t{i}] = u;
+    out->keypoints[2 * std::size_t{i} + 1] = v;
     out->responses[i] = kp.response;
     double z = 0.0;
     if (has_depth) {
-      // Nearest pixel: (u, v) are continuous coordinates with pixel centres at integers (OpenCV).
-      const int x = std::clamp(static_cast<int>(std::lround(kp.pt.x)), 0, w - 1);
-      const int y = std::clamp(static_cast<int>(std::lround(kp.pt.y)), 0, h - 1);
+      const int x = std::clamp(static_cast<int>(std::floor(u)), 0, w - 1);  // the pixel holding it
+      const int y = std::clamp(static_cast<int>(std::floor(v)), 0, h - 1);
       z = depth16 ? depth.image.at<std::uint16_t>(y, x) * inv_units
                   : static_cast<double>(depth.image.at<float>(y, x));
     }
@@ -197,8 +227,8 @@ Status OrbExtractor::Extract(const cv::Mat& colour, const DepthImage& depth, Orb
     out->has_point[i] = valid ? 1 : 0;
     float* p = &out->points[3 * std::size_t{i}];
     if (valid) {
-      p[0] = static_cast<float>((static_cast<double>(kp.pt.x) - camera_.cx) * z / camera_.fx);
-      p[1] = static_cast<float>((static_cast<double>(kp.pt.y) - camera_.cy) * z / camera_.fy);
+      p[0] = static_cast<float>((static_cast<double>(u) - camera_.cx) * z / camera_.fx);
+      p[1] = static_cast<float>((static_cast<double>(v) - camera_.cy) * z / camera_.fy);
       p[2] = static_cast<float>(z);
       ++with_point;
     } else {

@@ -16,26 +16,39 @@
 //      below min_depth_m or above max_depth_m (when set) leaves the feature without a 3-D point
 //      (has_point = 0, point NaN) but keeps its keypoint and descriptor.
 //
-// Points are in the CAMERA frame (x right, y down, z forward, metres): x = (u - cx) z / fx,
-// y = (v - cy) z / fy, the inverse of Project() in camera.h for the same (u, v).
+// Keypoints are in zonemap's pixel convention (camera.h: pixel i covers [i, i + 1), its centre is
+// i + 0.5), i.e. OpenCV's keypoint + 0.5; a calibration made in OpenCV's convention (centres at
+// integers) needs 0.5 added to cx and cy to be used with them. Points are in the CAMERA frame
+// (x right, y down, z forward, metres): x = (u - cx) z / fx, y = (v - cy) z / fy, the inverse
+// of Project() in camera.h for the same (u, v), with the depth of the pixel holding (u, v).
 //
 // Allocation: the output buffer is the caller's, sized once (OrbFeatures(capacity)); the grey
-// image, the keypoint vector, the descriptor matrix and the ordering scratch are members reused
-// frame after frame. What OpenCV 4.6's ORB still allocates inside detectAndCompute on every call
-// (its image pyramid, per-level keypoint vectors, the FAST/Harris scratch, the blurred levels)
-// cannot be avoided from outside; tests/localization/orb_extractor_test.cc counts it and checks
-// that this adapter adds nothing to it.
+// image and the ordering permutation are members reused frame after frame. What OpenCV 4.6's ORB
+// allocates inside detectAndCompute on every call (its image pyramid, per-level keypoint
+// vectors, the FAST/Harris scratch, the blurred levels, the keypoint and descriptor outputs:
+// about 90 operator new and 30 malloc calls at 320x240) is served by the extractor's own
+// FrameScratch (arena/frame_scratch.h), a region reserved once in Create() from the camera's
+// size: Extract() runs OpenCV inside a ScratchScope, Mat data reaches the region through
+// scratch_mat_allocator.h and operator new through the program's hook (zm_scratch_new; the
+// test suites' counting allocator). A program without the hook still works: its operator new
+// requests go to the heap. scratch_stats() tells how much of the region a frame used and whether
+// a request ever overflowed it. Create() also runs one extraction on a synthetic image, so that
+// OpenCV's one-time initialisation (thread-local data, the OpenCL probe) happens there, on the
+// heap, and not in the first tick.
 //
 // Threads: the constructor calls cv::setNumThreads(0), a PROCESS-wide setting: OpenCV then runs
 // its parallel loops on the calling thread. The tick is single-threaded by design, its time must
 // not include a thread pool's wake-ups, and under qemu-user OpenCV's worker threads spin.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <opencv2/core/mat.hpp>
 #include <opencv2/features2d.hpp>
 #include <vector>
 
+#include "arena/frame_scratch.h"
 #include "common/status.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/map_db.h"
@@ -53,7 +66,13 @@ struct OrbOptions {
   std::uint32_t fast_threshold = 20;  // FAST/Threshold, grey levels
   double min_depth_m = 0.1;           // nearer depths give no 3-D point (camera.h kMinDepthM)
   double max_depth_m = 0.0;           // farther depths give no 3-D point; 0 = no limit
+  // The region OpenCV's per-frame allocations come from; 0 = FrameScratchBytesFor(camera).
+  std::size_t scratch_bytes = 0;
 };
+
+// The scratch a frame of this size needs, with room to spare: see the measurement in
+// docs/localization.md ("Allocation inside the tick").
+[[nodiscard]] std::size_t FrameScratchBytesFor(const CameraIntrinsics& camera);
 
 // Checks ranges (word_features <= max_features, scale > 1, ...); names the field and the limit.
 [[nodiscard]] Status ValidateOrbOptions(const OrbOptions& options);
@@ -101,20 +120,24 @@ class OrbExtractor {
   [[nodiscard]] Status Extract(const cv::Mat& colour, const DepthImage& depth, OrbFeatures* out);
 
   [[nodiscard]] const OrbOptions& options() const { return options_; }
+  [[nodiscard]] FrameScratchStats scratch_stats() const { return scratch_->stats(); }
+  // The region OpenCV's per-frame work comes from, for a caller's own OpenCV calls in the tick
+  // (the front-end's PNG decoding).
+  [[nodiscard]] FrameScratch& scratch() { return *scratch_; }
   [[nodiscard]] const CameraIntrinsics& camera() const { return camera_; }
 
  private:
-  OrbExtractor(const OrbOptions& options, const CameraIntrinsics& camera, cv::Ptr<cv::ORB> orb);
+  OrbExtractor(const OrbOptions& options, const CameraIntrinsics& camera, cv::Ptr<cv::ORB> orb,
+               std::unique_ptr<FrameScratch> scratch);
   [[nodiscard]] Status CheckInputs(const cv::Mat& colour, const DepthImage& depth,
                                    const OrbFeatures& out) const;
 
   OrbOptions options_;
   CameraIntrinsics camera_;
   cv::Ptr<cv::ORB> orb_;
-  cv::Mat grey_;                         // reused conversion target
-  std::vector<cv::KeyPoint> keypoints_;  // reused detector output
-  cv::Mat descriptors_;                  // reused descriptor output (count x 32, 8UC1)
-  std::vector<std::uint32_t> order_;     // strongest-first permutation
+  std::unique_ptr<FrameScratch> scratch_;  // OpenCV's per-frame allocations (never null)
+  cv::Mat grey_;                           // reused conversion target
+  std::vector<std::uint32_t> order_;       // strongest-first permutation
 };
 
 }  // namespace zm

@@ -12,6 +12,10 @@ class ReplayFrameSource final : public FrameSource {
   explicit ReplayFrameSource(FrameReader reader) : reader_(std::move(reader)) {}
   Result<bool> Next(Frame* frame) override { return reader_.Next(frame); }
   [[nodiscard]] std::uint32_t max_features() const override { return reader_.max_features(); }
+  [[nodiscard]] Images images() const override {
+    const FramesFileInfo& i = reader_.info();
+    return {i.max_colour_bytes, i.image_width, i.image_height};
+  }
 
  private:
   FrameReader reader_;

@@ -32,6 +32,15 @@ class FrameSource {
   // malformed_lines.
   [[nodiscard]] virtual std::uint64_t malformed_lines() const { return 0; }
   [[nodiscard]] virtual std::uint32_t max_features() const = 0;
+  // Camera frames (issue 26): the largest encoded colour image and the images' size (the map
+  // camera's field of view at that resolution); all zero for a source whose frames carry their
+  // features. The loop reserves its frame and builds its front-end from this.
+  struct Images {
+    std::uint32_t max_colour_bytes = 0;
+    std::uint32_t width = 0;
+    std::uint32_t height = 0;
+  };
+  [[nodiscard]] virtual Images images() const { return {}; }
   // True when input is already waiting, so the driver's next read would not block: the loop's
   // idle part stops loading then (TickLoop::Idle). Never blocks. A recorded replay has no
   // arrival times: false.

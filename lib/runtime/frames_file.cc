@@ -25,7 +25,9 @@ T Get(const std::uint8_t* buf, std::size_t at) {
 // Header field offsets.
 constexpr std::size_t kOffMagic = 0, kOffVersion = 4, kOffHeaderBytes = 6, kOffCount = 8,
                       kOffMaxFeatures = 16, kOffFx = 24, kOffFy = 32, kOffCx = 40, kOffCy = 48,
-                      kOffWidth = 56, kOffHeight = 60, kOffRate = 64;
+                      kOffWidth = 56, kOffHeight = 60, kOffRate = 64, kOffMaxColour = 72,
+                      kOffImageWidth = 76, kOffImageHeight = 80;
+constexpr std::size_t kOffRecordColourBytes = 76;
 
 void EncodeHeader(const FramesFileInfo& info, std::uint8_t* buf) {
   std::memset(buf, 0, kFramesHeaderBytes);
@@ -41,6 +43,9 @@ void EncodeHeader(const FramesFileInfo& info, std::uint8_t* buf) {
   Put<std::uint32_t>(buf, kOffWidth, info.camera.width);
   Put<std::uint32_t>(buf, kOffHeight, info.camera.height);
   Put<double>(buf, kOffRate, info.rate_hz);
+  Put<std::uint32_t>(buf, kOffMaxColour, info.max_colour_bytes);
+  Put<std::uint32_t>(buf, kOffImageWidth, info.max_colour_bytes > 0 ? info.image_width : 0);
+  Put<std::uint32_t>(buf, kOffImageHeight, info.max_colour_bytes > 0 ? info.image_height : 0);
 }
 
 }  // namespace
@@ -53,6 +58,8 @@ Result<FrameWriter> FrameWriter::Create(const std::string& path, const CameraInt
   w.path_ = path;
   w.info_.camera = camera;
   w.info_.rate_hz = rate_hz;
+  w.info_.image_width = camera.width;
+  w.info_.image_height = camera.height;
   std::uint8_t header[kFramesHeaderBytes];
   EncodeHeader(w.info_, header);
   if (std::fwrite(header, 1, sizeof(header), w.file_.get()) != sizeof(header)) {
@@ -83,6 +90,19 @@ Status FrameWriter::Append(const Frame& frame) {
     return InvalidArgument("frames file " + path_ + ": frame " + std::to_string(frame.index) +
                            " goes back in time");
   }
+  std::uint32_t colour_bytes = 0;
+  if (frame.has_image()) {
+    if (frame.colour_codec != ImageCodec::kJpeg) {
+      return InvalidArgument("frames file " + path_ + ": frame " + std::to_string(frame.index) +
+                             " has a colour image that is not JPEG");
+    }
+    if (frame.colour.empty() || frame.colour.size() > kMaxFrameColourBytes) {
+      return InvalidArgument("frames file " + path_ + ": frame " + std::to_string(frame.index) +
+                             " has a colour image of " + std::to_string(frame.colour.size()) +
+                             " bytes, outside [1, " + std::to_string(kMaxFrameColourBytes) + "]");
+    }
+    colour_bytes = static_cast<std::uint32_t>(frame.colour.size());
+  }
   std::uint8_t rec[kFrameRecordHeaderBytes] = {};
   Put<std::uint64_t>(rec, 0, frame.index);
   Put<double>(rec, 8, frame.stamp_s);
@@ -91,6 +111,7 @@ Status FrameWriter::Append(const Frame& frame) {
   const double pose[7] = {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()};
   for (std::size_t i = 0; i < 7; ++i) Put<double>(rec, 16 + 8 * i, pose[i]);
   Put<std::uint32_t>(rec, 72, n);
+  Put<std::uint32_t>(rec, kOffRecordColourBytes, colour_bytes);
   std::FILE* f = file_.get();
   bool ok = std::fwrite(rec, 1, sizeof(rec), f) == sizeof(rec);
   if (n > 0) {
@@ -98,9 +119,11 @@ Status FrameWriter::Append(const Frame& frame) {
     ok = ok && std::fwrite(frame.keypoints.data(), sizeof(float), 2 * std::size_t{n}, f) ==
                    2 * std::size_t{n};
   }
+  if (colour_bytes > 0) ok = ok && std::fwrite(frame.colour.data(), 1, colour_bytes, f) == colour_bytes;
   if (!ok) return IoError("cannot write frame " + std::to_string(frame.index) + " to " + path_);
   ++info_.frame_count;
   if (n > info_.max_features) info_.max_features = n;
+  if (colour_bytes > info_.max_colour_bytes) info_.max_colour_bytes = colour_bytes;
   last_stamp_s_ = frame.stamp_s;
   return Status::Ok();
 }
@@ -131,9 +154,11 @@ Result<FrameReader> FrameReader::Open(const std::string& path) {
     return Corrupt("frames file " + path + " does not start with the ZMFR magic");
   }
   const auto version = Get<std::uint16_t>(h, kOffVersion);
-  if (version != kFramesVersion) {
+  if (version != kFramesVersion && version != kFramesVersionNoImages) {
     return FailedPrecondition("frames file " + path + " has version " + std::to_string(version) +
-                              ", this build reads version " + std::to_string(kFramesVersion));
+                              ", this build reads versions " +
+                              std::to_string(kFramesVersionNoImages) + " and " +
+                              std::to_string(kFramesVersion));
   }
   if (Get<std::uint16_t>(h, kOffHeaderBytes) != kFramesHeaderBytes) {
     return Corrupt("frames file " + path + " has a header size other than " +
@@ -149,6 +174,21 @@ Result<FrameReader> FrameReader::Open(const std::string& path) {
   info.camera.width = Get<std::uint32_t>(h, kOffWidth);
   info.camera.height = Get<std::uint32_t>(h, kOffHeight);
   info.rate_hz = Get<double>(h, kOffRate);
+  info.max_colour_bytes = version >= 2 ? Get<std::uint32_t>(h, kOffMaxColour) : 0;
+  info.image_width = version >= 2 ? Get<std::uint32_t>(h, kOffImageWidth) : 0;
+  info.image_height = version >= 2 ? Get<std::uint32_t>(h, kOffImageHeight) : 0;
+  if (info.max_colour_bytes > 0 &&
+      (info.image_width == 0 || info.image_height == 0 || info.image_width > kMaxDenseSide ||
+       info.image_height > kMaxDenseSide)) {
+    return Corrupt("frames file " + path + " has images of " + std::to_string(info.image_width) +
+                   "x" + std::to_string(info.image_height) + ", outside [1, " +
+                   std::to_string(kMaxDenseSide) + "] per side");
+  }
+  if (info.max_colour_bytes > kMaxFrameColourBytes) {
+    return Corrupt("frames file " + path + " claims colour images of " +
+                   std::to_string(info.max_colour_bytes) + " bytes, limit " +
+                   std::to_string(kMaxFrameColourBytes));
+  }
   if (info.max_features > kMaxFeaturesPerKeyframe) {
     return Corrupt("frames file " + path + " claims " + std::to_string(info.max_features) +
                    " features per frame, limit " + std::to_string(kMaxFeaturesPerKeyframe));
@@ -175,6 +215,11 @@ Result<bool> FrameReader::Next(Frame* frame) {
   const auto index = Get<std::uint64_t>(rec, 0);
   const auto stamp = Get<double>(rec, 8);
   const auto n = Get<std::uint32_t>(rec, 72);
+  const auto colour_bytes = Get<std::uint32_t>(rec, kOffRecordColourBytes);
+  if (colour_bytes > info_.max_colour_bytes) {
+    return Corrupt(where() + " has a colour image of " + std::to_string(colour_bytes) +
+                   " bytes, header limit " + std::to_string(info_.max_colour_bytes));
+  }
   if (index != next_index_) {
     return Corrupt(where() + " has index " + std::to_string(index));
   }
@@ -205,7 +250,15 @@ Result<bool> FrameReader::Next(Frame* frame) {
             2 * std::size_t{n};
     if (!ok) return Corrupt(where() + " is truncated inside its features");
   }
-  offset_ += kFrameRecordHeaderBytes + std::size_t{n} * (kDescriptorBytes + 2 * sizeof(float));
+  frame->colour.resize(colour_bytes);
+  frame->colour_codec = colour_bytes > 0 ? ImageCodec::kJpeg : ImageCodec::kNone;
+  frame->depth.clear();
+  frame->depth_codec = ImageCodec::kNone;
+  if (colour_bytes > 0 && std::fread(frame->colour.data(), 1, colour_bytes, f) != colour_bytes) {
+    return Corrupt(where() + " is truncated inside its colour image");
+  }
+  offset_ += kFrameRecordHeaderBytes + std::size_t{n} * (kDescriptorBytes + 2 * sizeof(float)) +
+             colour_bytes;
   last_stamp_s_ = stamp;
   ++next_index_;
   return true;

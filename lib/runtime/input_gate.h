@@ -103,6 +103,7 @@ class GatedFrameSource final : public FrameSource {
   void Attach(const InputOptions& options, const MapExtent& extent, const Pose3* map_from_odom);
   Result<bool> Next(Frame* frame) override;
   [[nodiscard]] std::uint32_t max_features() const override { return inner_.max_features(); }
+  [[nodiscard]] Images images() const override { return inner_.images(); }
   [[nodiscard]] std::uint64_t malformed_lines() const override {
     return inner_.malformed_lines() + rejects_.total;
   }

@@ -4,6 +4,18 @@
 
 namespace zm {
 
+const char* LoopStageName(LoopStage stage) {
+  switch (stage) {
+    case LoopStage::kFeatures: return "features";
+    case LoopStage::kQuantize: return "quantize";
+    case LoopStage::kLikelihood: return "likelihood";
+    case LoopStage::kVerify: return "verify";
+    case LoopStage::kMemory: return "memory";
+  }
+  return "?";
+}
+
+
 const char* TickStepName(TickStep step) {
   switch (step) {
     case TickStep::kReadFrame: return "read";

@@ -37,6 +37,15 @@ struct TelemetryOptions {
   std::uint32_t flush_ticks = 10;  // flush ticks.jsonl every N ticks (and at exit)
 };
 
+// Where a tick's time goes, as RTAB-Map reports it (issue 26): the front-end (decoding the
+// frame's image and extracting ORB), the frame's bag of words, the likelihood over the resident
+// keyframes, the candidates' matching and PnP, and memory management (the policy's plans,
+// unloads, loads and the inverted index kept equal to the resident set). They sum to the tick's
+// time less reading the frame and recording.
+enum class LoopStage : int { kFeatures, kQuantize, kLikelihood, kVerify, kMemory };
+inline constexpr int kLoopStageCount = 5;
+[[nodiscard]] const char* LoopStageName(LoopStage stage);
+
 struct TickRecord {
   std::uint64_t tick = 0;
   double stamp_s = 0.0;
@@ -86,6 +95,11 @@ struct TickRecord {
   std::uint32_t candidates = 0;
   bool stalled = false;                    // a step failed this tick (counted in the totals)
   double step_ms[kTickStepCount] = {};
+  double stage_ms[kLoopStageCount] = {};
+  std::uint32_t features = 0;           // the frame's features (extracted or carried)
+  bool frame_refused = false;           // its image could not be used: the tick ran on odometry
+  float likelihood = 0.0f;              // the highest hypothesis' (vocabulary maps)
+  std::uint64_t postings_walked = 0;    // the likelihood's work (vocabulary maps)
   double tick_ms = 0.0;
 };
 

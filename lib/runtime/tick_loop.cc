@@ -6,6 +6,7 @@
 #include <cmath>
 #include <utility>
 
+#include "localization/map_vocabulary.h"
 #include "runtime/map_setup.h"
 
 namespace zm {
@@ -97,10 +98,23 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   LocalizerConfig lc = config.localizer;
   lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes, budget.arena_slots);
   lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, frames.max_features());
+  const FrameSource::Images images = frames.images();
+  if (images.max_colour_bytes > 0) {
+    // Camera frames: the loop extracts their features itself, inside the tick.
+    lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, config.orb.max_features);
+    ZM_ASSIGN_OR_RETURN(loop->front_end_,
+                        FrontEnd::Create(config.orb, meta.camera, images.width, images.height));
+  }
   ZM_RETURN_IF_ERROR(ValidateLocalizerConfig(lc, meta.camera));
   loop->localizer_ = std::make_unique<Localizer>(lc, meta.camera);
+  // The map's vocabulary, when it has one: the localizer's likelihood over the resident set.
+  ZM_ASSIGN_OR_RETURN(loop->vocabulary_, LoadMapVocabulary(map, "the map"));
+  if (loop->vocabulary_.has_value()) {
+    ZM_RETURN_IF_ERROR(loop->localizer_->UseVocabulary(&*loop->vocabulary_, budget.arena_slots));
+  }
 
-  loop->frame_.Reserve(std::max<std::uint32_t>(frames.max_features(), 1));
+  loop->frame_.Reserve(std::max<std::uint32_t>({frames.max_features(), config.orb.max_features, 1}),
+                       images.max_colour_bytes);
   loop->resident_views_.reserve(budget.arena_slots);
   loop->frame_period_s_ = 1.0 / config.loop.rate_hz;
   // Keyframe body poses in MapIndex order (ascending id), for the localizer's heading gate.
@@ -154,6 +168,22 @@ Result<bool> TickLoop::Tick() {
   record_ = TickRecord{};
   tel_ = TickTelemetry{};
   record_.step_ms[static_cast<int>(TickStep::kReadFrame)] = MsSince(t0);
+  // A camera frame: its features from its image, here in the tick (the features stage).
+  if (frame_.has_image()) {
+    FrontEndTimes fe;
+    Status s = front_end_ != nullptr
+                   ? front_end_->Process(&frame_, &fe)
+                   : FailedPrecondition("frame " + std::to_string(frame_.index) +
+                                        " has an image but the source declared none");
+    record_.stage_ms[static_cast<int>(LoopStage::kFeatures)] = fe.decode_ms + fe.extract_ms;
+    if (!s.ok()) {
+      // Refused: no features, so the localizer does nothing and the tick runs on odometry.
+      record_.frame_refused = true;
+      ++totals_.frames_refused;
+      if (totals_.first_frame_error.ok()) totals_.first_frame_error = std::move(s);
+    }
+  }
+  record_.features = frame_.feature_count();
   // What the idle parts since the last tick did (Idle()).
   record_.idle_load_ms = std::exchange(idle_ms_, 0.0);
   record_.idle_keyframes_loaded = std::exchange(idle_keyframes_, 0U);
@@ -216,7 +246,7 @@ Result<bool> TickLoop::Tick() {
   for (const WorkingSet::Resident& r : working_set_->resident()) {
     auto view = DecodePayload(arena_.Slot(r.slot), {.verify_crc = false}, /*blob_is_slot=*/true);
     if (!view.ok()) continue;  // cannot happen for a slot the loader validated
-    resident_views_.push_back({r.id, keyframe_poses_[r.index], view.value()});
+    resident_views_.push_back({r.id, keyframe_poses_[r.index], view.value(), r.slot});
   }
   const LocalizeResult loc = localizer_->Localize(frame_, predicted, resident_views_);
   Pose3 estimate = predicted;
@@ -233,6 +263,21 @@ Result<bool> TickLoop::Tick() {
     if (!s.ok()) NoteError(s);
   }
   record_.step_ms[static_cast<int>(TickStep::kLocalize)] = MsSince(t0);
+  double* stage = record_.stage_ms;
+  stage[static_cast<int>(LoopStage::kQuantize)] = loc.quantize_ms;
+  stage[static_cast<int>(LoopStage::kLikelihood)] = loc.likelihood_ms;
+  stage[static_cast<int>(LoopStage::kVerify)] = loc.verify_ms;
+  // Memory management: the plans, unloads and loads, and keeping the index equal to the
+  // resident set (the after-localization plan is the localize step's remainder).
+  stage[static_cast<int>(LoopStage::kMemory)] =
+      record_.step_ms[static_cast<int>(TickStep::kPoseUpdate)] +
+      record_.step_ms[static_cast<int>(TickStep::kZoneLookup)] +
+      record_.step_ms[static_cast<int>(TickStep::kPlan)] +
+      record_.step_ms[static_cast<int>(TickStep::kApply)] + loc.index_ms +
+      std::max(0.0, record_.step_ms[static_cast<int>(TickStep::kLocalize)] - loc.index_ms -
+                        loc.quantize_ms - loc.likelihood_ms - loc.verify_ms);
+  record_.likelihood = loc.highest_likelihood;
+  record_.postings_walked = loc.postings_walked;
 
   // 7. Record.
   t0 = Clock::now();

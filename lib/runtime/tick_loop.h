@@ -56,6 +56,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -64,6 +65,7 @@
 #include "common/status.h"
 #include "geometry/pose.h"
 #include "localization/frame.h"
+#include "localization/front_end.h"
 #include "localization/localizer.h"
 #include "mapdb/map_db.h"
 #include "memory/ltm_graph.h"
@@ -98,6 +100,9 @@ struct LoopConfig {
   LoadSliceOptions loads;
   ZoneIndexOptions zones;
   LocalizerConfig localizer;
+  // The front-end's extractor for camera frames: must be the options the map's keyframes were
+  // extracted with (the simulator and the importers use these defaults).
+  OrbOptions orb;
   LoopOptions loop;
 };
 
@@ -124,6 +129,8 @@ struct StartupTotals {
 struct LoopTotals {
   std::uint64_t ticks = 0;
   std::uint64_t loop_closures = 0;
+  std::uint64_t frames_refused = 0;  // camera frames whose image could not be used (odometry only)
+  Status first_frame_error;          // the first refused frame's reason
   std::uint64_t closures_rejected = 0;
   std::uint64_t keyframes_loaded = 0;
   std::uint64_t keyframes_unloaded = 0;
@@ -294,6 +301,10 @@ class TickLoop {
   std::unique_ptr<DecideStep> decide_;   // the policy, its plan and the tick's context
   std::unique_ptr<WorkingSet> working_set_;
   std::unique_ptr<Localizer> localizer_;
+  // Camera frames (issue 26): the front-end that extracts the frame's features inside the tick,
+  // and the map's vocabulary the localizer scores with (either may be absent).
+  std::unique_ptr<FrontEnd> front_end_;
+  std::optional<Vocabulary> vocabulary_;
   std::vector<ZoneId> route_;
   std::vector<ZoneId> route_scratch_;  // SetRoute builds here, then swaps (same capacity)
   double frame_period_s_ = 1.0;

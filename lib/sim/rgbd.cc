@@ -7,13 +7,15 @@
 #include <cmath>
 #include <cstring>
 
+#include <memory>
+#include <opencv2/imgproc.hpp>
+
 #include "mapdb/dense_codec.h"
 #include "mapdb/keyframe_payload.h"
+#include "sim/appearance.h"
 
 namespace zm::sim {
 namespace {
-
-using Rgb = std::array<float, 3>;
 
 constexpr Rgb kWallPalette[] = {{205, 222, 200}, {232, 226, 205}, {200, 215, 230},
                                 {238, 238, 232}, {236, 228, 190}, {215, 215, 215}};
@@ -22,12 +24,6 @@ constexpr Rgb kFloor = {170, 168, 160};
 constexpr Rgb kCeiling = {232, 232, 226};
 constexpr Rgb kFar = {60, 60, 64};  // nothing within the cast range
 
-std::uint64_t Mix(std::uint64_t x) {  // SplitMix64's finaliser
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
 
 // Floor without SSE4.1's roundss (the builds target baseline x86-64 and ARMv8-A).
 float FastFloor(float v) {
@@ -43,7 +39,50 @@ struct Column {
   Rgb base{};           // wall colour with the face shading
   float along_m = 0.0f; // coordinate along the wall (panel seams)
   bool furniture = false;
+  float face = 1.0f;    // face shading (kTextured applies it per pixel)
+  WallSurface surface;  // kTextured
 };
+
+// Distance along the face from the hit point to where the wall ends at free space (a doorway
+// or a corridor's mouth), looking one cell each way along the face; far when it goes on.
+float WallEnd(const SimGrid& grid, const RayHit& hit, const Eigen::Vector2d& p) {
+  const double res = grid.resolution_m;
+  float end = 1e9f;
+  if (hit.x_face) {  // the face runs along y
+    const double lo = grid.origin_m.y() + hit.row * res;
+    if (grid.Free(hit.col, hit.row - 1)) end = std::min(end, static_cast<float>(p.y() - lo));
+    if (grid.Free(hit.col, hit.row + 1)) end = std::min(end, static_cast<float>(lo + res - p.y()));
+  } else {
+    const double lo = grid.origin_m.x() + hit.col * res;
+    if (grid.Free(hit.col - 1, hit.row)) end = std::min(end, static_cast<float>(p.x() - lo));
+    if (grid.Free(hit.col + 1, hit.row)) end = std::min(end, static_cast<float>(lo + res - p.x()));
+  }
+  return end;
+}
+
+// Horizontal box blur of `px` pixels over each row of an RGB image, in place, with one row of
+// scratch: the smear of a camera turning during its exposure.
+void BlurRows(std::uint8_t* rgb, std::uint32_t width, std::uint32_t height, float px,
+              std::vector<std::uint8_t>* row) {
+  const int half = static_cast<int>(px * 0.5f);
+  if (half < 1) return;
+  const int w = static_cast<int>(width);
+  row->resize(std::size_t{width} * 3);
+  for (std::uint32_t v = 0; v < height; ++v) {
+    std::uint8_t* r = rgb + std::size_t{v} * width * 3;
+    std::copy(r, r + std::size_t{width} * 3, row->begin());
+    for (int ch = 0; ch < 3; ++ch) {
+      int sum = 0;
+      for (int u = -half; u <= half; ++u) sum += (*row)[3 * static_cast<std::size_t>(std::clamp(u, 0, w - 1)) + static_cast<std::size_t>(ch)];
+      const int n = 2 * half + 1;
+      for (int u = 0; u < w; ++u) {
+        r[3 * u + ch] = static_cast<std::uint8_t>(sum / n);
+        sum += (*row)[3 * static_cast<std::size_t>(std::min(u + half + 1, w - 1)) + static_cast<std::size_t>(ch)] -
+               (*row)[3 * static_cast<std::size_t>(std::max(u - half, 0)) + static_cast<std::size_t>(ch)];
+      }
+    }
+  }
+}
 
 }  // namespace
 
@@ -74,7 +113,10 @@ Status ValidateDenseOptions(const DenseOptions& o) {
 void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
                 const CameraModel& camera, const LandmarkMap& landmarks,
                 std::span<const VisibleLandmark> visible, std::uint32_t width, std::uint32_t height,
-                const DenseOptions& dense, std::uint64_t seed, RgbdImage* out) {
+                const DenseOptions& dense, std::uint64_t seed, RgbdImage* out,
+                const FrameLight& light) {
+  const bool textured = dense.style == SurfaceStyle::kTextured;
+  const SurfaceLook look(dense.decor_seed);
   const double range_m = dense.range_m;
   const auto sigma_a = static_cast<float>(dense.depth_sigma_m);
   const auto sigma_b = static_cast<float>(dense.depth_sigma_per_m);
@@ -121,8 +163,19 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
     const Eigen::Vector2d p = eye + hit.distance_m * dir;
     c.along_m = static_cast<float>(hit.x_face ? p.y() : p.x());
     c.furniture = grid.InBounds(hit.col, hit.row) && fl.furniture[grid.Index(hit.col, hit.row)] != 0;
+    if (textured) {
+      const int line = hit.x_face ? hit.col : hit.row;
+      const bool positive = hit.x_face ? dir.x() < 0.0 : dir.y() < 0.0;  // seen from +x / +y
+      c.surface.along_m = c.along_m;
+      c.surface.face_key = FaceKey(hit.x_face, line, positive, floor);
+      c.surface.block_key = BlockKey(hit.col, hit.row, c.furniture, floor);
+      c.surface.end_m = c.furniture ? 1e9f : WallEnd(grid, hit, p);
+      c.surface.furniture = c.furniture;
+      c.face = hit.x_face ? 0.82f : 1.0f;
+      continue;
+    }
     const std::uint64_t block =
-        Mix((static_cast<std::uint64_t>(static_cast<std::uint32_t>(hit.col >> (c.furniture ? 3 : 5))) << 32) ^
+        Mix64((static_cast<std::uint64_t>(static_cast<std::uint32_t>(hit.col >> (c.furniture ? 3 : 5))) << 32) ^
             static_cast<std::uint32_t>(hit.row >> (c.furniture ? 3 : 5)) ^
             (static_cast<std::uint64_t>(floor) << 58));
     c.base = c.furniture ? kFurniturePalette[block % std::size(kFurniturePalette)]
@@ -135,10 +188,12 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
   const float fxw = static_cast<float>(fwd.x()), fyw = static_cast<float>(fwd.y());
   const float rxw = static_cast<float>(right.x()), ryw = static_cast<float>(right.y());
   // Per-column wall colour with distance shading, so a wall pixel only applies its bands.
+  // (kTextured keeps only the distance shading, in channel 0: the colour is per pixel.)
   std::vector<Rgb> wall_rgb(width);
   for (std::uint32_t u = 0; u < width; ++u) {
     const float shade = std::isfinite(cols[u].z) ? 1.0f / (1.0f + 0.08f * cols[u].z) : 1.0f;
-    wall_rgb[u] = {cols[u].base[0] * shade, cols[u].base[1] * shade, cols[u].base[2] * shade};
+    wall_rgb[u] = textured ? Rgb{shade, shade, shade}
+                           : Rgb{cols[u].base[0] * shade, cols[u].base[1] * shade, cols[u].base[2] * shade};
   }
   // Sensor noise in grey levels, uniform over -4..4 (both halves of the table sum to 0).
   static constexpr float kNoise[16] = {-4, -3, -2, -1, 0, 1, 2, 3, 4, -3, -2, -1, 0, 1, 2, 3};
@@ -161,7 +216,7 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
     const float plane_shade = 1.0f / (1.0f + 0.08f * plane_z);
     const float seam = is_floor ? 0.03f : 0.02f;
     // A xorshift64* stream per row: one multiply a pixel.
-    std::uint64_t state = Mix(seed ^ (std::uint64_t{v} * 0xD1B54A32D192ED03ULL)) | 1u;
+    std::uint64_t state = Mix64(seed ^ (std::uint64_t{v} * 0xD1B54A32D192ED03ULL)) | 1u;
     std::uint8_t* rgb_row = rgb + std::size_t{v} * width * 3;
     std::uint16_t* depth_row = depth + std::size_t{v} * width;
     for (std::uint32_t u = 0; u < width; ++u) {
@@ -172,7 +227,25 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
       const Column& col = cols[u];
       float z;
       Rgb c;
-      if (col.z <= plane_z) {
+      if (textured) {
+        if (col.z <= plane_z) {
+          z = col.z;
+          if (!std::isfinite(z)) {
+            c = kFar;
+          } else {
+            const Rgb wall = look.Wall(col.surface, cam_h - yn * z);
+            const float shade = col.face * wall_rgb[u][0];  // distance shading (see above)
+            c = {wall[0] * shade, wall[1] * shade, wall[2] * shade};
+          }
+        } else {
+          z = plane_z;
+          const float wx = ex + plane_z * (fxw + rxw * xn_of[u]);
+          const float wy = ey + plane_z * (fyw + ryw * xn_of[u]);
+          const Rgb surf = is_floor ? look.Floor(wx, wy) : look.Ceiling(wx, wy);
+          c = {surf[0] * plane_shade, surf[1] * plane_shade, surf[2] * plane_shade};
+        }
+        for (float& ch : c) ch = ch * light.gain + light.offset;
+      } else if (col.z <= plane_z) {
         z = col.z;
         if (!std::isfinite(z)) {
           c = kFar;
@@ -217,6 +290,12 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
     }
   }
 
+  if (textured) {
+    // Nothing of a landmark is drawn: the image is the building's alone.
+    thread_local std::vector<std::uint8_t> blur_row;
+    if (light.blur_px >= 1.5f) BlurRows(rgb, width, height, light.blur_px, &blur_row);
+    return;
+  }
   // Landmarks as spots (they are what the features describe): radius 1.6 px at 640 wide.
   const auto& lms = landmarks.landmarks();
   const double radius = std::max(1.0, 1.6 * sx);
@@ -240,18 +319,11 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
   }
 }
 
-Status RenderKeyframe(const Building& building, const LandmarkMap& landmarks, int floor,
-                      const Pose3& t_map_body, const CameraModel& camera, const NoiseOptions& noise,
-                      const DenseOptions& dense, std::uint32_t width, std::uint32_t height,
-                      KeyframeId id, Rng& rng, RenderedKeyframe* out) {
-  std::vector<VisibleLandmark> visible;
-  landmarks.Visible(building, floor, t_map_body, camera, &visible);
-  MakeFeatures(landmarks, visible, t_map_body, camera, noise, /*with_points=*/false, rng, &out->features);
-  const std::uint64_t image_seed = rng.Next();
-  // One image buffer per worker thread, reused: no page faults and no zero-fill per keyframe.
-  thread_local RgbdImage img;
-  RenderRgbd(building, floor, t_map_body, camera, landmarks, visible, width, height, dense, image_seed,
-             &img);
+namespace {
+
+// The dense payload of a keyframe whose features are in out->features.
+Status EncodeDenseKeyframe(const RgbdImage& img, const DenseOptions& dense, std::uint32_t width,
+                           std::uint32_t height, KeyframeId id, RenderedKeyframe* out) {
   ZM_ASSIGN_OR_RETURN(std::vector<std::byte> jpeg, EncodeJpegRgb(img.rgb, width, height, dense.jpeg_quality));
   const std::vector<std::byte> rvl = EncodeRvlDepth(img.depth);
   std::vector<std::byte> both(jpeg.size() + rvl.size());
@@ -276,6 +348,55 @@ Status RenderKeyframe(const Building& building, const LandmarkMap& landmarks, in
                        width, height, dense.cloud_step, /*points_from_depth=*/true)
           .end);
   return Status::Ok();
+}
+
+}  // namespace
+
+Status RenderKeyframe(const Building& building, const LandmarkMap& landmarks, int floor,
+                      const Pose3& t_map_body, const CameraModel& camera, const NoiseOptions& noise,
+                      const DenseOptions& dense, std::uint32_t width, std::uint32_t height,
+                      KeyframeId id, Rng& rng, RenderedKeyframe* out) {
+  std::vector<VisibleLandmark> visible;
+  landmarks.Visible(building, floor, t_map_body, camera, &visible);
+  MakeFeatures(landmarks, visible, t_map_body, camera, noise, /*with_points=*/false, rng, &out->features);
+  const std::uint64_t image_seed = rng.Next();
+  // One image buffer per worker thread, reused: no page faults and no zero-fill per keyframe.
+  thread_local RgbdImage img;
+  RenderRgbd(building, floor, t_map_body, camera, landmarks, visible, width, height, dense, image_seed,
+             &img);
+  return EncodeDenseKeyframe(img, dense, width, height, id, out);
+}
+
+Status RenderKeyframeFromPixels(const Building& building, int floor, const Pose3& t_map_body,
+                                const CameraModel& camera, const DenseOptions& dense,
+                                std::uint32_t width, std::uint32_t height, KeyframeId id,
+                                std::uint64_t image_seed, OrbExtractor& extractor,
+                                RenderedKeyframe* out) {
+  static const LandmarkMap kNoLandmarks;
+  DenseOptions textured = dense;
+  textured.style = SurfaceStyle::kTextured;
+  thread_local RgbdImage img;
+  RenderRgbd(building, floor, t_map_body, camera, kNoLandmarks, {}, width, height, textured,
+             image_seed, &img);
+  thread_local cv::Mat grey;
+  const cv::Mat rgb(static_cast<int>(height), static_cast<int>(width), CV_8UC3, img.rgb.data());
+  cv::cvtColor(rgb, grey, cv::COLOR_RGB2GRAY);
+  thread_local std::unique_ptr<OrbFeatures> features;
+  if (!features || features->capacity() < extractor.options().max_features) {
+    features = std::make_unique<OrbFeatures>(extractor.options().max_features);
+  }
+  ZM_RETURN_IF_ERROR(extractor.Extract(grey, {}, features.get()));
+  const std::uint32_t n = features->count;
+  const float to_x = static_cast<float>(camera.intrinsics.width) / static_cast<float>(width);
+  const float to_y = static_cast<float>(camera.intrinsics.height) / static_cast<float>(height);
+  out->features.Clear();
+  out->features.descriptors.assign(features->descriptors.begin(), features->descriptors.begin() + n);
+  out->features.keypoints.resize(2 * std::size_t{n});
+  for (std::size_t i = 0; i < n; ++i) {
+    out->features.keypoints[2 * i] = features->keypoints[2 * i] * to_x;
+    out->features.keypoints[2 * i + 1] = features->keypoints[2 * i + 1] * to_y;
+  }
+  return EncodeDenseKeyframe(img, textured, width, height, id, out);
 }
 
 }  // namespace zm::sim

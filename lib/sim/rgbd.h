@@ -23,12 +23,27 @@
 #include "common/ids.h"
 #include "common/status.h"
 #include "geometry/pose.h"
+#include "localization/orb_extractor.h"
 #include "mapdb/rvl.h"
 #include "sim/building.h"
 #include "sim/observe.h"
 #include "sim/rng.h"
 
 namespace zm::sim {
+
+// How surfaces look. kFlat: pastel blocks of wall and a coloured spot per visible landmark, the
+// look every figure of the README was measured with so far. kTextured (appearance.h): surfaces
+// textured from world coordinates and a décor seed with repeated décor, no landmark in the
+// image: what a feature detector needs (issue 26 §1).
+enum class SurfaceStyle : std::uint8_t { kFlat, kTextured };
+
+// The camera's exposure for one image: colour = gain * scene + offset (grey levels), then a
+// horizontal box blur of blur_px pixels (motion blur of a turning camera; < 1.5 px: none).
+struct FrameLight {
+  float gain = 1.0f;
+  float offset = 0.0f;
+  float blur_px = 0.0f;
+};
 
 struct DenseOptions {
   // Resolution at footprint scale 1 (the camera's field of view is kept at any resolution).
@@ -48,6 +63,8 @@ struct DenseOptions {
   // (0, 1]: the resident footprint scales by this (the resolution by about its square root),
   // for experiments at a fraction of the device (--device-scale).
   double footprint_scale = 1.0;
+  SurfaceStyle style = SurfaceStyle::kFlat;
+  std::uint64_t decor_seed = 1;  // kTextured: the building's décor (same seed, same look)
 };
 
 // Checks ranges; errors name the option ("--dense", "--cloud-step", ...).
@@ -60,12 +77,14 @@ struct RgbdImage {
   DepthImage16 depth;
 };
 
-// Renders colour and depth seen from body pose `t_map_body` on `floor` at width x height, with the
-// visible landmarks (LandmarkMap::Visible from the same pose) drawn as spots.
+// Renders colour and depth seen from body pose `t_map_body` on `floor` at width x height. kFlat
+// draws the visible landmarks (LandmarkMap::Visible from the same pose) as spots; kTextured
+// ignores `visible` (pass an empty span) and applies `light`.
 void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
                 const CameraModel& camera, const LandmarkMap& landmarks,
                 std::span<const VisibleLandmark> visible, std::uint32_t width, std::uint32_t height,
-                const DenseOptions& dense, std::uint64_t seed, RgbdImage* out);
+                const DenseOptions& dense, std::uint64_t seed, RgbdImage* out,
+                const FrameLight& light = {});
 
 struct RenderedKeyframe {
   std::vector<std::byte> payload;  // EncodePayload blob (kJpegColourRvlDepth, points from depth)
@@ -82,5 +101,17 @@ struct RenderedKeyframe {
                                     const NoiseOptions& noise, const DenseOptions& dense,
                                     std::uint32_t width, std::uint32_t height, KeyframeId id,
                                     Rng& rng, RenderedKeyframe* out);
+
+// Issue 26: a keyframe whose features come from its own pixels. Renders the textured image at
+// width x height (gain 1: the mapping run's exposure), extracts ORB with `extractor` (made for
+// that image size: ScaledIntrinsics of the keypoint camera), keeps the keypoints in the keypoint
+// camera's pixels, and encodes the dense payload like RenderKeyframe (points from the depth on
+// load). Nothing of a landmark is used.
+[[nodiscard]] Status RenderKeyframeFromPixels(const Building& building, int floor,
+                                              const Pose3& t_map_body, const CameraModel& camera,
+                                              const DenseOptions& dense, std::uint32_t width,
+                                              std::uint32_t height, KeyframeId id,
+                                              std::uint64_t image_seed, OrbExtractor& extractor,
+                                              RenderedKeyframe* out);
 
 }  // namespace zm::sim

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -16,6 +17,8 @@
 
 #include "geometry/trajectory.h"
 #include "localization/camera.h"
+#include "localization/map_vocabulary.h"
+#include "mapdb/dense_codec.h"
 #include "mapdb/map_db.h"
 #include "runtime/frames_file.h"
 #include "sim/progress.h"
@@ -152,6 +155,27 @@ struct KeyframeOut {
 };
 
 constexpr std::uint64_t kStreamProbe = 90'000'000;
+constexpr std::uint64_t kStreamLighting = 14;
+
+// Renders one keyframe at width x height (oracle features or ORB from its pixels).
+using KeyframeRenderer = std::function<Status(const PoseSample&, std::uint32_t, std::uint32_t,
+                                              KeyframeId, Rng&, RenderedKeyframe*)>;
+
+// The calling thread's extractor for images of width x height (ORB keyframes and frames render
+// on worker threads; an extractor is not thread-safe).
+Result<OrbExtractor*> ThreadExtractor(const ScenarioOptions& o, std::uint32_t width,
+                                      std::uint32_t height) {
+  thread_local std::unique_ptr<OrbExtractor> extractor;
+  thread_local std::uint32_t made_w = 0, made_h = 0;
+  if (!extractor || made_w != width || made_h != height) {
+    ZM_ASSIGN_OR_RETURN(OrbExtractor e,
+                        OrbExtractor::Create(o.orb, ScaledIntrinsics(o.camera.intrinsics, width, height)));
+    extractor = std::make_unique<OrbExtractor>(std::move(e));
+    made_w = width;
+    made_h = height;
+  }
+  return extractor.get();
+}
 
 // The dense resolution whose resident footprint is footprint_scale x the full one. The resident
 // bytes of a keyframe are a per-feature part (descriptors, keypoints, decoded points: fixed by the
@@ -159,9 +183,9 @@ constexpr std::uint64_t kStreamProbe = 90'000'000;
 // to 8 keyframes spread over the run at full resolution measures both, and the pixel count is
 // solved for  F + P * per_pixel = scale * (F + P_full * per_pixel).  Width is a multiple of 8
 // (JPEG blocks), height keeps the aspect.
-Status ChooseDenseResolution(const Building& b, const LandmarkMap& landmarks,
-                             const std::vector<PoseSample>& kf, const ScenarioOptions& o,
-                             std::uint32_t* width, std::uint32_t* height) {
+Status ChooseDenseResolution(const std::vector<PoseSample>& kf, const ScenarioOptions& o,
+                             const KeyframeRenderer& render_keyframe, std::uint32_t* width,
+                             std::uint32_t* height) {
   const std::size_t probes = std::min<std::size_t>(8, kf.size());
   std::vector<double> resident(probes, 0.0), fixed(probes, 0.0);
   std::vector<Status> status(probes);
@@ -169,8 +193,7 @@ Status ChooseDenseResolution(const Building& b, const LandmarkMap& landmarks,
     const std::size_t i = p * kf.size() / probes;
     Rng rng(o.seed, kStreamProbe + p);
     RenderedKeyframe r;
-    status[p] = RenderKeyframe(b, landmarks, kf[i].floor, kf[i].pose(), o.camera, o.noise, o.dense,
-                               o.dense.width, o.dense.height, KeyframeId(1), rng, &r);
+    status[p] = render_keyframe(kf[i], o.dense.width, o.dense.height, KeyframeId(1), rng, &r);
     const auto n = static_cast<std::uint32_t>(r.features.descriptors.size());
     resident[p] = r.resident_bytes;
     fixed[p] = static_cast<double>(PayloadSize(n, 0, /*points_on_disk=*/false)) + 12.0 * n;
@@ -217,6 +240,13 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return IoError("cannot create output folder " + dir + ": " + ec.message());
+
+  const bool pixels = o.features == FeatureSource::kOrb;
+  if (pixels) ZM_RETURN_IF_ERROR(ValidateOrbOptions(o.orb));
+  // ORB from pixels draws the textured look (nothing of a landmark); the oracle keeps the flat
+  // look with its landmark spots, byte for byte what it was.
+  DenseOptions dense = o.dense;
+  dense.style = pixels ? SurfaceStyle::kTextured : SurfaceStyle::kFlat;
 
   ScenarioReport report;
   report.zones = b.zones.size();
@@ -300,9 +330,20 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
 
   // The dense resolution: the configured one, or the one whose resident footprint is
   // footprint_scale times it (ChooseDenseResolution).
+  const KeyframeRenderer render_keyframe = [&](const PoseSample& s, std::uint32_t w,
+                                                std::uint32_t h, KeyframeId id, Rng& rng,
+                                                RenderedKeyframe* out) -> Status {
+    if (!pixels) {
+      return RenderKeyframe(b, landmarks, s.floor, s.pose(), o.camera, o.noise, dense, w, h, id,
+                            rng, out);
+    }
+    ZM_ASSIGN_OR_RETURN(OrbExtractor * extractor, ThreadExtractor(o, w, h));
+    return RenderKeyframeFromPixels(b, s.floor, s.pose(), o.camera, dense, w, h, id, rng.Next(),
+                                    *extractor, out);
+  };
   std::uint32_t dense_w = o.dense.width, dense_h = o.dense.height;
   if (o.dense.footprint_scale < 1.0 && !kf_samples.empty()) {
-    ZM_RETURN_IF_ERROR(ChooseDenseResolution(b, landmarks, kf_samples, o, &dense_w, &dense_h));
+    ZM_RETURN_IF_ERROR(ChooseDenseResolution(kf_samples, o, render_keyframe, &dense_w, &dense_h));
   }
   report.dense_width = dense_w;
   report.dense_height = dense_h;
@@ -310,8 +351,7 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     const PoseSample& s = kf_samples[i];
     Rng rng(o.seed, kStreamKeyframe + i);
     RenderedKeyframe kf;
-    out->status = RenderKeyframe(b, landmarks, s.floor, s.pose(), o.camera, o.noise, o.dense, dense_w,
-                                 dense_h, KeyframeId(static_cast<std::int64_t>(i + 1)), rng, &kf);
+    out->status = render_keyframe(s, dense_w, dense_h, KeyframeId(static_cast<std::int64_t>(i + 1)), rng, &kf);
     out->payload = std::move(kf.payload);
     out->features = static_cast<std::uint32_t>(kf.features.descriptors.size());
     out->resident_bytes = kf.resident_bytes;
@@ -414,6 +454,17 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
   std::filesystem::rename(db_path, final_db_path, ec);
   if (ec) return IoError("renaming " + db_path + " to " + final_db_path + ": " + ec.message());
   ZM_RETURN_IF_ERROR(WriteGeoJson(zone_set, dir + "/zones.geojson"));
+  if (pixels) {
+    // The map's vocabulary, from its own keyframes (zonemap vocab does the same on any map).
+    const auto t_vocab = std::chrono::steady_clock::now();
+    MapVocabularyOptions vo;
+    vo.word_features = o.orb.word_features;
+    vo.max_keyframes = o.vocabulary_max_keyframes;
+    ZM_ASSIGN_OR_RETURN(MapVocabularyReport vr, TrainAndStoreMapVocabulary(final_db_path, vo));
+    report.vocabulary_words = vr.words;
+    report.vocabulary_bytes = vr.memory_bytes;
+    report.vocabulary_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_vocab).count();
+  }
 
   // --- Localization run: a patrol of tasks with revisits.
   const double period = 1.0 / o.rate_hz;
@@ -462,6 +513,18 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
   const std::vector<Pose3> odom = Odometry(truth, o.drift, o.seed);
   {
     ZM_ASSIGN_OR_RETURN(FrameWriter fw, FrameWriter::Create(dir + "/frames.bin", o.camera.intrinsics, o.rate_hz));
+    if (pixels) fw.SetImageSize(dense_w, dense_h);
+    // This run's exposure against the mapping run's (gain 1, offset 0).
+    double run_gain = 1.0, run_offset = 0.0;
+    if (pixels) {
+      Rng light_rng(o.seed, kStreamLighting);
+      run_gain = 1.0 + light_rng.Uniform(-o.lighting.gain_spread, o.lighting.gain_spread);
+      run_offset = light_rng.Uniform(-o.lighting.offset_spread, o.lighting.offset_spread);
+    }
+    report.lighting_gain = run_gain;
+    report.lighting_offset = run_offset;
+    std::uint64_t jpeg_total = 0;
+    const auto t_frames = std::chrono::steady_clock::now();
     Progress progress(o.progress, "frames", truth.size());
     constexpr std::size_t kChunk = 512;
     std::vector<Frame> chunk;
@@ -469,29 +532,61 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     for (std::size_t c0 = 0; c0 < truth.size(); c0 += kChunk) {
       const std::size_t n = std::min(kChunk, truth.size() - c0);
       chunk.assign(n, Frame{});
+      std::vector<Status> frame_status(n);
       ParallelFor(n, o.threads, [&](std::size_t k) {
         const std::size_t i = c0 + k;
         const Pose3 pose = truth[i].pose();
         Rng rng(o.seed, kStreamFrame + i);
-        std::vector<VisibleLandmark> visible;
-        landmarks.Visible(b, truth[i].floor, pose, o.camera, &visible);
-        FeatureSet fs;
-        MakeFeatures(landmarks, visible, pose, o.camera, o.noise, /*with_points=*/false, rng, &fs);
         Frame& f = chunk[k];
         f.index = i;
         f.stamp_s = truth[i].t_s;
         f.odom = odom[i];
+        if (pixels) {
+          // The camera's frame: rendered, lit as this run is, smeared by the turn, JPEG.
+          FrameLight light;
+          const double t = truth[i].t_s;
+          light.gain = static_cast<float>(run_gain * (1.0 + o.lighting.flicker * std::sin(2.0 * std::numbers::pi * t / 20.0)));
+          light.offset = static_cast<float>(run_offset);
+          if (i > 0 && o.lighting.exposure_s > 0.0) {
+            const double dt = std::max(1e-6, truth[i].t_s - truth[i - 1].t_s);
+            const double yaw_rate = std::abs(std::remainder(truth[i].yaw - truth[i - 1].yaw, 2.0 * std::numbers::pi)) / dt;
+            light.blur_px = static_cast<float>(yaw_rate * o.lighting.exposure_s * o.camera.intrinsics.fx *
+                                               dense_w / o.camera.intrinsics.width);
+          }
+          static const LandmarkMap kNoLandmarks;
+          thread_local RgbdImage img;
+          RenderRgbd(b, truth[i].floor, pose, o.camera, kNoLandmarks, {}, dense_w, dense_h, dense,
+                     rng.Next(), &img, light);
+          auto jpeg = EncodeJpegRgb(img.rgb, dense_w, dense_h, dense.jpeg_quality);
+          if (!jpeg.ok()) {
+            frame_status[k] = jpeg.status();
+            return;
+          }
+          f.colour_codec = ImageCodec::kJpeg;
+          f.colour = std::move(jpeg).value();
+          return;
+        }
+        std::vector<VisibleLandmark> visible;
+        landmarks.Visible(b, truth[i].floor, pose, o.camera, &visible);
+        FeatureSet fs;
+        MakeFeatures(landmarks, visible, pose, o.camera, o.noise, /*with_points=*/false, rng, &fs);
         f.descriptors = std::move(fs.descriptors);
         f.keypoints = std::move(fs.keypoints);
       });
+      for (const Status& st : frame_status) ZM_RETURN_IF_ERROR(st);
       for (const Frame& f : chunk) {
         ZM_RETURN_IF_ERROR(fw.Append(f));
         feature_total += f.feature_count();
+        jpeg_total += f.colour.size();
       }
       progress.Update(c0 + n);
     }
     ZM_RETURN_IF_ERROR(fw.Finish());
-    if (!truth.empty()) report.mean_features_per_frame = feature_total / truth.size();
+    if (!truth.empty()) {
+      report.mean_features_per_frame = feature_total / truth.size();
+      report.frame_jpeg_bytes_mean = static_cast<std::uint32_t>(jpeg_total / truth.size());
+    }
+    report.frames_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_frames).count();
   }
 
   // --- Ground truth, grids, route, metadata.
@@ -573,12 +668,29 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
                            {"max", report.keyframe_bytes_max}, {"mean", report.keyframe_bytes_mean}};
     j["resident_bytes"] = {{"min", report.resident_bytes_min}, {"median", report.resident_bytes_median},
                            {"max", report.resident_bytes_max}, {"mean", report.resident_bytes_mean}};
-    j["features"] = {{"max_per_view", o.noise.max_features},
+    j["features"] = {{"source", pixels ? "orb" : "oracle"},
+                     {"max_per_view", pixels ? o.orb.max_features : o.noise.max_features},
                      {"mean_per_keyframe", report.mean_features_per_keyframe},
                      {"mean_per_frame", report.mean_features_per_frame},
                      {"bit_flip_probability", o.noise.bit_flip_probability},
                      {"pixel_sigma", o.noise.pixel_sigma},
                      {"outlier_ratio", o.noise.outlier_ratio}};
+    if (pixels) {
+      j["orb"] = {{"max_features", o.orb.max_features},   {"word_features", o.orb.word_features},
+                  {"scale_factor", o.orb.scale_factor},   {"levels", o.orb.levels},
+                  {"fast_threshold", o.orb.fast_threshold}};
+      j["frames_images"] = {{"format", "jpeg_rgb"},
+                            {"width", report.dense_width},
+                            {"height", report.dense_height},
+                            {"jpeg_bytes_mean", report.frame_jpeg_bytes_mean}};
+      j["lighting"] = {{"gain", report.lighting_gain},
+                       {"offset", report.lighting_offset},
+                       {"gain_spread", o.lighting.gain_spread},
+                       {"offset_spread", o.lighting.offset_spread},
+                       {"flicker", o.lighting.flicker},
+                       {"exposure_s", o.lighting.exposure_s}};
+      j["vocabulary"] = {{"words", report.vocabulary_words}, {"memory_bytes", report.vocabulary_bytes}};
+    }
     j["mapping"] = {{"keyframe_distance_m", o.keyframe_distance_m},
                     {"keyframe_angle_deg", o.keyframe_angle_deg},
                     {"length_m", report.mapping_length_m}};
@@ -655,6 +767,7 @@ Result<ScenarioInfo> LoadScenario(const std::string& dir) {
     s.resident_bytes_max = j.contains("resident_bytes")
                                ? j.at("resident_bytes").at("max").get<std::uint32_t>()
                                : s.keyframe_bytes_max;
+    if (j.contains("features")) s.features = j.at("features").value("source", "oracle");
     const auto& f = j.at("files");
     const auto file = [&](const char* key) { return dir + "/" + f.at(key).get<std::string>(); };
     s.map_db = file("map_db");

@@ -43,6 +43,25 @@ struct DriftOptions {
   double rot_bias = 0.005;
 };
 
+// Where keyframes' and frames' features come from (issue 26).
+enum class FeatureSource : std::uint8_t {
+  // ORB from rendered pixels: keyframes extract from their textured image at mapping; every
+  // localization frame is rendered and stored as a JPEG in frames.bin, and the loop extracts;
+  // the map gets a vocabulary trained from its keyframes. Nothing derives from a landmark.
+  kOrb,
+  // The descriptor oracle (comparison only, `--features oracle`): each landmark owns a
+  // descriptor that observations copy with bit flips; the images are the flat look with spots.
+  kOracle,
+};
+
+// The localization run's camera against the mapping run's (gain 1, offset 0, no blur).
+struct LightingOptions {
+  double gain_spread = 0.2;    // the run's gain: 1 + U(-spread, spread) (exposure and gain)
+  double offset_spread = 8.0;  // the run's offset: U(-spread, spread) grey levels
+  double flicker = 0.05;       // auto-exposure drift: gain * (1 + flicker sin(2 pi t / 20 s))
+  double exposure_s = 0.01;    // motion blur: |yaw rate| * exposure * fx pixels (0: none)
+};
+
 struct ScenarioOptions {
   std::uint64_t seed = 1;
   CameraModel camera{MakeIntrinsics(640, 480, 90.0), 8.0, 1.0};
@@ -50,6 +69,10 @@ struct ScenarioOptions {
   LandmarkOptions landmarks;
   NoiseOptions noise;
   DenseOptions dense;
+  FeatureSource features = FeatureSource::kOracle;
+  OrbOptions orb;            // kOrb: the one extractor's options (mapping and loop)
+  LightingOptions lighting;  // kOrb: the localization run's images
+  std::uint32_t vocabulary_max_keyframes = 0;  // kOrb: training sample (0: every keyframe)
   MotionOptions motion;
   double robot_radius_m = 0.25;
   double keyframe_distance_m = 0.5;
@@ -88,7 +111,15 @@ struct ScenarioReport {
   double localization_length_m = 0.0;
   double localization_duration_s = 0.0;
   std::uint64_t mean_features_per_keyframe = 0;
-  std::uint64_t mean_features_per_frame = 0;
+  std::uint64_t mean_features_per_frame = 0;  // kOrb: 0 (the loop extracts)
+  // kOrb: the frames' images and the vocabulary.
+  double frames_s = 0.0;  // wall time of rendering + encoding + writing the frames
+  std::uint32_t frame_jpeg_bytes_mean = 0;
+  double lighting_gain = 1.0;
+  double lighting_offset = 0.0;
+  std::uint32_t vocabulary_words = 0;
+  std::uint64_t vocabulary_bytes = 0;
+  double vocabulary_s = 0.0;
 };
 
 // Builds and writes the whole scenario into out_dir (created if missing; files are overwritten).
@@ -110,6 +141,7 @@ struct ScenarioInfo {
   std::uint32_t keyframe_bytes_max = 0;   // largest compressed payload on disk
   std::uint32_t resident_bytes_max = 0;   // largest keyframe once decoded (the slot size)
   double footprint_scale = 1.0;           // `zonemap sim --footprint-scale` (dense.footprint_scale)
+  std::string features = "oracle";        // orb | oracle (scenarios from before issue 26: oracle)
   std::string map_db, zones_geojson, frames_bin, mapping_gt, localization_gt, route_json, map_yaml;
 };
 [[nodiscard]] Result<ScenarioInfo> LoadScenario(const std::string& dir);

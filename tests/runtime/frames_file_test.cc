@@ -105,3 +105,56 @@ TEST_CASE("frames file: a truncated or foreign file is a clear error") {
 
 }  // namespace
 }  // namespace zm
+
+namespace zm {
+namespace {
+
+TEST_CASE("frames file v2: a frame's colour image round-trips; a damaged one is a clear error") {
+  const std::string path = TempPath("zm_frames_images.bin");
+  {
+    auto w = FrameWriter::Create(path, TestCamera(), 10.0);
+    REQUIRE(w.ok());
+    for (std::uint64_t i = 0; i < 3; ++i) {
+      Frame f = MakeFrame(i, 0);  // a camera's frame: no features, an image
+      f.colour_codec = ImageCodec::kJpeg;
+      f.colour.assign(100 + 50 * i, std::byte{static_cast<unsigned char>(i + 1)});
+      REQUIRE(w->Append(f).ok());
+    }
+    Frame png = MakeFrame(3, 0);
+    png.colour_codec = ImageCodec::kPng;
+    png.colour.assign(10, std::byte{1});
+    CHECK(w->Append(png).message().find("not JPEG") != std::string::npos);
+    REQUIRE(w->Finish().ok());
+  }
+  auto r = FrameReader::Open(path);
+  REQUIRE(r.ok());
+  CHECK(r->max_colour_bytes() == 200);
+  Frame f;
+  f.Reserve(r->max_features(), r->max_colour_bytes());
+  for (std::uint64_t i = 0; i < 3; ++i) {
+    test::AllocationCounter counter;
+    auto more = r->Next(&f);
+    CHECK(counter.allocations() == 0);
+    REQUIRE(more.ok());
+    REQUIRE(*more);
+    CHECK(f.has_image());
+    CHECK(f.colour.size() == 100 + 50 * i);
+    CHECK(f.colour.front() == std::byte{static_cast<unsigned char>(i + 1)});
+    CHECK(f.feature_count() == 0);
+  }
+  // Cut inside the last image: the reader names the frame and the image.
+  std::filesystem::resize_file(path, std::filesystem::file_size(path) - 20);
+  auto cut = FrameReader::Open(path);
+  REQUIRE(cut.ok());
+  f.Reserve(0, cut->max_colour_bytes());
+  REQUIRE(cut->Next(&f).ok());
+  REQUIRE(cut->Next(&f).ok());
+  auto last = cut->Next(&f);
+  REQUIRE_FALSE(last.ok());
+  CHECK(last.status().message().find("frame 2") != std::string::npos);
+  CHECK(last.status().message().find("inside its colour image") != std::string::npos);
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace zm

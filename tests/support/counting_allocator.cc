@@ -2,9 +2,13 @@
 // and the C allocator's count (see counting_allocator.h).
 #include "support/counting_allocator.h"
 
+#include "arena/frame_scratch.h"
+#include "arena/scratch_malloc.h"
+
 #include <cerrno>
 #include <cstddef>
 #include <cstdlib>
+#include <cstring>
 #include <new>
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -42,31 +46,49 @@ void* __libc_realloc(void* p, std::size_t n);
 void __libc_free(void* p);
 void* __libc_memalign(std::size_t align, std::size_t n);
 
+// A request inside a ScratchScope is served by the frame scratch, as the programs' allocator
+// (arena/scratch_new.cc) does, and is not a heap allocation: not counted.
 void* malloc(std::size_t n) noexcept {
+  if (void* p = zm::scratch_c::Allocate(n)) return p;
   ++t_mallocs;
   return __libc_malloc(n);
 }
 void* calloc(std::size_t n, std::size_t size) noexcept {
+  if (size != 0 && n > static_cast<std::size_t>(-1) / size) {
+    errno = ENOMEM;
+    return nullptr;
+  }
+  if (void* p = zm::scratch_c::Allocate(n * size)) {
+    std::memset(p, 0, n * size);
+    return p;
+  }
   ++t_mallocs;
   return __libc_calloc(n, size);
 }
 void* realloc(void* p, std::size_t n) noexcept {
+  if (p != nullptr && zm::FrameScratchContains(p)) {
+    void* q = malloc(n);
+    if (q == nullptr) return nullptr;
+    const std::size_t old = zm::scratch_c::Size(p);
+    std::memcpy(q, p, old < n ? old : n);
+    zm::ScratchFree(p);
+    return q;
+  }
   ++t_mallocs;
   return __libc_realloc(p, n);
 }
-void free(void* p) noexcept { __libc_free(p); }
-void* aligned_alloc(std::size_t align, std::size_t n) noexcept {
-  ++t_mallocs;
-  return __libc_memalign(align, n);
+void free(void* p) noexcept {
+  if (p != nullptr && !zm::ScratchFree(p)) __libc_free(p);
 }
 void* memalign(std::size_t align, std::size_t n) noexcept {
+  if (void* p = zm::scratch_c::Allocate(n, align)) return p;
   ++t_mallocs;
   return __libc_memalign(align, n);
 }
+void* aligned_alloc(std::size_t align, std::size_t n) noexcept { return memalign(align, n); }
 int posix_memalign(void** out, std::size_t align, std::size_t n) noexcept {
   if (align < sizeof(void*) || (align & (align - 1)) != 0) return EINVAL;
-  ++t_mallocs;
-  void* p = __libc_memalign(align, n);
+  void* p = memalign(align, n);
   if (p == nullptr) return ENOMEM;
   *out = p;
   return 0;
@@ -93,12 +115,28 @@ thread_local std::uint64_t t_frees = 0;
 thread_local std::uint64_t t_bytes = 0;
 
 void* CountedAlloc(std::size_t n, std::size_t align) {
+  // A request inside a ScratchScope is the frame scratch's, not the heap's (arena/scratch_new.cc
+  // is the programs' version of this hook): not counted as an allocation.
+  if (void* p = zm::ScratchAllocate(n, align)) return p;
   ++t_allocs;
   t_bytes += n;
   if (n == 0) n = 1;
+#if ZM_COUNTING_ASAN
   void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, (n + align - 1) / align * align)
                                               : std::malloc(n);
+#else
+  // Straight to glibc: the interposed malloc above would ask the scratch a second time.
+  ++t_mallocs;
+  void* p = align > alignof(std::max_align_t) ? __libc_memalign(align, n) : __libc_malloc(n);
+#endif
   return p;
+}
+
+void Release(void* p) noexcept {
+  if (p != nullptr && !zm::ScratchFree(p)) {
+    ++t_frees;
+    std::free(p);
+  }
 }
 }  // namespace
 
@@ -126,11 +164,11 @@ void* operator new[](std::size_t n, std::align_val_t a) {
 }
 void* operator new(std::size_t n, const std::nothrow_t&) noexcept { return CountedAlloc(n, 0); }
 void* operator new[](std::size_t n, const std::nothrow_t&) noexcept { return CountedAlloc(n, 0); }
-void operator delete(void* p) noexcept { if (p) { ++t_frees; std::free(p); } }
-void operator delete[](void* p) noexcept { if (p) { ++t_frees; std::free(p); } }
-void operator delete(void* p, std::size_t) noexcept { if (p) { ++t_frees; std::free(p); } }
-void operator delete[](void* p, std::size_t) noexcept { if (p) { ++t_frees; std::free(p); } }
-void operator delete(void* p, std::align_val_t) noexcept { if (p) { ++t_frees; std::free(p); } }
-void operator delete[](void* p, std::align_val_t) noexcept { if (p) { ++t_frees; std::free(p); } }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { if (p) { ++t_frees; std::free(p); } }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { if (p) { ++t_frees; std::free(p); } }
+void operator delete(void* p) noexcept { Release(p); }
+void operator delete[](void* p) noexcept { Release(p); }
+void operator delete(void* p, std::size_t) noexcept { Release(p); }
+void operator delete[](void* p, std::size_t) noexcept { Release(p); }
+void operator delete(void* p, std::align_val_t) noexcept { Release(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { Release(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { Release(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { Release(p); }
