@@ -56,8 +56,22 @@ def maps(dirs, exclude):
                 yield os.path.join(d, f), os.path.join(d, name + "_gt.png"), d
 
 
+_TRACES = {}  # (map, options) -> rows: leave-one-out's folds share every oracle trace
+
+
 def trace(zonemap, map_png, gt_png, csv, extra):
-    """The map's pair rows and labels, and the options its pieces were cut with."""
+    """The map's pair rows and labels, and the options its pieces were cut with. Oracle traces
+    (no model in extra) do not depend on the fold, so they are computed once per map."""
+    key = (map_png, tuple(extra))
+    if key in _TRACES:
+        return _TRACES[key]
+    result = _trace(zonemap, map_png, gt_png, csv, extra)
+    if "--merge-model" not in extra:
+        _TRACES[key] = result
+    return result
+
+
+def _trace(zonemap, map_png, gt_png, csv, extra):
     cmd = [zonemap, "zones", "segment", map_png, "--out", os.devnull, "--score", gt_png,
            "--merge-trace", csv, "--json"] + extra
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
