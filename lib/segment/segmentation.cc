@@ -62,7 +62,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
         "occupancy grid: its known part (free or occupied cells) spans " +
         std::to_string(known.width) + " x " + std::to_string(known.height) +
         " cells, more than the " + std::to_string(kMaxSegmentCells) +
-        " cells room segmentation takes (kMaxSegmentCells; at " + std::to_string(grid.resolution_m) +
+        " cells room segmentation takes (kMaxSegmentCells; at " +
+        std::to_string(grid.resolution_m) +
         " m per cell); segment the building floor by floor or at a coarser resolution");
   }
   if (known.size() != grid.cells.size()) {
@@ -71,9 +72,9 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
     part.resolution_m = grid.resolution_m;
     // origin_m is the bottom-left corner: the part's is known.x columns right and the rows
     // below the part up.
-    part.origin_m = grid.origin_m +
-                    Eigen::Vector2d(known.x, grid.cells.rows - known.y - known.height) *
-                        grid.resolution_m;
+    part.origin_m =
+        grid.origin_m +
+        Eigen::Vector2d(known.x, grid.cells.rows - known.y - known.height) * grid.resolution_m;
     ZM_ASSIGN_OR_RETURN(Segmentation inner, SegmentRooms(part, options, model, trace));
     Segmentation whole = std::move(inner);
     cv::Mat labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
