@@ -8,8 +8,10 @@ product share one definition of each. Training data, in two passes over every tr
   2. the model fitted on those is run (`--merge-model`), and every pair at every step of its own
      merges is written with its label (one round of DAgger: the model learns from the states its
      own decisions lead to, not only the ones a perfect merge passes through).
-The model is scikit-learn's GradientBoostingClassifier (200 trees of depth 4, fixed seed) on
-both; it is written as JSON (--json) and as lib/segment/layout_merge_model.inc (--inc), which is
+The model is scikit-learn's HistGradientBoostingClassifier (200 trees of depth 4, learning rate
+0.1, fixed seed, one thread: OMP_NUM_THREADS=1 is set here) on both; until issue 28 it was
+GradientBoostingClassifier with the same trees, which took half an hour per fit on issue 28's
+420 training maps on a shared machine (this one: a minute); it is written as JSON (--json) and as lib/segment/layout_merge_model.inc (--inc), which is
 compiled in. The model records the options its pieces were cut with ("trained_with": the cut
 and rule-merge options zonemap reports with --merge-trace), and zonemap refuses to merge pieces
 cut with other options.
@@ -33,8 +35,9 @@ import subprocess
 import sys
 import tempfile
 
-import numpy as np
-from sklearn.ensemble import GradientBoostingClassifier
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # before scikit-learn loads OpenMP: one core
+import numpy as np  # noqa: E402
+from sklearn.ensemble import HistGradientBoostingClassifier  # noqa: E402
 
 FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "peak_l",
             "contact_clearance", "contact_over_peak_s", "contact_over_peak_l",
@@ -101,23 +104,25 @@ def collect(zonemap, pairs, tmp, extra, dir_weight):
 
 
 def fit(x, y, w):
-    return GradientBoostingClassifier(n_estimators=200, max_depth=4, random_state=0).fit(
+    return HistGradientBoostingClassifier(max_iter=200, max_depth=4, learning_rate=0.1,
+                                          early_stopping=False, random_state=0).fit(
         x, y, sample_weight=w * len(w) / w.sum())
 
 
 def export(clf, x_check, trained_with):
-    prior = clf.init_.class_prior_[1]
-    model = {"features": FEATURES, "init": float(np.log(prior / (1.0 - prior))),
-             "learning_rate": float(clf.learning_rate), "trees": []}
-    for est in clf.estimators_[:, 0]:
-        t = est.tree_
-        leaf = t.children_left < 0
+    # The trees' leaf values already hold the learning rate: the model's rate is 1.
+    model = {"features": FEATURES, "init": float(np.ravel(clf._baseline_prediction)[0]),
+             "learning_rate": 1.0, "trees": []}
+    for (predictor,) in clf._predictors:
+        nodes = predictor.nodes
+        leaf = nodes["is_leaf"].astype(bool)
         model["trees"].append({
-            "feature": [int(-1 if leaf[i] else t.feature[i]) for i in range(t.node_count)],
-            "threshold": [float(v) for v in t.threshold],
-            "left": [int(v) for v in t.children_left],
-            "right": [int(v) for v in t.children_right],
-            "value": [float(v) for v in t.value[:, 0, 0]]})
+            "feature": [int(-1 if leaf[i] else nodes["feature_idx"][i]) for i in range(len(nodes))],
+            "threshold": [float(0.0 if leaf[i] else nodes["num_threshold"][i])
+                          for i in range(len(nodes))],
+            "left": [int(-1 if leaf[i] else nodes["left"][i]) for i in range(len(nodes))],
+            "right": [int(-1 if leaf[i] else nodes["right"][i]) for i in range(len(nodes))],
+            "value": [float(v) for v in nodes["value"]]})
     # The exported form must give scikit-learn's own answer (zonemap evaluates it the same way).
     raw = np.full(len(x_check), model["init"])
     for tree in model["trees"]:
