@@ -78,7 +78,7 @@ check("rooms" in out, "render_sim.py reports its buildings")
 model = os.path.join(work, "model.json")
 subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
                 os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
-                "--json", model], check=True, capture_output=True)
+                "--json", model, "--learner", "hist"], check=True, capture_output=True)
 run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
                                                                name + "_map.png"),
                       "--out", os.devnull, "--merge-model", model, "--json"],
