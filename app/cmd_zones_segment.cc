@@ -154,7 +154,7 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
       return ctx.Fail(kCmd, "--merge-oracle needs --merge-trace");
     }
     auto seg = SegmentRooms(*grid, options, model, trace);
-    if (!seg.ok()) return ctx.Fail(kCmd, seg.status());
+    if (!seg.ok()) return ctx.Fail(kCmd, o.map + ": " + seg.status().message());
     report["source"] = o.map;
     report["segment_ms"] = seg->runtime_ms;
     if (!o.labels_png.empty()) {

@@ -34,6 +34,9 @@ host_pkgs=(
   libeigen3-dev libopencv-dev libsqlite3-dev sqlite3 libmimalloc-dev
   doctest-dev libbenchmark-dev nlohmann-json3-dev libtomlplusplus-dev libcli11-dev
   zlib1g-dev libjpeg-dev python3 python3-matplotlib python3-numpy
+  # scripts/train_layout_merge.py fits the layout merge model (tests/scripts runs it);
+  # scripts/render_r2v.py and render_sim.py draw the training and held-out grids.
+  python3-sklearn python3-pil
 )
 cross_pkgs=(g++-aarch64-linux-gnu qemu-user)
 # The arm64 libraries that go into the sysroot (apt adds their whole dependency closure).

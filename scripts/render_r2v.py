@@ -10,6 +10,13 @@ Two variants per plan:
   scan/  what a robot's laser would have mapped of it: 360-degree scans (range 8 m) from the
          middle of every room label and every door, so rooms have shadows (unknown cells)
          behind furniture and around corners, and walls are only where a ray hit them.
+  robot/ the scan with more of what a robot's SLAM grid holds (issue 28), drawn from a random
+         generator seeded by the plan's name (so a render is reproducible): clutter in the
+         rooms (tables, cabinets; chairs as four legs), glass and missing wall pieces (the laser
+         passes an interior one, an exterior one returns nothing), door leaves open at random
+         angles, rooms left unexplored (a quarter of the viewpoints dropped, the others moved up
+         to 0.3 m), a range of 4-8 m, wall faces a cell in front or behind where a ray hits, and
+         specks of people in the free space. plan/ and scan/ are unchanged by it.
 
 Ground truth: every region enclosed by walls with doors closed is one room (R2V's room labels
 only mark a point in a room; enclosed regions of any label are rooms).
@@ -19,10 +26,12 @@ balcony sliders and double doors), the only physical assumption made. It was fix
 segmentation was scored on these plans.
 
 Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR
+(robot_world and robot_scan are also scripts/render_sim.py's.)
 """
 import collections
 import os
 import sys
+import zlib
 
 import numpy as np
 from PIL import Image, ImageDraw
@@ -122,6 +131,131 @@ def render(items):
     return free, occupied, rooms, n, viewpoints
 
 
+def line_mask(shape, segments, width):
+    img = Image.new("L", (shape[1], shape[0]), 0)
+    d = ImageDraw.Draw(img)
+    for a, b in segments:
+        d.line([a, b], fill=255, width=width)
+    return np.array(img) > 0
+
+
+def robot_world(items, free, occupied, rooms, n, rng):
+    """The plan as a robot's laser meets it (robot/): (free, occupied) with glass and missing
+    wall pieces, door leaves at random angles and clutter. The ground truth is not changed."""
+    free, occupied = free.copy(), occupied.copy()
+    doors = [i for i in items if i[4] == "door"]
+    lengths = sorted(np.hypot(d[2] - d[0], d[3] - d[1]) for d in doors)
+    scale = DOOR_M / lengths[len(lengths) // 4]
+    xs = [v for i in items for v in (i[0], i[2])]
+    ys = [v for i in items for v in (i[1], i[3])]
+    x0, y0 = min(xs), min(ys)
+
+    def px(x, y):
+        return ((x - x0) * scale / RES + MARGIN_M / RES, (y - y0) * scale / RES + MARGIN_M / RES)
+
+    wall_w = max(2, round(WALL_M / RES))
+    building = free | occupied | (rooms > 0)
+    # Glass and missing wall pieces: a fifth of the walls lose a 0.4-2 m piece.
+    pieces = []
+    for x1, y1, x2, y2, kind in items:
+        if kind != "wall" or rng.random() > 0.2:
+            continue
+        a, b = np.array(px(x1, y1)), np.array(px(x2, y2))
+        length = np.hypot(*(b - a))
+        if length * RES < 0.5:
+            continue
+        cut = min(length, rng.uniform(0.4, 2.0) / RES)
+        t0 = rng.uniform(0, length - cut) / length
+        pieces.append((tuple(a + t0 * (b - a)), tuple(a + (t0 + cut / length) * (b - a))))
+    glass = line_mask(free.shape, pieces, wall_w + 2) & occupied
+    outside = ~building
+    near_outside = np.zeros_like(outside)
+    for dr in range(-3, 4):
+        for dc in range(-3, 4):
+            near_outside |= np.roll(np.roll(outside, dr, 0), dc, 1)
+    occupied &= ~glass
+    free |= glass & ~near_outside  # the laser passes an interior pane; an exterior one: nothing
+    # Door leaves: most doors stand open at 10-100 degrees from their frame.
+    leaves = []
+    for x1, y1, x2, y2, _ in doors:
+        if rng.random() > 0.8:
+            continue
+        a, b = np.array(px(x1, y1)), np.array(px(x2, y2))
+        if rng.random() < 0.5:
+            a, b = b, a
+        v = b - a
+        v = v * min(1.0, 0.9 / RES / max(1e-9, np.hypot(*v)))  # one leaf, at most 0.9 m
+        ang = np.radians(rng.uniform(10, 100)) * rng.choice([-1, 1])
+        rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+        leaves.append((tuple(a), tuple(a + rot @ v)))
+    leaf = line_mask(free.shape, leaves, 1) & free
+    # Clutter: about one piece per 6 m2 of room, 0.3-1.2 m a side; a third are chairs (legs).
+    clutter = np.zeros_like(free)
+    h, w = free.shape
+    for room in range(1, n + 1):
+        cells = np.argwhere(rooms == room)
+        if len(cells) == 0:
+            continue
+        for _ in range(rng.poisson(len(cells) * RES * RES / 6.0)):
+            r, c = cells[rng.integers(len(cells))]
+            bh, bw = (int(rng.uniform(0.3, 1.2) / RES) for _ in range(2))
+            r1, c1 = min(h, r + bh), min(w, c + bw)
+            if rng.random() < 0.33:
+                for rr in (r, r1 - 1):
+                    for cc in (c, c1 - 1):
+                        clutter[rr:rr + 1, cc:cc + 1] = True
+            else:
+                clutter[r:r1, c:c1] = True
+    clutter &= free & (rooms > 0)
+    occupied |= leaf | clutter
+    free &= ~(leaf | clutter)
+    return free, occupied
+
+
+def robot_scan(free, occupied, viewpoints, rng):
+    """A robot's laser map (robot/): a quarter of the viewpoints dropped (rooms left
+    unexplored), the rest moved up to 0.3 m, range 4-8 m, each wall hit a cell in front of or
+    behind its face, specks of people in the free space."""
+    h, w = free.shape
+    keep = [v for v in viewpoints if rng.random() >= 0.25] or viewpoints[:1]
+    moved = []
+    for vx, vy in keep:
+        dx, dy = rng.uniform(-0.3, 0.3, 2) / RES
+        mx, my = vx + dx, vy + dy
+        if 0 <= int(my) < h and 0 <= int(mx) < w and free[int(my), int(mx)]:
+            moved.append((mx, my))
+        else:
+            moved.append((vx, vy))
+    range_m = rng.uniform(4.0, 8.0)
+    seen_free = np.zeros_like(free)
+    seen_occ = np.zeros_like(free)
+    angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
+    steps = np.arange(0, range_m / RES, 0.5)
+    for vx, vy in moved:
+        c = (vx + np.outer(np.cos(angles), steps)).astype(int)
+        r = (vy + np.outer(np.sin(angles), steps)).astype(int)
+        valid = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
+        if not free[r[0, 0], c[0, 0]]:
+            continue
+        blocked = (~free[r, c]) | ~valid
+        first = np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
+        hit = np.nonzero(first < steps.size)[0]
+        keep_hit = occupied[r[hit, first[hit]], c[hit, first[hit]]]
+        hit = hit[keep_hit]
+        # Wall-face noise: the return a cell (two half-cell steps) short, on, or past the face.
+        jitter = rng.choice([-2, 0, 2], size=hit.size, p=[0.25, 0.5, 0.25])
+        end = first.copy()
+        end[hit] = np.maximum(1, first[hit] + jitter)
+        before = np.arange(steps.size)[None, :] < np.minimum(end, first)[:, None]
+        seen_free[r[before], c[before]] = True
+        j = np.minimum(end[hit], steps.size - 1)
+        seen_occ[r[hit, j], c[hit, j]] = True
+    seen_free &= ~seen_occ
+    specks = seen_free & (rng.random(free.shape) < 0.001)
+    return seen_free & ~specks, seen_occ | specks
+
+
 def scan(free, occupied, viewpoints):
     """Cells a 360-degree laser sees from each viewpoint: (seen_free, seen_occupied)."""
     h, w = free.shape
@@ -173,6 +307,11 @@ def main():
         write(os.path.join(out, "plan"), name, free, occupied, rooms, n)
         seen_free, seen_occ = scan(free, occupied, views)
         write(os.path.join(out, "scan"), name, seen_free, seen_occ, rooms, n)
+        rng = np.random.default_rng(zlib.crc32(name.encode()))
+        world_free, world_occ = robot_world(parse(os.path.join(src, fname)), free, occupied,
+                                            rooms, n, rng)
+        robot_free, robot_occ = robot_scan(world_free, world_occ, views, rng)
+        write(os.path.join(out, "robot"), name, robot_free, robot_occ, rooms, n)
         print(f"{name}: {free.shape[1]}x{free.shape[0]} cells, {n} enclosed regions, "
               f"{len(views)} scan viewpoints")
 

@@ -9,14 +9,17 @@ product share one definition of each. Training data, in two passes over every tr
      merges is written with its label (one round of DAgger: the model learns from the states its
      own decisions lead to, not only the ones a perfect merge passes through).
 The model is scikit-learn's GradientBoostingClassifier (200 trees of depth 4, fixed seed) on
-both; it is written as JSON (--json) and as lib/segment/layout_merge_model.inc (--inc), which is
+both, as the shipped model was trained; --learner hist fits HistGradientBoostingClassifier with
+the same trees (learning rate 0.1, one thread: OMP_NUM_THREADS=1 is set here), which took a
+minute per fit where the exact learner took half an hour on issue 28's 403 training maps on a
+shared machine (issue 28's models and leave-one-out); it is written as JSON (--json) and as lib/segment/layout_merge_model.inc (--inc), which is
 compiled in. The model records the options its pieces were cut with ("trained_with": the cut
 and rule-merge options zonemap reports with --merge-trace), and zonemap refuses to merge pieces
 cut with other options.
 
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
-           [--weight DIR=W ...] [--loo DIR] [--param K=V ...]
+           [--weight DIR=W ...] [--loo DIR] [--param K=V ...] [--learner exact|hist]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
@@ -33,8 +36,9 @@ import subprocess
 import sys
 import tempfile
 
-import numpy as np
-from sklearn.ensemble import GradientBoostingClassifier
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # before scikit-learn loads OpenMP: one core
+import numpy as np  # noqa: E402
+from sklearn.ensemble import GradientBoostingClassifier, HistGradientBoostingClassifier  # noqa
 
 FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "peak_l",
             "contact_clearance", "contact_over_peak_s", "contact_over_peak_l",
@@ -56,8 +60,22 @@ def maps(dirs, exclude):
                 yield os.path.join(d, f), os.path.join(d, name + "_gt.png"), d
 
 
+_TRACES = {}  # (map, options) -> rows: leave-one-out's folds share every oracle trace
+
+
 def trace(zonemap, map_png, gt_png, csv, extra):
-    """The map's pair rows and labels, and the options its pieces were cut with."""
+    """The map's pair rows and labels, and the options its pieces were cut with. Oracle traces
+    (no model in extra) do not depend on the fold, so they are computed once per map."""
+    key = (map_png, tuple(extra))
+    if key in _TRACES:
+        return _TRACES[key]
+    result = _trace(zonemap, map_png, gt_png, csv, extra)
+    if "--merge-model" not in extra:
+        _TRACES[key] = result
+    return result
+
+
+def _trace(zonemap, map_png, gt_png, csv, extra):
     cmd = [zonemap, "zones", "segment", map_png, "--out", os.devnull, "--score", gt_png,
            "--merge-trace", csv, "--json"] + extra
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
@@ -86,12 +104,22 @@ def collect(zonemap, pairs, tmp, extra, dir_weight):
     return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws), options[0]
 
 
+LEARNER = "exact"  # --learner
+
+
 def fit(x, y, w):
+    w = w * len(w) / w.sum()
+    if LEARNER == "hist":
+        return HistGradientBoostingClassifier(max_iter=200, max_depth=4, learning_rate=0.1,
+                                              early_stopping=False, random_state=0).fit(
+            x, y, sample_weight=w)
     return GradientBoostingClassifier(n_estimators=200, max_depth=4, random_state=0).fit(
-        x, y, sample_weight=w * len(w) / w.sum())
+        x, y, sample_weight=w)
 
 
 def export(clf, x_check, trained_with):
+    if isinstance(clf, HistGradientBoostingClassifier):
+        return export_hist(clf, x_check, trained_with)
     prior = clf.init_.class_prior_[1]
     model = {"features": FEATURES, "init": float(np.log(prior / (1.0 - prior))),
              "learning_rate": float(clf.learning_rate), "trees": []}
@@ -104,6 +132,27 @@ def export(clf, x_check, trained_with):
             "left": [int(v) for v in t.children_left],
             "right": [int(v) for v in t.children_right],
             "value": [float(v) for v in t.value[:, 0, 0]]})
+    return check_export(model, clf, x_check, trained_with)
+
+
+def export_hist(clf, x_check, trained_with):
+    # The trees' leaf values already hold the learning rate: the model's rate is 1.
+    model = {"features": FEATURES, "init": float(np.ravel(clf._baseline_prediction)[0]),
+             "learning_rate": 1.0, "trees": []}
+    for (predictor,) in clf._predictors:
+        nodes = predictor.nodes
+        leaf = nodes["is_leaf"].astype(bool)
+        model["trees"].append({
+            "feature": [int(-1 if leaf[i] else nodes["feature_idx"][i]) for i in range(len(nodes))],
+            "threshold": [float(0.0 if leaf[i] else nodes["num_threshold"][i])
+                          for i in range(len(nodes))],
+            "left": [int(-1 if leaf[i] else nodes["left"][i]) for i in range(len(nodes))],
+            "right": [int(-1 if leaf[i] else nodes["right"][i]) for i in range(len(nodes))],
+            "value": [float(v) for v in nodes["value"]]})
+    return check_export(model, clf, x_check, trained_with)
+
+
+def check_export(model, clf, x_check, trained_with):
     # The exported form must give scikit-learn's own answer (zonemap evaluates it the same way).
     raw = np.full(len(x_check), model["init"])
     for tree in model["trees"]:
@@ -172,7 +221,10 @@ def main(argv):
     ap.add_argument("--weight", action="append", default=[], metavar="DIR=W")
     ap.add_argument("--loo", metavar="DIR")
     ap.add_argument("--param", action="append", default=[], metavar="K=V")
+    ap.add_argument("--learner", choices=["exact", "hist"], default="exact")
     a = ap.parse_args(argv)
+    global LEARNER
+    LEARNER = a.learner
     params = [x for p in a.param for x in ("--param", p)]
     exclude, out_json, out_inc, threshold, loo_dir = set(a.exclude), a.json, a.inc, a.threshold, a.loo
     dir_weight = {d: float(w) for d, w in (x.rsplit("=", 1) for x in a.weight)}

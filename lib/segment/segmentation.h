@@ -13,6 +13,8 @@
 // refused (layout_merge.h, CheckLayoutMergeModelOptions).
 #pragma once
 
+#include <cstdint>
+
 #include "common/status.h"
 #include "segment/cut.h"
 #include "segment/grid_map.h"
@@ -30,6 +32,14 @@ struct SegmentOptions {
   KindOptions kinds;
   OutlineOptions outline;
 };
+
+// Room segmentation runs on the known part of a grid (the bounding box of its free and occupied
+// cells, with a rim of kKnownRimM of unknown ones: wall continuations and the outside's facade
+// tests look up to 8 m beyond a wall), and refuses one larger than kMaxSegmentCells: 30 million
+// cells (a floor of 270 x 270 m at 0.05 m), all free, peaked at 2.0 GB and 37 s of CPU
+// (docs/segmentation.md, "Bad input"); the Jetson shares 8 GB with a model.
+inline constexpr double kKnownRimM = 10.0;
+inline constexpr std::int64_t kMaxSegmentCells = 30'000'000;
 
 // An InvalidArgument naming the first option out of its range.
 [[nodiscard]] Status CheckSegmentOptions(const SegmentOptions& options);

@@ -650,6 +650,93 @@ TEST_CASE("bad inputs give one clear error naming the file") {
   CHECK_FALSE(LoadGroundTruthLabels((dir / "gt_missing.png").string()).ok());
 }
 
+// Issue 28's bad input: a map with no free space, a single room, a huge grid around a small
+// building, a huge known area, a non-binary image (the negative resolution is the YAML case
+// above). Each gives one clear error or a sensible zone, never a crash.
+TEST_CASE("a grid with no free cell is one clear error, not an empty zone file") {
+  for (const std::uint8_t fill : {kCellOccupied, kCellUnknown}) {
+    OccupancyGrid grid;
+    grid.cells = cv::Mat(60, 80, CV_8UC1, cv::Scalar(fill));
+    auto seg = SegmentRooms(grid);
+    REQUIRE_FALSE(seg.ok());
+    CHECK(seg.status().code() == StatusCode::kFailedPrecondition);
+    CHECK(seg.status().message().find("no free cell") != std::string::npos);
+    CHECK(seg.status().message().find("80 x 60 cells") != std::string::npos);
+  }
+}
+
+// A 5 x 4 m room with 0.1 m walls in a grid of `side` x `side` unknown cells, at (col, row).
+OccupancyGrid LoneRoom(int side, int col, int row) {
+  OccupancyGrid grid;
+  grid.cells = cv::Mat(side, side, CV_8UC1, cv::Scalar(kCellUnknown));
+  cv::rectangle(grid.cells, cv::Rect(col, row, 102, 82), cv::Scalar(kCellOccupied), cv::FILLED);
+  cv::rectangle(grid.cells, cv::Rect(col + 2, row + 2, 98, 78), cv::Scalar(kCellFree), cv::FILLED);
+  return grid;
+}
+
+TEST_CASE("a single room is one zone, also in a grid a hundred times its size") {
+  const OccupancyGrid alone = LoneRoom(120, 10, 20);
+  auto one = SegmentRooms(alone);
+  REQUIRE_MESSAGE(one.ok(), one.status().ToString());
+  REQUIRE(one->segments.size() == 1);
+  CHECK(one->segments[0].area_m2 == doctest::Approx(98 * 78 * 0.0025).epsilon(0.03));
+  // The same room far inside 3000 x 3000 cells (150 m a side) of unknown: only the known part
+  // is segmented, and the labels come back in the big grid's cells.
+  const OccupancyGrid big = LoneRoom(3000, 1700, 2100);
+  auto far = SegmentRooms(big);
+  REQUIRE_MESSAGE(far.ok(), far.status().ToString());
+  REQUIRE(far->segments.size() == 1);
+  CHECK(far->labels.size() == big.cells.size());
+  CHECK(far->segments[0].area_cells == one->segments[0].area_cells);
+  CHECK(cv::countNonZero(far->labels(cv::Rect(1700, 2100, 102, 82)) != 0) ==
+        one->segments[0].area_cells);
+  CHECK(cv::countNonZero(far->labels) == one->segments[0].area_cells);
+  // The zone's polygon is in the big grid's map frame.
+  auto zones = SegmentationToZones(*far, big);
+  REQUIRE(zones.ok());
+  REQUIRE(zones->size() == 1);
+  const auto& ring = (*zones)[0].polygon;
+  double x_min = 1e9, y_min = 1e9;
+  for (const auto& p : ring) x_min = std::min(x_min, p.x()), y_min = std::min(y_min, p.y());
+  CHECK(x_min == doctest::Approx(1702 * 0.05).epsilon(0.01));
+  CHECK(y_min == doctest::Approx((3000 - 2100 - 80) * 0.05).epsilon(0.01));
+}
+
+TEST_CASE("a known part larger than kMaxSegmentCells is refused, naming its size and the limit") {
+  OccupancyGrid grid;
+  grid.cells = cv::Mat(5000, 6002, CV_8UC1, cv::Scalar(kCellUnknown));
+  grid.cells.at<std::uint8_t>(10, 10) = kCellFree;
+  grid.cells.at<std::uint8_t>(4990, 5990) = kCellOccupied;
+  auto seg = SegmentRooms(grid);
+  REQUIRE_FALSE(seg.ok());
+  CHECK(seg.status().code() == StatusCode::kInvalidArgument);
+  CHECK(seg.status().message().find("6002 x 5000 cells") != std::string::npos);
+  CHECK(seg.status().message().find(std::to_string(kMaxSegmentCells)) != std::string::npos);
+}
+
+TEST_CASE("a non-binary image is read by thresholds and segments without error") {
+  const auto dir = TempDir("grey");
+  // A grey ramp (0..255 across) and a colour photo-like image: only >= 250 is free.
+  cv::Mat ramp(200, 300, CV_8UC1);
+  for (int c = 0; c < ramp.cols; ++c) ramp.col(c).setTo(cv::Scalar(c * 255 / (ramp.cols - 1)));
+  cv::imwrite((dir / "ramp.png").string(), ramp);
+  auto grid = LoadOccupancyGrid((dir / "ramp.png").string());
+  REQUIRE_MESSAGE(grid.ok(), grid.status().ToString());
+  const int free_cells = cv::countNonZero(grid->cells == kCellFree);
+  CHECK(free_cells > 0);
+  CHECK(free_cells < 200 * 10);  // the few brightest columns
+  auto seg = SegmentRooms(*grid);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  CHECK(seg->segments.size() == 1);
+  cv::Mat colour(200, 300, CV_8UC3, cv::Scalar(90, 200, 30));
+  cv::imwrite((dir / "colour.png").string(), colour);
+  auto photo = LoadOccupancyGrid((dir / "colour.png").string());
+  REQUIRE_MESSAGE(photo.ok(), photo.status().ToString());
+  auto none = SegmentRooms(*photo);  // no free cell in it: the clear error above
+  REQUIRE_FALSE(none.ok());
+  CHECK(none.status().message().find("no free cell") != std::string::npos);
+}
+
 TEST_CASE("ROS YAML grids follow map_server thresholds and place cells with y up") {
   const auto dir = TempDir("yaml");
   cv::Mat img(2, 3, CV_8UC1);

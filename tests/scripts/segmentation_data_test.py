@@ -1,0 +1,88 @@
+#!/usr/bin/python3
+"""The segmentation's data scripts (issue 28) on one R2V plan and one small simulated hospital:
+render_r2v.py's three variants share one ground truth and the robot/ variant is reproducible and
+holds what a robot's grid holds (clutter, fewer walls seen); render_sim.py's grid and ground truth
+agree in size, its corridor segments are one room; train_layout_merge.py fits a model that
+zonemap runs. Behaviour, not figures.
+
+Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+from PIL import Image
+
+try:
+    import sklearn  # noqa: F401  (train_layout_merge.py's; scripts/install-deps.sh installs it)
+except ImportError:
+    print("python3-sklearn missing: run scripts/install-deps.sh --host; not checked")
+    sys.exit(77)
+
+project, work = sys.argv[1], sys.argv[2]
+zonemap = os.environ["ZONEMAP"]
+scripts = os.path.join(project, "scripts")
+shutil.rmtree(work, ignore_errors=True)
+os.makedirs(work)
+failures = []
+
+
+def check(ok, what):
+    print(("ok   " if ok else "FAIL ") + what)
+    if not ok:
+        failures.append(what)
+
+
+def load(path):
+    return np.array(Image.open(path))
+
+
+# One R2V plan, rendered twice.
+src = os.path.join(work, "src")
+os.makedirs(src)
+plan = sorted(f for f in os.listdir(os.path.join(project, "tests/data/segmentation/r2v"))
+              if f.endswith(".txt"))[0]
+shutil.copy(os.path.join(project, "tests/data/segmentation/r2v", plan), src)
+name = "r2v_" + plan[:-4]
+for out in ("a", "b"):
+    subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                    os.path.join(work, out)], check=True, capture_output=True)
+maps = {v: load(os.path.join(work, "a", v, name + "_map.png")) for v in ("plan", "scan", "robot")}
+gts = {v: load(os.path.join(work, "a", v, name + "_gt.png")) for v in ("plan", "scan", "robot")}
+check(all(m.shape == maps["plan"].shape for m in maps.values()), "three variants, one size")
+check(all((g == gts["plan"]).all() for g in gts.values()), "three variants, one ground truth")
+check((load(os.path.join(work, "b", "robot", name + "_map.png")) == maps["robot"]).all(),
+      "robot/ is reproducible (seeded by the plan's name)")
+room = gts["plan"].any(axis=2)
+check(((maps["robot"] == 0) & room).sum() > ((maps["scan"] == 0) & room).sum(),
+      "robot/ has clutter and door leaves in the rooms")
+check(set(np.unique(maps["robot"])) <= {0, 128, 255}, "robot/ is a trinary grid")
+
+# One small simulated hospital mapped by its robot.
+sim = os.path.join(work, "sim")
+out = subprocess.run([sys.executable, os.path.join(scripts, "render_sim.py"), zonemap, sim, "7"],
+                     check=True, capture_output=True, text=True).stdout
+grid = load(os.path.join(sim, "sim_hospital_7_map.png"))
+gt = load(os.path.join(sim, "sim_hospital_7_gt.png"))
+check(grid.shape == gt.shape[:2], "sim grid and ground truth agree in size")
+colours = {tuple(c) for c in gt.reshape(-1, 3)} - {(0, 0, 0)}
+check(len(colours) >= 5, f"sim ground truth has rooms ({len(colours)})")
+seen = (grid == 255).sum() / max(1, gt.any(axis=2).sum())
+check(0.3 < seen < 1.0, f"the robot saw part of the building's free space ({seen:.2f})")
+check("rooms" in out, "render_sim.py reports its buildings")
+
+# A model fitted on these three maps runs in zonemap.
+model = os.path.join(work, "model.json")
+subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
+                os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
+                "--json", model, "--learner", "hist"], check=True, capture_output=True)
+run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
+                                                               name + "_map.png"),
+                      "--out", os.devnull, "--merge-model", model, "--json"],
+                     capture_output=True, text=True)
+check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs the model")
+
+sys.exit(1 if failures else 0)
