@@ -76,7 +76,11 @@ zm::Result<zm::Profile> ProfileFor(const ManagerOptions& o) {
   std::string thr;
   if (o.memory_thr_keyframes != 0) thr = std::to_string(o.memory_thr_keyframes);
   if (o.map_share_bytes != 0) {
-    thr += (thr.empty() ? "" : ",") + std::to_string(o.map_share_bytes) + "B";
+    // Appended piece by piece: GCC 12's -O3 -Wrestrict misreads `("" or ",") + std::string` on
+    // aarch64 as an overlapping memcpy.
+    if (!thr.empty()) thr += ',';
+    thr += std::to_string(o.map_share_bytes);
+    thr += 'B';
   }
   if (!thr.empty()) ov.memory_thr = thr;
   ZM_RETURN_IF_ERROR(zm::ApplyOverrides(ov, p));
