@@ -24,11 +24,12 @@ endif()
 
 # A plain variable, not a cache entry: a cache entry keeps the value of the first configure, so a
 # build tree would package a stale list after this one changes (it did, when libjpeg-turbo came
-# in). Another distribution's names go in ZM_DEB_CROSS_DEPENDS_OVERRIDE. features2d and flann since
-# issue 26: `zonemap` links the ORB extractor (zm_localization_orb) through import-tum,
-# import-rtabmap --features orb and vocab; zonemapd does not link it yet.
+# in). Another distribution's names go in ZM_DEB_CROSS_DEPENDS_OVERRIDE. features2d since issue 26:
+# the tick's front-end (zm_localization_orb, through zm_runtime) extracts ORB, so both programs
+# link it. flann is only features2d's own dependency (not NEEDED by our binaries under
+# --as-needed), so dpkg-shlibdeps leaves it out on amd64 and this list must too.
 set(ZM_DEB_CROSS_DEPENDS
-  "libc6 (>= 2.35), libgcc-s1 (>= 3.4), libjpeg62-turbo (>= 1.3.1), libopencv-core406 (>= 4.6.0+dfsg), libopencv-features2d406 (>= 4.6.0+dfsg), libopencv-flann406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libsqlite3-0 (>= 3.30.1+fossil191229), libstdc++6 (>= 11), libtomlplusplus3 (>= 3.2.0), zlib1g (>= 1:1.2.0)")
+  "libc6 (>= 2.35), libgcc-s1 (>= 3.4), libjpeg62-turbo (>= 1.3.1), libopencv-core406 (>= 4.6.0+dfsg), libopencv-features2d406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libsqlite3-0 (>= 3.30.1+fossil191229), libstdc++6 (>= 11), libtomlplusplus3 (>= 3.2.0), zlib1g (>= 1:1.2.0)")
 set(ZM_DEB_CROSS_DEPENDS_OVERRIDE "" CACHE STRING
   "Depends of the zonemap package on a cross build for another distribution (empty: Debian 12's)")
 if(ZM_DEB_CROSS_DEPENDS_OVERRIDE)
