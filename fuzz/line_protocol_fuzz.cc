@@ -1,8 +1,9 @@
 // libFuzzer target: the live line protocol IN (lib/runtime/line_protocol.h) and the pose line OUT
-// (lib/runtime/pose_output.h). Any input line must parse as a frame, a route or a budget, be
-// ignored, or be reported malformed with a column inside the line and a reason; a frame never
-// holds more features than reserved, a route more waypoints; a parsed frame or route formats back
-// to a line that parses to the same counts. The same bytes given to ParsePoseLine must either be
+// (lib/runtime/pose_output.h). Any input line must parse as a frame, an image frame, a route or a
+// budget, be ignored, or be reported malformed with a column inside the line and a reason; a
+// frame never holds more features than reserved, a route more waypoints; an image frame's paths
+// are non-empty tokens inside the line, within kMaxImagePathBytes, and it carries no features; a
+// parsed frame, image frame or route formats back to a line that parses to the same. The same bytes given to ParsePoseLine must either be
 // refused or parse to a line that formats within the documented size.
 #include <cstddef>
 #include <cstdint>
@@ -43,6 +44,25 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     zm::LineError e2;
     if (zm::ParseInputLine(again, &back, &e2) != zm::LineKind::kFrame ||
         back.frame.feature_count() != n) {
+      std::abort();
+    }
+  } else if (kind == zm::LineKind::kImage) {
+    const auto inside = [&](std::string_view p) {
+      return !p.empty() && p.size() <= zm::kMaxImagePathBytes && p.data() >= line.data() &&
+             p.data() + p.size() <= line.data() + line.size() &&
+             p.find_first_of(" \t\r") == std::string_view::npos;
+    };
+    if (!inside(input.colour_path) || !inside(input.depth_path) ||
+        input.frame.feature_count() != 0 || input.frame.has_image()) {
+      std::abort();
+    }
+    const std::string again = zm::FormatImageLine(input.frame.stamp_s, input.frame.odom,
+                                                  input.colour_path, input.depth_path);
+    zm::InputLine back;
+    back.Reserve(kMaxFeatures, kMaxWaypoints);
+    zm::LineError e2;
+    if (zm::ParseInputLine(again, &back, &e2) != zm::LineKind::kImage ||
+        back.colour_path != input.colour_path || back.depth_path != input.depth_path) {
       std::abort();
     }
   } else if (kind == zm::LineKind::kRoute) {

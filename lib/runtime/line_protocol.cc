@@ -61,23 +61,25 @@ LineKind Fail(LineError* e, const char* what, std::size_t column,
   return LineKind::kMalformed;
 }
 
-LineKind ParseFrame(Cursor& c, InputLine* out, LineError* error) {
+// The stamp and odometry pose every frame and image line starts with. On success the frame holds
+// them and nothing else: no features, no image (a Frame's buffers are passed around the session
+// and the loop by swapping, so whatever an earlier frame left in them must go).
+bool ParseStampPose(Cursor& c, InputLine* out, LineError* error, LineKind* failed) {
   double v[8];
   for (double& x : v) {
-    if (!c.Double(&x)) return Fail(error, "bad number in stamp/pose", c.pos());
+    if (!c.Double(&x)) {
+      *failed = Fail(error, "bad number in stamp/pose", c.pos());
+      return false;
+    }
   }
   const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);  // w last on the wire, first in Eigen
   const double norm = q.norm();
   // Only a quaternion that cannot be normalised at all is refused here; how far from unit a
   // sane one may be is the input gate's tolerance ([input] quaternion_tolerance).
   if (!(norm > 1e-12) || !std::isfinite(norm)) {
-    return Fail(error, "quaternion has no length", c.pos(), RejectReason::kQuaternionNotUnit);
-  }
-  std::uint64_t n = 0;
-  if (!c.Uint(&n)) return Fail(error, "bad feature count", c.pos());
-  if (n > out->max_features()) {
-    return Fail(error, "more features than the frame's capacity", c.pos(),
-                RejectReason::kTooManyFeatures);
+    *failed =
+        Fail(error, "quaternion has no length", c.pos(), RejectReason::kQuaternionNotUnit);
+    return false;
   }
   Frame& frame = out->frame;
   frame.stamp_s = v[0];
@@ -89,6 +91,23 @@ LineKind ParseFrame(Cursor& c, InputLine* out, LineError* error) {
   out->quaternion_norm = norm;
   frame.descriptors.clear();  // keeps capacity: no allocation
   frame.keypoints.clear();
+  frame.colour_codec = ImageCodec::kNone;
+  frame.colour.clear();
+  frame.depth_codec = ImageCodec::kNone;
+  frame.depth.clear();
+  return true;
+}
+
+LineKind ParseFrame(Cursor& c, InputLine* out, LineError* error) {
+  LineKind failed = LineKind::kMalformed;
+  if (!ParseStampPose(c, out, error, &failed)) return failed;
+  std::uint64_t n = 0;
+  if (!c.Uint(&n)) return Fail(error, "bad feature count", c.pos());
+  if (n > out->max_features()) {
+    return Fail(error, "more features than the frame's capacity", c.pos(),
+                RejectReason::kTooManyFeatures);
+  }
+  Frame& frame = out->frame;
   for (std::uint64_t i = 0; i < n; ++i) {
     double u = 0, w = 0;
     if (!c.Double(&u) || !c.Double(&w)) return Fail(error, "bad keypoint", c.pos());
@@ -115,6 +134,25 @@ LineKind ParseFrame(Cursor& c, InputLine* out, LineError* error) {
   }
   if (!c.AtEnd()) return Fail(error, "trailing data after the last feature", c.pos());
   return LineKind::kFrame;
+}
+
+LineKind ParseImage(Cursor& c, InputLine* out, LineError* error) {
+  LineKind failed = LineKind::kMalformed;
+  if (!ParseStampPose(c, out, error, &failed)) return failed;
+  const std::string_view colour = c.Token();
+  if (colour.empty()) return Fail(error, "missing colour image path", c.pos());
+  if (colour.size() > kMaxImagePathBytes) {
+    return Fail(error, "colour image path longer than 4095 bytes", c.pos());
+  }
+  const std::string_view depth = c.Token();
+  if (depth.empty()) return Fail(error, "missing depth image path ('-' for none)", c.pos());
+  if (depth.size() > kMaxImagePathBytes) {
+    return Fail(error, "depth image path longer than 4095 bytes", c.pos());
+  }
+  if (!c.AtEnd()) return Fail(error, "trailing data after the depth image path", c.pos());
+  out->colour_path = colour;
+  out->depth_path = depth;
+  return LineKind::kImage;
 }
 
 LineKind ParseRoute(Cursor& c, InputLine* out, LineError* error) {
@@ -162,6 +200,7 @@ const char* RejectReasonName(RejectReason reason) {
     case RejectReason::kRouteTooLong: return "route_too_long";
     case RejectReason::kRouteOutsideMap: return "route_outside_map";
     case RejectReason::kBudgetInvalid: return "budget_invalid";
+    case RejectReason::kNoFrontEnd: return "no_front_end";
     case RejectReason::kCount: break;
   }
   return "unknown";
@@ -178,7 +217,8 @@ std::size_t MaxInputLineBytes(std::uint32_t max_features, std::uint32_t max_wayp
   // Numbers up to 24 characters (%.17g of any double), one separator each.
   const std::size_t frame = 512 + std::size_t{max_features} * (2 * 25 + 2 * kDescriptorBytes + 1);
   const std::size_t route = 64 + std::size_t{max_waypoints} * 3 * 25;
-  return std::max(frame, route);
+  const std::size_t image = 512 + 2 * (kMaxImagePathBytes + 1);
+  return std::max({frame, route, image});
 }
 
 LineKind ParseInputLine(std::string_view line, InputLine* out, LineError* error) {
@@ -187,9 +227,10 @@ LineKind ParseInputLine(std::string_view line, InputLine* out, LineError* error)
   const std::string_view head = c.Token();
   if (!head.empty() && head.front() == '#') return LineKind::kIgnored;
   if (head == "frame") return ParseFrame(c, out, error);
+  if (head == "image") return ParseImage(c, out, error);
   if (head == "route") return ParseRoute(c, out, error);
   if (head == "budget") return ParseBudget(c, out, error);
-  return Fail(error, "line does not start with 'frame', 'route' or 'budget'", 0);
+  return Fail(error, "line does not start with 'frame', 'image', 'route' or 'budget'", 0);
 }
 
 std::string FormatFrameLine(const Frame& frame) {
@@ -209,6 +250,21 @@ std::string FormatFrameLine(const Frame& frame) {
       out += kHex[b & 15];
     }
   }
+  return out;
+}
+
+std::string FormatImageLine(double stamp_s, const Pose3& odom, std::string_view colour_path,
+                            std::string_view depth_path) {
+  const Eigen::Quaterniond q(odom.linear());
+  const Eigen::Vector3d t = odom.translation();
+  char buf[256];
+  // Stamps with microseconds, as TUM's files and a camera driver's clock give them.
+  std::snprintf(buf, sizeof buf, "image %.6f %.9g %.9g %.9g %.9g %.9g %.9g %.9g ", stamp_s, t.x(),
+                t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+  std::string out = buf;
+  out += colour_path;
+  out += ' ';
+  out += depth_path;
   return out;
 }
 

@@ -3,11 +3,17 @@
 // documented together in the README, "Driving zonemapd from a robot").
 //
 //   frame <stamp_s> <tx> <ty> <tz> <qx> <qy> <qz> <qw> <n> [<u> <v> <descriptor_hex64>] x n
+//   image <stamp_s> <tx> <ty> <tz> <qx> <qy> <qz> <qw> <colour_path> <depth_path>
 //   route <n> [<x> <y> <z>] x n          the planned path, map frame, replaces the previous one
 //   budget <keyframes>                   MemoryThr from now on (down: unload now; up: to the arena)
 //
 // A frame's pose is the odometry pose (odom frame, metres, quaternion w last as in TUM files);
-// each feature is its keypoint in pixels and its 256-bit descriptor as 64 hex digits. A route's
+// each feature is its keypoint in pixels and its 256-bit descriptor as 64 hex digits. An image
+// line is the same pose with the camera frame's files instead of features (a camera driver
+// writes them, e.g. on tmpfs): a PNG or JPEG colour image and its depth image, or `-` for a
+// camera without depth; paths are single tokens (no blanks) of at most kMaxImagePathBytes.
+// Reading and checking the files is the session's (daemon.h, image_files.h), not the parser's:
+// the parser only hands the two paths on, as views into the line. A route's
 // waypoints are map-frame positions (a nav stack's plan; `route 0` clears it). Blank lines and
 // lines starting with '#' are ignored. Example of a frame with two features:
 //
@@ -34,7 +40,10 @@
 
 namespace zm {
 
-enum class LineKind { kFrame, kRoute, kBudget, kIgnored, kMalformed };
+enum class LineKind { kFrame, kImage, kRoute, kBudget, kIgnored, kMalformed };
+
+// The longest image path an `image` line may carry (Linux's PATH_MAX less its NUL).
+inline constexpr std::size_t kMaxImagePathBytes = 4095;
 
 // Why an input line (or the frame it carried) was refused: each reason has its own counter.
 enum class RejectReason : std::uint8_t {
@@ -48,6 +57,7 @@ enum class RejectReason : std::uint8_t {
   kRouteTooLong,        // more waypoints (or zones) than reserved ([input] max_route_waypoints)
   kRouteOutsideMap,     // a waypoint beyond the map's extent + margin
   kBudgetInvalid,       // `budget 0`: K_max must be at least 1
+  kNoFrontEnd,          // an `image` line to a zonemapd started without a front-end (--images)
   kCount
 };
 inline constexpr std::size_t kRejectReasonCount = static_cast<std::size_t>(RejectReason::kCount);
@@ -75,8 +85,12 @@ struct LineError {
 
 // What a line carried, in storage reserved once (Reserve): parsing never allocates.
 struct InputLine {
-  Frame frame;                             // kFrame (quaternion normalised)
-  double quaternion_norm = 1.0;            // kFrame: |q| as sent, for the input gate
+  Frame frame;                             // kFrame, kImage (quaternion normalised)
+  double quaternion_norm = 1.0;            // kFrame, kImage: |q| as sent, for the input gate
+  // kImage: the files, views into the parsed line (valid until the next line is read). The
+  // frame then holds the stamp and pose only: no features, no image (colour_codec kNone).
+  std::string_view colour_path;
+  std::string_view depth_path;             // "-": the camera has no depth
   std::vector<Eigen::Vector3d> waypoints;  // kRoute
   std::uint64_t budget_keyframes = 0;      // kBudget
 
@@ -95,13 +109,16 @@ struct InputLine {
 [[nodiscard]] std::size_t MaxInputLineBytes(std::uint32_t max_features,
                                             std::uint32_t max_waypoints);
 
-// Parses one line (without its '\n'). kFrame/kRoute/kBudget: `out` holds it; kMalformed:
+// Parses one line (without its '\n'). kFrame/kImage/kRoute/kBudget: `out` holds it; kMalformed:
 // `error` says why. A route of more waypoints than reserved is kMalformed with
 // RejectReason::kRouteTooLong (the rest of the line is not read).
 [[nodiscard]] LineKind ParseInputLine(std::string_view line, InputLine* out, LineError* error);
 
-// Formats a frame / a route as one protocol line (tests, tools). Allocates.
+// Formats a frame / an image frame / a route as one protocol line (tests, tools). Allocates.
 [[nodiscard]] std::string FormatFrameLine(const Frame& frame);
+[[nodiscard]] std::string FormatImageLine(double stamp_s, const Pose3& odom,
+                                          std::string_view colour_path,
+                                          std::string_view depth_path);
 [[nodiscard]] std::string FormatRouteLine(std::span<const Eigen::Vector3d> waypoints);
 
 }  // namespace zm

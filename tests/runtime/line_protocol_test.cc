@@ -1,5 +1,5 @@
-// The live protocol IN: round trips of frames and routes, budgets, every malformed shape counted
-// with its reason and never fatal, no allocation.
+// The live protocol IN: round trips of frames, image frames and routes, budgets, every malformed
+// shape counted with its reason and never fatal, no allocation.
 #include "runtime/line_protocol.h"
 
 #include <doctest/doctest.h>
@@ -56,6 +56,44 @@ TEST_CASE("a non-unit quaternion is normalised and its length reported to the ga
   CHECK(err.reason == RejectReason::kQuaternionNotUnit);
 }
 
+TEST_CASE("an image line gives the stamp, the pose and the two paths, and no features or image") {
+  const Frame pose = MakeFrame(0);
+  InputLine out = Reserved(4, 2);
+  LineError err;
+  // A frame line first, with an image left in the buffers (the session swaps frames around).
+  REQUIRE(ParseInputLine(FormatFrameLine(MakeFrame(3)), &out, &err) == LineKind::kFrame);
+  out.frame.colour_codec = ImageCodec::kPng;
+  out.frame.colour.assign(10, std::byte{1});
+  const std::string line =
+      FormatImageLine(1305031100.123456, pose.odom, "/dev/shm/cam/rgb 1.png", "/dev/shm/cam/d.png");
+  // A path is one token: the space above makes it three, so the line is refused ...
+  CHECK(ParseInputLine(line, &out, &err) == LineKind::kMalformed);
+  CHECK(std::string(err.what).find("trailing") != std::string::npos);
+  // ... and without it the line parses.
+  const std::string ok =
+      FormatImageLine(1305031100.123456, pose.odom, "/dev/shm/cam/rgb1.png", "/dev/shm/cam/d.png");
+  CHECK(ok.rfind("image 1305031100.123456 ", 0) == 0);
+  REQUIRE(ParseInputLine(ok, &out, &err) == LineKind::kImage);
+  CHECK(out.frame.stamp_s == doctest::Approx(1305031100.123456).epsilon(1e-15));
+  CHECK(out.frame.odom.isApprox(pose.odom, 1e-6));
+  CHECK(out.quaternion_norm == doctest::Approx(1.0));
+  CHECK(out.colour_path == "/dev/shm/cam/rgb1.png");
+  CHECK(out.depth_path == "/dev/shm/cam/d.png");
+  CHECK(out.frame.feature_count() == 0);
+  CHECK(out.frame.keypoints.empty());
+  CHECK_FALSE(out.frame.has_image());
+  CHECK(out.frame.colour.empty());
+  // '-': a camera without depth.
+  REQUIRE(ParseInputLine("image 2 0 0 0 0 0 0 1 a.jpg -", &out, &err) == LineKind::kImage);
+  CHECK(out.colour_path == "a.jpg");
+  CHECK(out.depth_path == "-");
+  // A frame line after an image line carries no image either.
+  out.frame.colour_codec = ImageCodec::kJpeg;
+  REQUIRE(ParseInputLine(FormatFrameLine(MakeFrame(2)), &out, &err) == LineKind::kFrame);
+  CHECK_FALSE(out.frame.has_image());
+  CHECK(out.frame.feature_count() == 2);
+}
+
 TEST_CASE("routes and budgets") {
   InputLine out = Reserved(2, 3);
   LineError err;
@@ -107,6 +145,13 @@ TEST_CASE("malformed lines are reported with a reason, never fatal") {
       {"route x", "count", syntax},
       {"budget -3", "count", syntax},
       {"budget 5 6", "trailing", syntax},
+      {"image 1 0 0 0 0 0 0 1", "colour image path", syntax},
+      {"image 1 0 0 0 0 0 0 1 rgb.png", "depth image path", syntax},
+      {"image 1 0 0 0 0 0 0 1 rgb.png d.png x", "trailing", syntax},
+      {"image 1 0 0 0 0 0 0 0 rgb.png d.png", "quaternion", RejectReason::kQuaternionNotUnit},
+      {"image 1 0 0 0 0 0 nan 1 rgb.png d.png", "number", syntax},
+      {"image 1 0 0 0 0 0 0 1 " + std::string(4096, 'p') + " d.png", "longer than 4095", syntax},
+      {"image 1 0 0 0 0 0 0 1 rgb.png " + std::string(4096, 'p'), "longer than 4095", syntax},
   };
   for (const Case& c : cases) {
     CAPTURE(c.line);
@@ -130,6 +175,7 @@ TEST_CASE("parsing into reserved storage allocates nothing") {
   const std::string frame = FormatFrameLine(MakeFrame(16));
   const std::vector<Eigen::Vector3d> wp(64, Eigen::Vector3d(1, 2, 3));
   const std::string route = FormatRouteLine(wp);
+  const std::string image = FormatImageLine(3.5, MakeFrame(0).odom, "/dev/shm/rgb.png", "-");
   InputLine f = Reserved(16, 64);
   LineError err;
   test::AllocationCounter counter;
@@ -138,6 +184,7 @@ TEST_CASE("parsing into reserved storage allocates nothing") {
     REQUIRE(ParseInputLine(frame, &f, &err) == LineKind::kFrame);
     REQUIRE(ParseInputLine(route, &f, &err) == LineKind::kRoute);
     REQUIRE(ParseInputLine("budget 3", &f, &err) == LineKind::kBudget);
+    REQUIRE(ParseInputLine(image, &f, &err) == LineKind::kImage);
     REQUIRE(ParseInputLine("frame 1 2", &f, &err) == LineKind::kMalformed);
   }
   CHECK(counter.allocations() == 0);
@@ -152,6 +199,9 @@ TEST_CASE("the line buffer holds the longest valid frame and route") {
   const std::vector<Eigen::Vector3d> wp(waypoints, Eigen::Vector3d(-12345.678912345, 1e-300, -7));
   CHECK(FormatFrameLine(big).size() <= MaxInputLineBytes(features, waypoints));
   CHECK(FormatRouteLine(wp).size() <= MaxInputLineBytes(features, waypoints));
+  // An image line with two paths of the longest length, whatever the frame reserve.
+  const std::string path(kMaxImagePathBytes, 'p');
+  CHECK(FormatImageLine(big.stamp_s, big.odom, path, path).size() <= MaxInputLineBytes(1, 1));
 }
 
 }  // namespace
