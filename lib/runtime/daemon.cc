@@ -31,6 +31,50 @@ bool WriteAll(int fd, std::string_view bytes) {
 
 bool IsPowerOfTwo(std::uint64_t n) { return n != 0 && (n & (n - 1)) == 0; }
 
+// The camera frames a session reads (see daemon.h): a frames file's images, a recorded folder's,
+// or the live input's by DaemonOptions::images. All zero: none.
+Result<FrameSource::Images> SessionImages(const MapReader& map, const DaemonInput& input,
+                                          const DaemonOptions& options, const FrameReader* replay) {
+  const CameraIntrinsics& camera = map.metadata().camera;
+  const auto sized = [&](std::uint32_t w, std::uint32_t h) -> Result<FrameSource::Images> {
+    ZM_RETURN_IF_ERROR(CheckImageSize(camera, w, h));
+    return FrameSource::Images{MaxEncodedImageBytes(w, h), w, h};
+  };
+  switch (input.kind) {
+    case DaemonInput::Kind::kReplay: {
+      const FramesFileInfo& i = replay->info();
+      return FrameSource::Images{i.max_colour_bytes, i.image_width, i.image_height};
+    }
+    case DaemonInput::Kind::kCameraFiles:
+      if (input.camera_files == nullptr) return InvalidArgument("no camera file source given");
+      return sized(input.camera_files->width(), input.camera_files->height());
+    case DaemonInput::Kind::kFd:
+    case DaemonInput::Kind::kUdp:
+      break;
+  }
+  bool on = options.images == DaemonImages::kOn;
+  if (options.images == DaemonImages::kAuto) {
+    // A map built from pixels has a vocabulary (import-tum, sim --features orb, import-rtabmap
+    // --features orb): its keyframes hold the ORB features the front-end reproduces.
+    ZM_ASSIGN_OR_RETURN(const auto blob, map.VocabularyBlob());
+    on = blob.has_value();
+  }
+  if (!on) {
+    if (options.image_width != 0 || options.image_height != 0) {
+      return InvalidArgument(options.images == DaemonImages::kOff
+                                 ? "an image size was given with images off"
+                                 : "an image size was given, but the map has no vocabulary: "
+                                   "give --images on to read image lines");
+    }
+    return FrameSource::Images{};
+  }
+  if ((options.image_width == 0) != (options.image_height == 0)) {
+    return InvalidArgument("give both image width and height, or neither");
+  }
+  return options.image_width == 0 ? sized(camera.width, camera.height)
+                                  : sized(options.image_width, options.image_height);
+}
+
 }  // namespace
 
 Daemon::Daemon(const Profile& profile, const DaemonOptions& options, std::uint32_t max_features)
@@ -49,6 +93,8 @@ Result<std::unique_ptr<Daemon>> Daemon::Create(const Profile& profile, MapReader
     max_features = std::max(max_features, reader.max_features());
     replay = std::make_unique<FrameReader>(std::move(reader));
   }
+  ZM_ASSIGN_OR_RETURN(const FrameSource::Images images,
+                      SessionImages(map, input, options, replay.get()));
   std::unique_ptr<Daemon> d(new Daemon(profile, options, max_features));
   const std::uint32_t waypoints = profile.input.max_route_waypoints;
   const std::size_t line_bytes = MaxInputLineBytes(max_features, waypoints);
@@ -63,8 +109,21 @@ Result<std::unique_ptr<Daemon>> Daemon::Create(const Profile& profile, MapReader
     case DaemonInput::Kind::kReplay:
       d->replay_ = std::move(replay);
       break;
+    case DaemonInput::Kind::kCameraFiles:
+      d->camera_files_ = input.camera_files;
+      break;
   }
   d->input_.Reserve(max_features, waypoints);
+  d->images_ = images;
+  if (images.max_colour_bytes > 0) {
+    // The loop's front-end writes up to its extractor's max_features into a frame, and the
+    // session's, the staging and the loop's frame trade buffers by swapping: all three get the
+    // same capacity (the loop reserves its own from the same two numbers).
+    const std::uint32_t features = std::max(max_features, profile.orb.max_features);
+    d->input_.frame.Reserve(features, images.max_colour_bytes);
+    d->staged_.ExpectImages(images, features);
+    d->image_reader_.Configure(images.width, images.height, images.max_colour_bytes);
+  }
   d->staged_.set_probe(d.get());
   ZM_ASSIGN_OR_RETURN(d->loop_, TickLoop::Create(profile, map, d->staged_));
   d->loop_->ReserveRoute(waypoints);
@@ -83,16 +142,22 @@ std::uint16_t Daemon::udp_port() const { return udp_ ? udp_->port() : 0; }
 
 void Daemon::Hello() {
   const TickLoop& l = *loop_;
-  const char* input = udp_ ? "udp" : (replay_ ? "frames" : "stream");
+  const char* input = udp_ ? "udp"
+                      : replay_ ? "frames"
+                      : camera_files_ != nullptr ? camera_files_->kind()
+                                                 : "stream";
+  char images[32] = "off";
+  if (images_.max_colour_bytes > 0) std::snprintf(images, sizeof images, "%ux%u", images_.width, images_.height);
   char buf[512];
   const int n = std::snprintf(
       buf, sizeof buf,
       "hello zonemapd %d policy %s k_max %u arena_slots %u slot_bytes %llu keyframes %u "
-      "zones %zu max_features %u max_route_waypoints %u input %s\n",
+      "zones %zu max_features %u max_route_waypoints %u input %s images %s\n",
       kPoseProtocolVersion, PolicyName(l.config().policy.kind).data(), l.k_max(),
       l.arena().capacity(), static_cast<unsigned long long>(l.slot_bytes()),
       l.map_index().keyframe_count(),
-      l.zone_set().size(), staged_.max_features(), profile_.input.max_route_waypoints, input);
+      l.zone_set().size(), staged_.max_features(), profile_.input.max_route_waypoints, input,
+      images);
   if (n > 0 && static_cast<std::size_t>(n) < sizeof buf) {
     if (options_.pose_fd >= 0 && !WriteAll(options_.pose_fd, {buf, static_cast<std::size_t>(n)})) {
       ++counters_.output_errors;
@@ -108,6 +173,14 @@ Result<bool> Daemon::Step() {
     if (!more) return false;
     ++counters_.lines;
     HandleFrame(1.0);  // a recorded pose is a rotation matrix already
+  } else if (camera_files_ != nullptr) {
+    CameraFrameFiles files;
+    ZM_ASSIGN_OR_RETURN(const bool more, camera_files_->Next(&files));
+    if (!more) return false;
+    ++counters_.lines;
+    input_.frame.stamp_s = files.stamp_s;
+    input_.frame.odom = files.odom;
+    HandleImage(1.0, files.colour_path, files.depth_path, files.note);  // a rotation already
   } else {
     std::string_view line;
     ZM_ASSIGN_OR_RETURN(const LineRead r,
@@ -131,6 +204,14 @@ void Daemon::Dispatch(std::string_view line) {
       return;
     case LineKind::kFrame:
       return HandleFrame(input_.quaternion_norm);
+    case LineKind::kImage:
+      if (images_.max_colour_bytes == 0) {
+        return Refuse(RejectReason::kNoFrontEnd,
+                      "an image line, but this zonemapd reads no images (--images off, or "
+                      "--images auto on a map without a vocabulary: start it with --images on)",
+                      0);
+      }
+      return HandleImage(input_.quaternion_norm, input_.colour_path, input_.depth_path, {});
     case LineKind::kRoute:
       return HandleRoute();
     case LineKind::kBudget:
@@ -149,29 +230,96 @@ void Daemon::Dispatch(std::string_view line) {
   }
 }
 
-void Daemon::HandleFrame(double quaternion_norm) {
+bool Daemon::Admit(double quaternion_norm) {
   RejectReason why = RejectReason::kSyntax;
-  if (!gate_->AcceptFrame(input_.frame, quaternion_norm, loop_->map_from_odom(), &why)) {
-    Refuse(why, RejectRule(why), 0);
-    return;
-  }
+  if (gate_->AcceptFrame(input_.frame, quaternion_norm, loop_->map_from_odom(), &why)) return true;
+  Refuse(why, RejectRule(why), 0);
+  return false;
+}
+
+// Hands input_.frame to the loop, ticks and publishes. false: nothing was processed (a fatal
+// error, or --max-ticks reached: the staged frame is not processed).
+bool Daemon::TickStaged() {
   std::swap(input_.frame, staged_.staging());  // both reserved: no allocation
   staged_.Stage();
   staged_.set_malformed_lines(rejects_.total);
   Result<bool> more = loop_->Tick();
   if (!more.ok()) {
     fatal_ = more.status();
-    return;
+    return false;
   }
-  if (!more.value()) {  // --max-ticks reached: the staged frame is not processed
+  if (!more.value()) {
     ended_ = true;
-    return;
+    return false;
   }
   ++counters_.frames;
   AfterTick(loop_->last_record());
+  return true;
+}
+
+void Daemon::HandleFrame(double quaternion_norm) {
+  if (!Admit(quaternion_norm)) return;
+  const double stamp = input_.frame.stamp_s;
+  if (input_.frame.has_image()) ++counters_.image_frames;  // a frames file's camera frame
+  if (!TickStaged()) return;
+  // A recorded frame with an image the front-end could not use (a frames file's JPEG).
+  if (loop_->last_record().frame_refused) ReportFrontEndRefusal(stamp, "recorded frame");
   // The idle part, once the robot has its pose: queued zone loads advance until the next frame
   // is due or a line is already waiting (TickLoop::Idle; an error is counted by the loop).
   (void)loop_->Idle();
+}
+
+void Daemon::HandleImage(double quaternion_norm, std::string_view colour_path,
+                         std::string_view depth_path, std::string_view note) {
+  if (!Admit(quaternion_norm)) return;
+  Frame& f = input_.frame;
+  const double stamp = f.stamp_s;
+  // Only the stamp and the pose are this frame's; the buffers may hold an earlier frame's.
+  f.descriptors.clear();
+  f.keypoints.clear();
+  f.depth_codec = ImageCodec::kNone;
+  f.depth.clear();
+  TextLine words(image_words_, sizeof image_words_);
+  ImageRefusal why = ImageRefusal::kCount;
+  if (image_reader_.ReadColour(colour_path, &f, &why, &words) &&
+      !image_reader_.CheckDepth(depth_path, note, &why, &words)) {
+    f.colour_codec = ImageCodec::kNone;  // refused: the tick runs on odometry alone
+    f.colour.clear();
+  }
+  ++counters_.image_frames;
+  if (!TickStaged()) return;
+  if (why != ImageRefusal::kCount) {
+    RefuseImage(why, stamp, words.view());
+  } else if (loop_->last_record().frame_refused) {
+    ReportFrontEndRefusal(stamp, colour_path);
+  }
+  (void)loop_->Idle();
+}
+
+void Daemon::ReportFrontEndRefusal(double stamp_s, std::string_view colour_path) {
+  // The front-end's words start with the loop's own frame number ("frame 7: colour image ..."),
+  // which means nothing to the robot: the file's path says which frame.
+  std::string_view error = loop_->last_frame_error().message();
+  if (error.rfind("frame ", 0) == 0) {
+    const std::size_t colon = error.find(": ");
+    if (colon != std::string_view::npos) error.remove_prefix(colon + 2);
+  }
+  TextLine words(image_words_, sizeof image_words_);
+  words.Str(colour_path).Str(": ").Str(error);
+  RefuseImage(ImageRefusal::kFrontEnd, stamp_s, words.view());
+}
+
+void Daemon::RefuseImage(ImageRefusal reason, double stamp_s, std::string_view words) {
+  image_refusals_.Add(reason);
+  const std::uint64_t count = image_refusals_[reason];
+  if (count > 10 && !IsPowerOfTwo(count)) return;  // rate limit: 1..10, then 16, 32, 64, ...
+  TextLine t(diag_, sizeof diag_);
+  t.Str("zonemapd: input line ").U64(counters_.lines).Str(" (stamp ").Fixed(stamp_s, 6);
+  t.Str("): image refused, ran on odometry (").Str(ImageRefusalName(reason)).Str("): ").Str(words);
+  t.Str(" [").U64(count).Str(" so far");
+  if (count == 10) t.Str("; further ones reported at powers of two");
+  t.Str("]\n");
+  if (t.ok()) Diagnose(t.view());
 }
 
 bool Daemon::Waiting() {
@@ -263,6 +411,19 @@ nlohmann::json Daemon::Summary(bool interrupted) const {
   s["malformed_lines"] = rejects_.total;
   s["malformed_by_reason"] = by_reason;
   s["input"] = {{"lines", counters_.lines}, {"frames", counters_.frames}};
+  nlohmann::json refused = nlohmann::json::object();
+  for (std::size_t i = 0; i < kImageRefusalCount; ++i) {
+    refused[ImageRefusalName(static_cast<ImageRefusal>(i))] = image_refusals_.by_reason[i];
+  }
+  s["images"] = {{"enabled", images_.max_colour_bytes > 0},
+                 {"width", images_.width},
+                 {"height", images_.height},
+                 {"reserve_bytes", images_.max_colour_bytes},
+                 {"frames", counters_.image_frames},
+                 {"refused", image_refusals_.total},
+                 {"refused_by_reason", refused},
+                 {"frames_without_odometry",
+                  camera_files_ != nullptr ? camera_files_->frames_without_odometry() : 0}};
   s["control"] = {{"routes_accepted", counters_.routes_accepted},
                   {"routes_rejected", counters_.routes_rejected},
                   {"route_zones", loop_->route().size()},

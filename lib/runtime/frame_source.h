@@ -62,6 +62,14 @@ class StagedFrameSource final : public FrameSource {
   explicit StagedFrameSource(std::uint32_t max_features) : max_features_(max_features) {
     staged_.Reserve(max_features);
   }
+  // Camera frames will be staged (zonemapd's `image` lines, --tum, a frames file with images):
+  // the loop builds its front-end from this. Before the loop is created; reserves the staged
+  // frame for them (`feature_capacity`: what the front-end writes, at least max_features).
+  void ExpectImages(const Images& images, std::uint32_t feature_capacity) {
+    images_ = images;
+    staged_.Reserve(feature_capacity, images.max_colour_bytes);
+  }
+  [[nodiscard]] Images images() const override { return images_; }
   // The frame to fill (reserved for max_features); Stage() hands it to the next Next().
   [[nodiscard]] Frame& staging() { return staged_; }
   void Stage() { ready_ = true; }
@@ -77,6 +85,7 @@ class StagedFrameSource final : public FrameSource {
 
  private:
   std::uint32_t max_features_;
+  Images images_{};
   InputProbe* probe_ = nullptr;
   Frame staged_;
   bool ready_ = false;

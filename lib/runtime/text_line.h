@@ -19,6 +19,7 @@ class TextLine {
 
   TextLine& Str(std::string_view s) {
     if (!ok_ || s.size() > cap_ - len_) return Fail();
+    if (s.empty()) return *this;  // an empty view may have no data (memcpy from null is UB)
     std::memcpy(buf_ + len_, s.data(), s.size());
     len_ += s.size();
     return *this;

@@ -180,7 +180,8 @@ Result<bool> TickLoop::Tick() {
       // Refused: no features, so the localizer does nothing and the tick runs on odometry.
       record_.frame_refused = true;
       ++totals_.frames_refused;
-      if (totals_.first_frame_error.ok()) totals_.first_frame_error = std::move(s);
+      if (totals_.first_frame_error.ok()) totals_.first_frame_error = s;
+      frame_error_ = std::move(s);
     }
   }
   record_.features = frame_.feature_count();

@@ -243,6 +243,9 @@ class TickLoop {
   [[nodiscard]] const ZoneSet& zone_set() const { return zone_set_; }
   // The record of the last processed frame (valid after Tick() returned true).
   [[nodiscard]] const TickRecord& last_record() const { return record_; }
+  // Why the last refused camera frame's image could not be used (last_record().frame_refused):
+  // the front-end's words, naming the frame and the limit (zonemapd's diagnostic).
+  [[nodiscard]] const Status& last_frame_error() const { return frame_error_; }
   [[nodiscard]] std::uint64_t malformed_lines() const { return frames_.malformed_lines(); }
   [[nodiscard]] double frame_period_s() const { return frame_period_s_; }
   // The current map<-odom correction T_map_odom: the last processed frame's pose is
@@ -313,6 +316,7 @@ class TickLoop {
   Frame frame_;
   TickTelemetry tel_;
   TickRecord record_;
+  Status frame_error_;  // the last refused frame's reason
   std::vector<ResidentKeyframe> resident_views_;
   std::vector<Pose3> keyframe_poses_;  // by KfIndex
   Pose3 t_map_odom_ = Pose3::Identity();
