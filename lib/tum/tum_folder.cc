@@ -171,6 +171,7 @@ Result<TumFolder> ReadTumFolder(const std::string& dir_text, const TumFolderOpti
         ++folder.gaps;
         folder.problems.push_back("colour frame " + Stamp(c.stamp_s) + ": no depth within " +
                                   std::to_string(options.max_stamp_difference_s) + " s (gap)");
+        folder.gap_frames.push_back(TumFrameFiles{c.stamp_s, c.path, 0.0, ""});
         continue;
       }
       folder.frames.push_back(TumFrameFiles{c.stamp_s, c.path, best->stamp_s, best->path});

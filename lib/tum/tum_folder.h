@@ -1,6 +1,7 @@
 // TUM RGB-D folders (Sturm et al. 2012, https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats):
 // what is in one, and one frame's images. Used to build a map (`zonemap import-tum`,
-// lib/import/tum_import.h) and, later, to replay one into zonemapd (`zonemapd --tum`); so
+// lib/import/tum_import.h) and to replay one into zonemapd (`zonemapd --tum`, tum_replay.h,
+// which lists the folder here and leaves reading the images to zonemapd's input edge); so
 // listing a folder and reading a frame's images are separate calls, and nothing here builds a
 // map.
 //
@@ -57,6 +58,9 @@ struct TumFolder {
   std::uint32_t colour_entries = 0;   // lines naming a colour image
   std::uint32_t depth_entries = 0;    // lines naming a depth image
   std::uint32_t gaps = 0;             // colour frames without depth within the tolerance
+  // Those colour frames (depth_path empty), by stamp: a replay (tum_replay.h) runs them on
+  // odometry, counted, where they fall; an import leaves them out.
+  std::vector<TumFrameFiles> gap_frames;
   std::uint32_t malformed_lines = 0;
   std::vector<std::string> problems;  // one line each: gaps and malformed lines
 };
