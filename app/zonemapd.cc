@@ -165,6 +165,10 @@ int main(int argc, char** argv) {
     input.kind = zm::DaemonInput::Kind::kReplay;
     input.frames_path = frames_path;
   } else if (!tum_dir.empty()) {
+    // Without odometry the replay starts where the map's recording did: its first keyframe.
+    auto keyframes = db.value()->Keyframes();
+    if (!keyframes.ok()) return Fail(keyframes.status().message());
+    if (!keyframes->empty()) tum.start = keyframes->front().pose;
     auto r = zm::TumReplay::Open(tum_dir, tum, db.value()->metadata().camera);
     if (!r.ok()) return Fail(r.status().message());
     tum_replay = std::move(r).value();

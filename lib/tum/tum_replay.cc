@@ -49,6 +49,7 @@ Result<std::unique_ptr<TumReplay>> TumReplay::Open(const std::string& dir,
 
   std::unique_ptr<TumReplay> r(new TumReplay());
   r->camera_ = camera;
+  r->last_odom_ = options.start;
   ZM_ASSIGN_OR_RETURN(r->folder_, ReadTumFolder(dir, options.folder));
   const TumFolder& f = r->folder_;
   for (const std::string& p : f.problems) {

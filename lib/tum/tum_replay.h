@@ -13,10 +13,12 @@
 //              T_odom_body = T_odom_cam * BodyToCamera()^-1 (the convention of import-tum and of
 //              lib/localization/camera.h). A frame without one holds the odometry of the frame
 //              before (counted): no motion, so the loop predicts the previous estimate.
-//              Without FILE every frame holds the identity: the prediction is always the
-//              previous estimate (the map<-odom correction of the last closure), as a visual-only
-//              localizer's constant-position model. The first frame is then predicted at the
-//              map's origin, so the memory policy loads around it until the first closure.
+//              Without FILE every frame holds `start`: the prediction is always the previous
+//              estimate (the map<-odom correction of the last closure), as a visual-only
+//              localizer's constant-position model, and the first frame's is `start` itself.
+//              zonemapd gives the map's first keyframe's pose, where the map's recording began:
+//              the memory policy must load the zone the robot is in before anything can close
+//              (the map's origin may lie in no zone at all).
 //   camera     the folder's intrinsics (flags, freiburg1's by default) must be the map camera's
 //              at the images' size (a plain scale: ScaledIntrinsics), else Open fails naming both:
 //              the front-end puts keypoints into the map camera's pixels by that scale alone.
@@ -42,6 +44,8 @@ struct TumReplayOptions {
   TumFolderOptions folder;                // association tolerance, intrinsics
   std::string odom_path;                  // TUM trajectory of the colour camera ("" = none)
   double max_odom_difference_s = 0.02;    // frame stamp to odometry stamp
+  // The odometry held before the first pose, and throughout without an odometry file (body).
+  Pose3 start = Pose3::Identity();
 };
 
 class TumReplay final : public CameraFileSource {
