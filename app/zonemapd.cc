@@ -73,18 +73,24 @@ int main(int argc, char** argv) {
   tum_group->add_option("--odom", tum.odom_path,
                         "odometry: a TUM trajectory of the colour camera (default: none, each "
                         "frame predicted at the previous estimate)");
-  tum_group->add_option("--odom-max-dt", tum.max_odom_difference_s,
-                        "frame-odometry association tolerance, seconds")
+  tum_group
+      ->add_option("--odom-max-dt", tum.max_odom_difference_s,
+                   "frame-odometry association tolerance, seconds")
       ->capture_default_str();
-  tum_group->add_option("--max-dt", tum.folder.max_stamp_difference_s,
-                        "colour-depth association tolerance, seconds")
+  tum_group
+      ->add_option("--max-dt", tum.folder.max_stamp_difference_s,
+                   "colour-depth association tolerance, seconds")
       ->capture_default_str();
   tum_group->add_option("--fx", tum.folder.camera.fx, "focal length x, pixels (freiburg1)")
       ->capture_default_str();
-  tum_group->add_option("--fy", tum.folder.camera.fy, "focal length y, pixels")->capture_default_str();
-  tum_group->add_option("--cx", tum.folder.camera.cx, "principal point x, pixels")->capture_default_str();
-  tum_group->add_option("--cy", tum.folder.camera.cy, "principal point y, pixels")->capture_default_str();
-  tum_group->add_option("--width", tum.folder.camera.width, "image width, pixels")->capture_default_str();
+  tum_group->add_option("--fy", tum.folder.camera.fy, "focal length y, pixels")
+      ->capture_default_str();
+  tum_group->add_option("--cx", tum.folder.camera.cx, "principal point x, pixels")
+      ->capture_default_str();
+  tum_group->add_option("--cy", tum.folder.camera.cy, "principal point y, pixels")
+      ->capture_default_str();
+  tum_group->add_option("--width", tum.folder.camera.width, "image width, pixels")
+      ->capture_default_str();
   tum_group->add_option("--height", tum.folder.camera.height, "image height, pixels")
       ->capture_default_str();
   app.add_option("--sqlite-heap", sqlite_heap,
@@ -107,8 +113,8 @@ int main(int argc, char** argv) {
   // (EPIPE), is counted, and zonemapd keeps localizing until its input ends.
   std::signal(SIGPIPE, SIG_IGN);
 
-  const int inputs = (use_stdin ? 1 : 0) + (udp_port >= 0 ? 1 : 0) +
-                     (frames_path.empty() ? 0 : 1) + (tum_dir.empty() ? 0 : 1);
+  const int inputs = (use_stdin ? 1 : 0) + (udp_port >= 0 ? 1 : 0) + (frames_path.empty() ? 0 : 1) +
+                     (tum_dir.empty() ? 0 : 1);
   if (inputs != 1) {
     return Fail("give exactly one input: --stdin, --udp PORT, --frames FILE or --tum DIR");
   }
@@ -131,8 +137,9 @@ int main(int argc, char** argv) {
     return Fail("--images " + images_mode + ": expected auto, on or off");
   }
   if (!live && (app.count("--images") > 0 || !image_size.empty())) {
-    return Fail("--images and --image-size are options of --stdin and --udp (a recording says "
-                "what its images are)");
+    return Fail(
+        "--images and --image-size are options of --stdin and --udp (a recording says "
+        "what its images are)");
   }
   if (!image_size.empty()) {
     unsigned w = 0, h = 0;
@@ -173,15 +180,16 @@ int main(int argc, char** argv) {
     if (!r.ok()) return Fail(r.status().message());
     tum_replay = std::move(r).value();
     const zm::TumFolder& f = tum_replay->folder();
+    const std::string odometry =
+        tum.odom_path.empty()
+            ? "none (each frame predicted at the previous estimate)"
+            : tum.odom_path + " (" + std::to_string(tum_replay->odometry_poses()) + " poses)";
     std::fprintf(stderr,
                  "zonemapd: --tum %s (%s): %zu frames, %u with depth, %u gaps, %u malformed lines; "
                  "odometry %s\n",
                  tum_dir.c_str(), f.listing.c_str(), tum_replay->frame_count(),
                  static_cast<unsigned>(f.frames.size()), f.gaps, f.malformed_lines,
-                 tum.odom_path.empty()
-                     ? "none (each frame predicted at the previous estimate)"
-                     : (tum.odom_path + " (" + std::to_string(tum_replay->odometry_poses()) +
-                        " poses)").c_str());
+                 odometry.c_str());
     for (const std::string& p : tum_replay->listing_problems()) {
       std::fprintf(stderr, "zonemapd: --tum %s: %s\n", tum_dir.c_str(), p.c_str());
     }

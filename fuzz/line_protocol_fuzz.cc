@@ -3,8 +3,9 @@
 // budget, be ignored, or be reported malformed with a column inside the line and a reason; a
 // frame never holds more features than reserved, a route more waypoints; an image frame's paths
 // are non-empty tokens inside the line, within kMaxImagePathBytes, and it carries no features; a
-// parsed frame, image frame or route formats back to a line that parses to the same. The same bytes given to ParsePoseLine must either be
-// refused or parse to a line that formats within the documented size.
+// parsed frame, image frame or route formats back to a line that parses to the same. The same bytes
+// given to ParsePoseLine must either be refused or parse to a line that formats within the
+// documented size.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>

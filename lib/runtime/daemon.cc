@@ -142,12 +142,13 @@ std::uint16_t Daemon::udp_port() const { return udp_ ? udp_->port() : 0; }
 
 void Daemon::Hello() {
   const TickLoop& l = *loop_;
-  const char* input = udp_ ? "udp"
-                      : replay_ ? "frames"
+  const char* input = udp_                       ? "udp"
+                      : replay_                  ? "frames"
                       : camera_files_ != nullptr ? camera_files_->kind()
                                                  : "stream";
   char images[32] = "off";
-  if (images_.max_colour_bytes > 0) std::snprintf(images, sizeof images, "%ux%u", images_.width, images_.height);
+  if (images_.max_colour_bytes > 0)
+    std::snprintf(images, sizeof images, "%ux%u", images_.width, images_.height);
   char buf[512];
   const int n = std::snprintf(
       buf, sizeof buf,
@@ -155,9 +156,8 @@ void Daemon::Hello() {
       "zones %zu max_features %u max_route_waypoints %u input %s images %s\n",
       kPoseProtocolVersion, PolicyName(l.config().policy.kind).data(), l.k_max(),
       l.arena().capacity(), static_cast<unsigned long long>(l.slot_bytes()),
-      l.map_index().keyframe_count(),
-      l.zone_set().size(), staged_.max_features(), profile_.input.max_route_waypoints, input,
-      images);
+      l.map_index().keyframe_count(), l.zone_set().size(), staged_.max_features(),
+      profile_.input.max_route_waypoints, input, images);
   if (n > 0 && static_cast<std::size_t>(n) < sizeof buf) {
     if (options_.pose_fd >= 0 && !WriteAll(options_.pose_fd, {buf, static_cast<std::size_t>(n)})) {
       ++counters_.output_errors;

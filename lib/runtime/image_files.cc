@@ -39,11 +39,16 @@ struct Fd {
 
 const char* ImageRefusalName(ImageRefusal reason) {
   switch (reason) {
-    case ImageRefusal::kUnreadable: return "unreadable";
-    case ImageRefusal::kTooLarge: return "too_large";
-    case ImageRefusal::kNoDepth: return "no_depth";
-    case ImageRefusal::kFrontEnd: return "front_end";
-    case ImageRefusal::kCount: break;
+    case ImageRefusal::kUnreadable:
+      return "unreadable";
+    case ImageRefusal::kTooLarge:
+      return "too_large";
+    case ImageRefusal::kNoDepth:
+      return "no_depth";
+    case ImageRefusal::kFrontEnd:
+      return "front_end";
+    case ImageRefusal::kCount:
+      break;
   }
   return "unknown";
 }
@@ -102,7 +107,11 @@ bool ImageFileReader::ReadColour(std::string_view path, Frame* frame, ImageRefus
   if (st.st_size == 0) return fail(ImageRefusal::kUnreadable, " is empty (0 bytes)");
   const auto size = static_cast<std::uint64_t>(st.st_size);
   if (size > max_colour_bytes_ || size > frame->colour.capacity()) {
-    message->Str("colour image ").Str(path).Str(" is ").U64(size).Str(" bytes, above the reserve of ");
+    message->Str("colour image ")
+        .Str(path)
+        .Str(" is ")
+        .U64(size)
+        .Str(" bytes, above the reserve of ");
     message->U64(max_colour_bytes_).Str(" bytes for ").U64(width_).Char('x').U64(height_);
     message->Str(" images");
     *why = ImageRefusal::kTooLarge;
@@ -123,7 +132,11 @@ bool ImageFileReader::ReadColour(std::string_view path, Frame* frame, ImageRefus
   } else if (StartsWith(frame->colour, kJpegMagic, sizeof kJpegMagic)) {
     frame->colour_codec = ImageCodec::kJpeg;
   } else {
-    message->Str("colour image ").Str(path).Str(" (").U64(done).Str(" bytes) is neither PNG nor JPEG");
+    message->Str("colour image ")
+        .Str(path)
+        .Str(" (")
+        .U64(done)
+        .Str(" bytes) is neither PNG nor JPEG");
     *why = ImageRefusal::kUnreadable;
     frame->colour.clear();
     return false;

@@ -108,8 +108,8 @@ struct CameraFrameFiles {
   double stamp_s = 0.0;
   Pose3 odom = Pose3::Identity();  // odometry (body, odom frame), as a frame line's
   std::string_view colour_path;
-  std::string_view depth_path;     // "-": no depth camera; empty: the folder has none (a gap)
-  std::string_view note;           // why depth_path is empty, for the diagnostic
+  std::string_view depth_path;  // "-": no depth camera; empty: the folder has none (a gap)
+  std::string_view note;        // why depth_path is empty, for the diagnostic
 };
 
 // A recorded sequence of camera frames as files (zonemapd --tum: lib/tum/tum_replay.h), replayed

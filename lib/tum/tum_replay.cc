@@ -22,7 +22,9 @@ std::string CameraText(const CameraIntrinsics& k) {
 // The folder's camera is the map's at its size: within 0.5 % (and 0.01 px), the rounding of a
 // plain scale written with a few decimals.
 bool SameCamera(const CameraIntrinsics& a, const CameraIntrinsics& b) {
-  const auto near = [](double x, double y) { return std::abs(x - y) <= 0.005 * std::abs(y) + 0.01; };
+  const auto near = [](double x, double y) {
+    return std::abs(x - y) <= 0.005 * std::abs(y) + 0.01;
+  };
   return a.width == b.width && a.height == b.height && near(a.fx, b.fx) && near(a.fy, b.fy) &&
          near(a.cx, b.cx) && near(a.cy, b.cy);
 }
@@ -42,9 +44,10 @@ Result<std::unique_ptr<TumReplay>> TumReplay::Open(const std::string& dir,
   ZM_RETURN_IF_ERROR(CheckImageSize(map_camera, camera.width, camera.height));
   const CameraIntrinsics expected = ScaledIntrinsics(map_camera, camera.width, camera.height);
   if (!SameCamera(camera, expected)) {
-    return InvalidArgument("the TUM camera (" + CameraText(camera) + ") is not the map's camera (" +
-                           CameraText(map_camera) + ") at that size (" + CameraText(expected) +
-                           "): give the folder's intrinsics (--fx --fy --cx --cy --width --height)");
+    return InvalidArgument(
+        "the TUM camera (" + CameraText(camera) + ") is not the map's camera (" +
+        CameraText(map_camera) + ") at that size (" + CameraText(expected) +
+        "): give the folder's intrinsics (--fx --fy --cx --cy --width --height)");
   }
 
   std::unique_ptr<TumReplay> r(new TumReplay());

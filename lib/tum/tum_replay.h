@@ -41,9 +41,9 @@
 namespace zm {
 
 struct TumReplayOptions {
-  TumFolderOptions folder;                // association tolerance, intrinsics
-  std::string odom_path;                  // TUM trajectory of the colour camera ("" = none)
-  double max_odom_difference_s = 0.02;    // frame stamp to odometry stamp
+  TumFolderOptions folder;              // association tolerance, intrinsics
+  std::string odom_path;                // TUM trajectory of the colour camera ("" = none)
+  double max_odom_difference_s = 0.02;  // frame stamp to odometry stamp
   // The odometry held before the first pose, and throughout without an odometry file (body).
   Pose3 start = Pose3::Identity();
 };
@@ -74,7 +74,7 @@ class TumReplay final : public CameraFileSource {
   struct ReplayFrame {
     const TumFrameFiles* files = nullptr;  // into folder_.frames or folder_.gap_frames
     bool has_odom = false;
-    Pose3 odom = Pose3::Identity();        // body, odom frame
+    Pose3 odom = Pose3::Identity();  // body, odom frame
   };
   TumReplay() = default;
 

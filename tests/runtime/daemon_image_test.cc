@@ -51,7 +51,9 @@ std::vector<std::string> Lines(const std::string& text) {
   return out;
 }
 
-bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+bool Contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
 
 // A textured BGR image (blocks of random colour, blurred): ORB finds corners in it.
 cv::Mat Texture(int w, int h, unsigned seed) {
@@ -164,26 +166,27 @@ TEST_CASE("image lines over a pipe: a pose line each, bad images on odometry, co
   const std::string cut = WriteBytes(d / "cut.png", png_bytes.substr(0, png_bytes.size() / 2));
   const std::string text = WriteBytes(d / "text.png", "this is not a PNG");
   const std::string empty = WriteBytes(d / "empty.png", "");
-  const std::string huge = WriteBytes(d / "huge.png", std::string(400000, 'x').replace(0, 8, "\x89PNG\r\n\x1a\n"));
+  const std::string huge =
+      WriteBytes(d / "huge.png", std::string(400000, 'x').replace(0, 8, "\x89PNG\r\n\x1a\n"));
   const std::string missing = (d / "missing.png").string();
 
   const auto line = [&](double t, const std::string& colour, const std::string& dep) {
     return FormatImageLine(t, PoseFromXYYaw(1.0 + t, 5.0, 0.0), colour, dep);
   };
   const std::vector<std::string> in = {
-      line(1, jpg, depth),       // processed, features extracted
-      line(2, png, depth),       // processed
-      line(3, jpg, "-"),         // a camera without depth: processed
-      line(4, missing, depth),   // unreadable
-      line(5, text, depth),      // unreadable: neither PNG nor JPEG
-      line(6, empty, depth),     // unreadable: empty
-      line(7, huge, depth),      // too large for the reserve
-      line(8, jpg, missing),     // no depth
-      line(9, cut, depth),       // front-end: truncated
-      line(10, small, depth),    // front-end: wrong size
-      line(2, jpg, depth),       // stamp going back: a refused line, no tick, no pose line
+      line(1, jpg, depth),              // processed, features extracted
+      line(2, png, depth),              // processed
+      line(3, jpg, "-"),                // a camera without depth: processed
+      line(4, missing, depth),          // unreadable
+      line(5, text, depth),             // unreadable: neither PNG nor JPEG
+      line(6, empty, depth),            // unreadable: empty
+      line(7, huge, depth),             // too large for the reserve
+      line(8, jpg, missing),            // no depth
+      line(9, cut, depth),              // front-end: truncated
+      line(10, small, depth),           // front-end: wrong size
+      line(2, jpg, depth),              // stamp going back: a refused line, no tick, no pose line
       "image 11 1 5 0 0 0 0 1 " + jpg,  // syntax: no depth path
-      line(12, png, depth),      // processed after all that
+      line(12, png, depth),             // processed after all that
   };
   ImageSession s(map, Images320(), in);
   s.daemon->Hello();
@@ -233,15 +236,17 @@ TEST_CASE("image lines over a pipe: a pose line each, bad images on odometry, co
   CHECK(said("(unreadable): colour image " + text, "is neither PNG nor JPEG") == 1);
   CHECK(said("(unreadable): colour image " + empty, "is empty (0 bytes)") == 1);
   CHECK(said("(too_large): colour image " + huge,
-             "is 400000 bytes, above the reserve of " + std::to_string(MaxEncodedImageBytes(320, 240)) +
-                 " bytes for 320x240 images") == 1);
+             "is 400000 bytes, above the reserve of " +
+                 std::to_string(MaxEncodedImageBytes(320, 240)) + " bytes for 320x240 images") ==
+        1);
   CHECK(said("(no_depth): depth image " + missing, "No such file or directory") == 1);
   CHECK(said("(front_end): " + cut, "PNG") == 1);
   CHECK(said("(front_end): " + small, "160x120 != camera 320x240") == 1);
   CHECK(said("input line 4 (stamp 4.000000)", "") == 1);
 }
 
-TEST_CASE("image lines need a front-end: off, or auto on a map without a vocabulary, refuses them") {
+TEST_CASE(
+    "image lines need a front-end: off, or auto on a map without a vocabulary, refuses them") {
   RoomsMap map(2, 10, "image_off");
   const std::string jpg = Write(map.dir() / "a.jpg", Texture(640, 480, 4));
   const std::vector<std::string> in = {
@@ -259,15 +264,19 @@ TEST_CASE("image lines need a front-end: off, or auto on a map without a vocabul
     CHECK(s.daemon->rejects()[RejectReason::kNoFrontEnd] == 1);
     const std::vector<std::string> diag = s.Diagnostics();
     REQUIRE(diag.size() == 1);
-    CHECK(Contains(diag[0], "refused (no_front_end): an image line, but this zonemapd reads no images"));
+    CHECK(Contains(diag[0],
+                   "refused (no_front_end): an image line, but this zonemapd reads no images"));
     CHECK(s.daemon->Summary(false)["malformed_by_reason"]["no_front_end"] == 1);
   }
   // On: the map camera's size by default.
-  ImageSession on(map, [] {
-    DaemonOptions o;
-    o.images = DaemonImages::kOn;
-    return o;
-  }(), in);
+  ImageSession on(
+      map,
+      [] {
+        DaemonOptions o;
+        o.images = DaemonImages::kOn;
+        return o;
+      }(),
+      in);
   CHECK(on.StepToEnd() == 2);
   CHECK(on.Poses().size() == 2);
   CHECK(on.daemon->images().width == 640);
@@ -289,7 +298,8 @@ TEST_CASE("an image size that is not a plain scale of the map camera is refused 
   o.image_height = 200;  // 640x480 is 4:3
   auto d = Daemon::Create(ImageProfile(), *db.value(), input, o);
   REQUIRE_FALSE(d.ok());
-  CHECK(Contains(d.status().message(), "images of 320x200 are not a plain scale of the map camera's 640x480"));
+  CHECK(Contains(d.status().message(),
+                 "images of 320x200 are not a plain scale of the map camera's 640x480"));
   o.images = DaemonImages::kAuto;  // no vocabulary: a size says images were meant
   o.image_height = 240;
   d = Daemon::Create(ImageProfile(), *db.value(), input, o);

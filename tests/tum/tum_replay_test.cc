@@ -30,7 +30,9 @@ using test::TempDir;
 using test::TumFolderSpec;
 using test::WriteTumFolder;
 
-bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+bool Contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
 
 std::vector<std::string> Lines(const std::string& path) {
   std::ifstream f(path);
@@ -189,7 +191,9 @@ struct Run {
   }
 };
 
-TEST_CASE("tum replay: every colour frame by stamp, gaps included, odometry of the nearest stamp as the body pose") {
+TEST_CASE(
+    "tum replay: every colour frame by stamp, gaps included, odometry of the nearest stamp as the "
+    "body pose") {
   TumFolderSpec spec;
   spec.frames = 8;
   spec.depth_gaps = {2, 5};
@@ -246,7 +250,8 @@ TEST_CASE("tum replay: every colour frame by stamp, gaps included, odometry of t
   CHECK(held.value()->frames_without_odometry() == 4);
 }
 
-TEST_CASE("tum replay: a folder camera that is not the map's, and a bad folder, are refused at open") {
+TEST_CASE(
+    "tum replay: a folder camera that is not the map's, and a bad folder, are refused at open") {
   TumFolderSpec spec;
   spec.frames = 4;
   Recording rec(spec);
@@ -254,8 +259,9 @@ TEST_CASE("tum replay: a folder camera that is not the map's, and a bad folder, 
   o.folder.camera = kTumFr1Camera;  // the default flags against a 320x240 map
   auto r = TumReplay::Open(rec.seq, o, rec.camera);
   REQUIRE_FALSE(r.ok());
-  CHECK(Contains(r.status().message(), "the TUM camera (fx 517.30 fy 516.50 cx 318.60 cy 255.30, 640x480) "
-                                       "is not the map's camera (fx 256.00"));
+  CHECK(Contains(r.status().message(),
+                 "the TUM camera (fx 517.30 fy 516.50 cx 318.60 cy 255.30, 640x480) "
+                 "is not the map's camera (fx 256.00"));
   CHECK(Contains(r.status().message(), "--fx --fy --cx --cy --width --height"));
   // Half the size with the intrinsics halved is the same camera: accepted.
   o.folder.camera = ScaledIntrinsics(rec.camera, 160, 120);
@@ -268,7 +274,9 @@ TEST_CASE("tum replay: a folder camera that is not the map's, and a bad folder, 
   CHECK(Contains(no_odom.status().message(), "no_odometry.txt"));
 }
 
-TEST_CASE("zonemapd --tum: localizes from pixels, with the groundtruth as odometry and without odometry") {
+TEST_CASE(
+    "zonemapd --tum: localizes from pixels, with the groundtruth as odometry and without "
+    "odometry") {
   TumFolderSpec spec;
   spec.frames = 12;
   Recording rec(spec);
@@ -316,7 +324,8 @@ TEST_CASE("zonemapd --tum: gaps and bad images run on odometry, counted and name
   spec.truncated_depth = {9};  // depth is not read: the frame localizes
   Recording rec(spec);
   {  // a truncated colour image: the front-end finds it
-    const std::string rgb = rec.seq + "/rgb/" + test::TumStamp(1305031100.0 + 10 * spec.frame_dt_s) + ".png";
+    const std::string rgb =
+        rec.seq + "/rgb/" + test::TumStamp(1305031100.0 + 10 * spec.frame_dt_s) + ".png";
     std::filesystem::resize_file(rgb, std::filesystem::file_size(rgb) / 2);
   }
   auto replay = TumReplay::Open(rec.seq, rec.Options(true), rec.camera);
