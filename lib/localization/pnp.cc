@@ -243,9 +243,9 @@ PnpSolution PnpRansac::Solve(std::span<const cv::Point3f> object,
   Reserve(n);
   count_ = n;
   for (std::size_t i = 0; i < n; ++i) {
-    world_[i] = Eigen::Vector3d(double{object[i].x}, double{object[i].y}, double{object[i].z});
+    world_[i] = Eigen::Vector3d(static_cast<double>(object[i].x), static_cast<double>(object[i].y), static_cast<double>(object[i].z));
     ray_[i] =
-        Eigen::Vector3d((double{image[i].x} - cx_) / fx_, (double{image[i].y} - cy_) / fy_, 1.0);
+        Eigen::Vector3d((static_cast<double>(image[i].x) - cx_) / fx_, (static_cast<double>(image[i].y) - cy_) / fy_, 1.0);
   }
   rng_state_ = params_.seed != 0 ? params_.seed : 1;  // xorshift state must be non-zero
 

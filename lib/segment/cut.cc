@@ -109,7 +109,7 @@ cv::Mat FindSeeds(const cv::Mat& dt, const CutOptions& o, double res, int* seed_
   // a few bytes per cell however many levels there are. Seed levels are relabelled at the end
   // (connectedComponents is deterministic, so the component numbers match).
   auto label_level = [&](std::size_t i, cv::Mat* out) {
-    cv::Mat mask = dt > levels[i];
+    cv::Mat mask = dt > static_cast<double>(levels[i]);
     return cv::connectedComponents(mask, *out, 4, CV_32S);
   };
   cv::Mat below, current;
@@ -343,7 +343,7 @@ Pieces CutPieces(const OccupancyGrid& grid, const CutOptions& o) {
   int seed_count = 0;
   p.labels = FindSeeds(p.dt_closed, o, res, &seed_count);
   if (o.seedless_room_min_area_m2 > 0.0) {
-    AddSeedlessRooms(p.dt_closed > 0.0f,
+    AddSeedlessRooms(p.dt_closed > 0.0,
                      static_cast<int>(o.seedless_room_min_area_m2 / (res * res)), &p.labels,
                      &seed_count);
   }

@@ -187,7 +187,7 @@ Result<std::vector<Zone>> ZonesFromKeyframes(std::span<const Eigen::Vector2d> po
     if (ring.size() < 3 || std::abs(SignedArea(ring)) < 1e-9) continue;
     if (SignedArea(ring) < 0.0) std::reverse(ring.begin(), ring.end());
     Zone z;
-    z.id = ZoneId(static_cast<std::int32_t>(zones.size()));
+    z.id = ZoneId{static_cast<std::int32_t>(zones.size())};
     z.name = "area_" + std::to_string(zones.size() + 1);
     z.kind = "room";
     const ZRange band = FloorZRange(z.floor);  // floor 0's, as the file meant without a range

@@ -53,7 +53,7 @@ Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg, const Occ
       if (ring.size() < 3 || std::abs(SignedArea(ring)) <= 0.0) continue;
       if (SignedArea(ring) < 0.0) std::reverse(ring.begin(), ring.end());  // GeoJSON: CCW
       Zone z;
-      z.id = ZoneId(static_cast<std::int32_t>(zones.size()));
+      z.id = ZoneId{static_cast<std::int32_t>(zones.size())};
       z.name = s.kind + "_" + std::to_string(++per_kind[s.kind]);
       z.kind = s.kind;
       z.floor = 0;

@@ -193,7 +193,7 @@ Status ChooseDenseResolution(const std::vector<PoseSample>& kf, const ScenarioOp
     const std::size_t i = p * kf.size() / probes;
     Rng rng(o.seed, kStreamProbe + p);
     RenderedKeyframe r;
-    status[p] = render_keyframe(kf[i], o.dense.width, o.dense.height, KeyframeId(1), rng, &r);
+    status[p] = render_keyframe(kf[i], o.dense.width, o.dense.height, KeyframeId{1}, rng, &r);
     const auto n = static_cast<std::uint32_t>(r.features.descriptors.size());
     resident[p] = r.resident_bytes;
     fixed[p] = static_cast<double>(PayloadSize(n, 0, /*points_on_disk=*/false)) + 12.0 * n;
@@ -351,7 +351,7 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     const PoseSample& s = kf_samples[i];
     Rng rng(o.seed, kStreamKeyframe + i);
     RenderedKeyframe kf;
-    out->status = render_keyframe(s, dense_w, dense_h, KeyframeId(static_cast<std::int64_t>(i + 1)), rng, &kf);
+    out->status = render_keyframe(s, dense_w, dense_h, KeyframeId{static_cast<std::int64_t>(i + 1)}, rng, &kf);
     out->payload = std::move(kf.payload);
     out->features = static_cast<std::uint32_t>(kf.features.descriptors.size());
     out->resident_bytes = kf.resident_bytes;
@@ -377,7 +377,7 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
       for (std::size_t k = 0; k < chunk.size(); ++k) {
         ZM_RETURN_IF_ERROR(chunk[k].status);
         const PoseSample& s = kf_samples[c0 + k];
-        records[k].meta.id = KeyframeId(static_cast<std::int64_t>(c0 + k + 1));
+        records[k].meta.id = KeyframeId{static_cast<std::int64_t>(c0 + k + 1)};
         records[k].meta.stamp_s = s.t_s;
         records[k].meta.pose = s.pose();
         records[k].meta.weight = 0;
@@ -409,8 +409,8 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
     std::vector<LinkRecord> links;
     for (std::size_t i = 1; i < kf_samples.size(); ++i) {
       LinkRecord l;
-      l.from = KeyframeId(static_cast<std::int64_t>(i));
-      l.to = KeyframeId(static_cast<std::int64_t>(i + 1));
+      l.from = KeyframeId{static_cast<std::int64_t>(i)};
+      l.to = KeyframeId{static_cast<std::int64_t>(i + 1)};
       l.type = LinkKind::kNeighbor;
       l.transform = kf_samples[i - 1].pose().inverse() * kf_samples[i].pose();
       // Odometry-like uncertainty: 2 cm, 0.01 rad.

@@ -130,7 +130,7 @@ Result<AnnotationReport> AnnotateKeyframes(const ZoneSet& zones,
   if (options.warn_zone_keyframes > 0) {
     for (std::size_t i = 0; i < report.counts.size(); ++i) {
       if (report.counts[i] > options.warn_zone_keyframes) {
-        report.over_budget.emplace_back(static_cast<std::int32_t>(i));
+        report.over_budget.push_back(ZoneId{static_cast<std::int32_t>(i)});
       }
     }
   }

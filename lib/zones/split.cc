@@ -93,7 +93,7 @@ Result<SplitResult> SplitOversizeZones(const ZoneSet& zones, std::span<const Zon
     std::vector<KeyframeId> list;
     if (z.polygon.empty()) list = ids;
     ZM_RETURN_IF_ERROR(out.zones.Add(std::move(z), std::move(list)));
-    const ZoneId id(static_cast<std::int32_t>(out.zones.size() - 1));
+    const ZoneId id{static_cast<std::int32_t>(out.zones.size() - 1)};
     for (KeyframeId k : ids) out.members.push_back({id, k});
     return Status::Ok();
   };

@@ -146,7 +146,7 @@ ZoneId ZoneIndex::Lookup(const Eigen::Vector3d& p) const {
       }
     }
   }
-  return best < 0 ? kNoZone : ZoneId(best);
+  return best < 0 ? kNoZone : ZoneId{best};
 }
 
 double ZoneIndex::Depth(ZoneId zone, const Eigen::Vector3d& p) const {
@@ -180,7 +180,7 @@ ZoneId ZoneIndex::GetZone(const Pose3& pose, ZoneId current) const {
       }
     }
   }
-  return best < 0 ? current : ZoneId(best);
+  return best < 0 ? current : ZoneId{best};
 }
 
 std::size_t ZoneIndex::cell_count() const {

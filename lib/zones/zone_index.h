@@ -119,7 +119,7 @@ void ZoneIndex::ForEachCandidateNear(const Eigen::Vector3d& p, double radius_m, 
           if (cx != std::max(iz.cell_x0, qx0) || cy != std::max(iz.cell_y0, qy0)) continue;
           if (p.z() < iz.z_min_m || p.z() >= iz.z_max_m) continue;
           if (!iz.box.Overlaps(Box2{xy, xy}, radius_m)) continue;
-          fn(ZoneId(z));
+          fn(ZoneId{z});
         }
       }
     }

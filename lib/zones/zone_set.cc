@@ -198,7 +198,7 @@ Result<ZoneSet> ParseKeyframeLists(const json& root, std::string_view source) {
         return InvalidArgument(where + ": entry " + std::to_string(k) +
                                " is not an integer keyframe id");
       }
-      ids.emplace_back(v.get<std::int64_t>());
+      ids.push_back(KeyframeId{v.get<std::int64_t>()});
     }
     Zone zone;
     zone.name = it.key();
@@ -253,7 +253,7 @@ Status ZoneSet::Add(Zone zone, std::vector<KeyframeId> keyframes, std::string_vi
   if (zones_.size() >= static_cast<std::size_t>(INT32_MAX)) {
     return OutOfRange(w + ": more than 2^31-1 zones");
   }
-  zone.id = ZoneId(static_cast<std::int32_t>(zones_.size()));
+  zone.id = ZoneId{static_cast<std::int32_t>(zones_.size())};
   has_lists_ = is_list;
   by_name_.emplace(zone.name, zone.id);
   zones_.push_back(std::move(zone));
