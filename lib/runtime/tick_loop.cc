@@ -6,19 +6,13 @@
 #include <cmath>
 #include <utility>
 
+#include "common/elapsed.h"
 #include "localization/map_vocabulary.h"
 #include "runtime/map_setup.h"
 
 namespace zm {
-namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
 
 TickLoop::TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index)
     : config_(config), frames_(frames), arena_(std::move(arena)), map_index_(std::move(index)) {}
