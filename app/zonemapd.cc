@@ -138,10 +138,10 @@ int main(int argc, char** argv) {
   const zm::TickLoop& loop = d.loop();
   std::fprintf(stderr,
                "zonemapd: %llu ticks, %llu input lines refused, peak resident %u, K_max %u, "
-               "%llu loop closures\n",
+               "%llu loop closures accepted\n",
                static_cast<unsigned long long>(loop.totals().ticks),
                static_cast<unsigned long long>(d.rejects().total),
                loop.totals().peak_resident_keyframes, loop.k_max(),
-               static_cast<unsigned long long>(loop.totals().loop_closures));
+               static_cast<unsigned long long>(loop.totals().closures_accepted));
   return 0;
 }

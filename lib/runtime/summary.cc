@@ -211,6 +211,24 @@ constexpr auto kLoadsFields = [](auto& v, auto& l) {
   v.Field("max_late_ms", l.max_late_ms);
   v.Field("late_ms_total", l.late_ms_total);
 };
+constexpr auto kStageFields = [](auto& v, auto& s) {
+  v.Field("p50_ms", s.p50_ms);
+  v.Field("p99_ms", s.p99_ms);
+  v.Field("mean_ms", s.mean_ms);
+};
+constexpr auto kStagesFields = [](auto& v, auto& stages) {
+  for (int i = 0; i < kLoopStageCount; ++i) {
+    v.Object(LoopStageName(static_cast<LoopStage>(i)), stages[static_cast<std::size_t>(i)],
+             kStageFields);
+  }
+};
+constexpr auto kFrameScratchFields = [](auto& v, auto& f) {
+  v.Field("capacity_bytes", f.capacity_bytes);
+  v.Field("high_water_bytes", f.high_water_bytes);
+  v.Field("allocations", f.allocations);
+  v.Field("overflows", f.overflows);
+  v.Field("blocks_outliving_scope", f.blocks_outliving_scope);
+};
 // A replay's part, at the top level (marked by wall_s).
 constexpr auto kReplayFields = [](auto& v, auto& r) {
   v.Field("profile", r.profile);
@@ -248,8 +266,13 @@ constexpr auto kSummaryFields = [](auto& v, auto& s) {
   v.Object("time_total_ms", s.time_total_ms, kTimeTotalFields);
   v.Object("startup", s.startup, kStartupFields);
   v.Object("steady_state", s.steady_state, kSteadyFields);
-  v.Field("loop_closures", s.loop_closures);
+  v.Object("stages", s.stages, kStagesFields);
+  v.Field("closures_accepted", s.closures_accepted);
+  v.Field("frames_localized", s.frames_localized);
   v.Field("closures_rejected", s.closures_rejected);
+  v.Field("images_refused", s.images_refused);
+  v.Field("first_image_error", s.first_image_error, IfEmpty::kOmit);
+  v.Object("frame_scratch", s.frame_scratch, kFrameScratchFields);
   v.Field("peak_resident_keyframes", s.peak_resident_keyframes);
   v.Field("peak_resident_bytes", s.peak_resident_bytes);
   v.Field("over_budget_ticks", s.over_budget_ticks);
@@ -292,6 +315,18 @@ TimeTotal TimeTotalOf(const TimeTotalInputs& in) {
           .with_idle_loads = steady - late + idle};
 }
 
+TickMsSummary TickMsSummaryOf(const StreamingStats& ms) {
+  return {.mean = ms.mean(),
+          .p50 = ms.Quantile(0.50),
+          .p99 = ms.Quantile(0.99),
+          .max = ms.max(),
+          .count = ms.count()};
+}
+
+StageSummary StageSummaryOf(const StreamingStats& ms) {
+  return {.p50_ms = ms.Quantile(0.50), .p99_ms = ms.Quantile(0.99), .mean_ms = ms.mean()};
+}
+
 RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
   const LoopTotals& t = loop.totals();
   RunSummary s;
@@ -306,11 +341,8 @@ RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
   s.interrupted = interrupted;
   s.update_rate_hz = t.simulated_s > 0 ? static_cast<double>(t.ticks) / t.simulated_s : 0.0;
   s.frame_rate_hz = loop.config().loop.rate_hz;
-  s.tick_ms = {.mean = t.tick_ms.mean(),
-               .p50 = t.tick_ms.Quantile(0.50),
-               .p99 = t.tick_ms.Quantile(0.99),
-               .max = t.tick_ms.max(),
-               .count = t.tick_ms.count()};
+  s.tick_ms = TickMsSummaryOf(t.tick_ms);
+  for (std::size_t i = 0; i < s.stages.size(); ++i) s.stages[i] = StageSummaryOf(t.stage_ms[i]);
   s.time_total_ms = TimeTotalOf({.steady_mean_ms = t.tick_ms.mean(),
                                  .steady_ticks = t.tick_ms.count(),
                                  .has_startup = t.ticks > 0,
@@ -330,8 +362,19 @@ RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
                     .db_transactions = steady.transactions,
                     .db_blob_reads = steady.blob_reads,
                     .db_bytes_read = steady.bytes_read};
-  s.loop_closures = t.loop_closures;
+  s.closures_accepted = t.closures_accepted;
+  s.frames_localized = t.frames_localized;
   s.closures_rejected = t.closures_rejected;
+  s.images_refused = t.images_refused;
+  if (!t.first_image_error.ok()) s.first_image_error = t.first_image_error.ToString();
+  if (const FrontEnd* fe = loop.front_end(); fe != nullptr) {
+    const FrameScratchStats f = fe->extractor().scratch_stats();
+    s.frame_scratch = FrameScratchSummary{.capacity_bytes = f.capacity_bytes,
+                                          .high_water_bytes = f.high_water_bytes,
+                                          .allocations = f.allocations,
+                                          .overflows = f.overflows,
+                                          .blocks_outliving_scope = f.blocks_outliving_scope};
+  }
   s.peak_resident_keyframes = t.peak_resident_keyframes;
   s.peak_resident_bytes = t.peak_resident_bytes;
   s.over_budget_ticks = t.over_budget_ticks;
@@ -390,6 +433,10 @@ Result<RunSummary> RunSummaryFromJson(const Json& j) {
                            std::to_string(kSummarySchemaVersion) + ")");
   }
   kSummaryFields(r, s);
+  if (s.schema_version < 2) {  // version 1's one count: the frames whose closure was accepted
+    r.Field("loop_closures", s.closures_accepted);
+    s.frames_localized = s.closures_accepted;
+  }
   if (!error.ok()) return error;
   return s;
 }

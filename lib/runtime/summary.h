@@ -7,6 +7,7 @@
 // documented in docs/runtime.md ("summary.json").
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -18,8 +19,11 @@
 namespace zm {
 
 // summary.json's `schema_version`. Raise it when a key changes meaning or goes away (adding a key
-// does not); RunSummaryFromJson refuses a newer version than this build knows.
-inline constexpr int kSummarySchemaVersion = 1;
+// does not); RunSummaryFromJson refuses a newer version than this build knows and reads the older
+// ones. 2: `loop_closures` became `closures_accepted` beside `frames_localized` (a version-1 file's
+// loop_closures is read as both: it counted the frames whose closure was accepted, one at most
+// each); `stages`, `images_refused`, `first_image_error` and `frame_scratch` were added.
+inline constexpr int kSummarySchemaVersion = 2;
 
 // Steady-state tick times (the first, start-up tick is reported apart in `startup`).
 struct TickMsSummary {
@@ -28,6 +32,30 @@ struct TickMsSummary {
   double p99 = 0.0;
   double max = 0.0;
   std::uint64_t count = 0;
+};
+
+// One stage's time per steady-state tick (LoopStage: features, quantize, likelihood, verify,
+// memory; telemetry.h), from the same ticks as tick_ms.
+struct StageSummary {
+  double p50_ms = 0.0;
+  double p99_ms = 0.0;
+  double mean_ms = 0.0;
+};
+
+// A StreamingStats of tick or stage times as summary.json states it: the one derivation for a
+// loop's totals (LoopSummary) and for a run rebuilt from its ticks.jsonl (harness/device_run.cc).
+[[nodiscard]] TickMsSummary TickMsSummaryOf(const StreamingStats& ms);
+[[nodiscard]] StageSummary StageSummaryOf(const StreamingStats& ms);
+
+// The front-end's frame scratch (arena/frame_scratch.h) at the end of the run: how much of the
+// region a frame used, and whether any request missed it (overflows: served by the heap) or
+// kept it from resetting (blocks that outlived their scope). Only when frames carried images.
+struct FrameScratchSummary {
+  std::uint64_t capacity_bytes = 0;
+  std::uint64_t high_water_bytes = 0;
+  std::uint64_t allocations = 0;
+  std::uint64_t overflows = 0;
+  std::uint64_t blocks_outliving_scope = 0;
 };
 
 // The paper's TimeTotal (RTAB-Map's per-frame processing time) four ways, summary.json's
@@ -140,8 +168,16 @@ struct RunSummary {
   TimeTotal time_total_ms;
   StartupSummary startup;
   SteadyStateSummary steady_state;
-  std::uint64_t loop_closures = 0;
+  // Per stage, by LoopStage (summary.json `stages`, keyed by LoopStageName).
+  std::array<StageSummary, kLoopStageCount> stages{};
+  // Loop closures accepted and frames localized (LoopTotals: the same count today), closures
+  // rejected; camera frames whose image the front-end refused (the tick ran on odometry).
+  std::uint64_t closures_accepted = 0;
+  std::uint64_t frames_localized = 0;
   std::uint64_t closures_rejected = 0;
+  std::uint64_t images_refused = 0;
+  std::optional<std::string> first_image_error;  // omitted when none was refused
+  std::optional<FrameScratchSummary> frame_scratch;  // omitted without a front-end
   std::uint64_t peak_resident_keyframes = 0;
   std::uint64_t peak_resident_bytes = 0;
   std::uint64_t over_budget_ticks = 0;

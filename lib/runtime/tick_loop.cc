@@ -136,16 +136,20 @@ void TickLoop::Account(const TickTelemetry& t) {
   totals_.loads_preempted += t.loads_preempted;
   totals_.keyframes_unloaded += t.keyframes_unloaded;
   totals_.zone_loads += t.zones_loaded;
+  totals_.load_ms += t.load_ms;
+  totals_.unload_ms += t.unload_ms;
+  totals_.peak_resident_keyframes =
+      std::max(totals_.peak_resident_keyframes, t.peak_resident_keyframes);
+  AccountDbWork(t);
+}
+
+void TickLoop::AccountDbWork(const TickTelemetry& t) {
   totals_.db_transactions += t.db_transactions;
   totals_.db_queries += t.db_queries;
   totals_.db_blob_reads += t.db_blob_reads;
   totals_.search_queries += t.search_queries;
   totals_.search_transactions += t.search_transactions;
   totals_.db_bytes_read += t.db_bytes_read;
-  totals_.load_ms += t.load_ms;
-  totals_.unload_ms += t.unload_ms;
-  totals_.peak_resident_keyframes =
-      std::max(totals_.peak_resident_keyframes, t.peak_resident_keyframes);
 }
 
 Result<bool> TickLoop::Tick() {
@@ -170,11 +174,12 @@ Result<bool> TickLoop::Tick() {
                    : FailedPrecondition("frame " + std::to_string(frame_.index) +
                                         " has an image but the source declared none");
     record_.stage_ms[static_cast<int>(LoopStage::kFeatures)] = fe.decode_ms + fe.extract_ms;
+    record_.has_image = true;
     if (!s.ok()) {
       // Refused: no features, so the localizer does nothing and the tick runs on odometry.
-      record_.frame_refused = true;
-      ++totals_.frames_refused;
-      if (totals_.first_frame_error.ok()) totals_.first_frame_error = std::move(s);
+      record_.image_refused = true;
+      ++totals_.images_refused;
+      if (totals_.first_image_error.ok()) totals_.first_image_error = std::move(s);
     }
   }
   record_.features = frame_.feature_count();
@@ -247,8 +252,9 @@ Result<bool> TickLoop::Tick() {
   if (loc.accepted) {
     t_map_odom_ = MapFromOdomCorrection(loc.t_map_cam, frame_.odom);  // used from next tick
     estimate = loc.t_map_body;
-    ++totals_.loop_closures;
+    ++totals_.frames_localized;
   }
+  totals_.closures_accepted += loc.closures_accepted;
   totals_.closures_rejected += loc.closures_rejected;
   const Plan& after =
       decide_->After(loc.highest_hypothesis, loc.accepted ? loc.matched : KeyframeId{0});
@@ -270,6 +276,7 @@ Result<bool> TickLoop::Tick() {
       record_.step_ms[static_cast<int>(TickStep::kApply)] + loc.index_ms +
       std::max(0.0, record_.step_ms[static_cast<int>(TickStep::kLocalize)] - loc.index_ms -
                         loc.quantize_ms - loc.likelihood_ms - loc.verify_ms);
+  record_.vocabulary = localizer_->has_vocabulary();
   record_.likelihood = loc.highest_likelihood;
   record_.postings_walked = loc.postings_walked;
 
@@ -339,6 +346,9 @@ Result<bool> TickLoop::Tick() {
     totals_.startup.tick_ms = record_.tick_ms;
   } else {
     totals_.tick_ms.Add(record_.tick_ms);
+    for (std::size_t i = 0; i < totals_.stage_ms.size(); ++i) {
+      totals_.stage_ms[i].Add(record_.stage_ms[i]);
+    }
     totals_.late_ms += record_.late_ms;
   }
   totals_.simulated_s += std::max(frame_period_s_, record_.tick_ms / 1000.0);
