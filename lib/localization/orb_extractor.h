@@ -71,7 +71,9 @@ struct OrbOptions {
 };
 
 // The scratch a frame of this size needs, with room to spare: see the measurement in
-// docs/localization.md ("Allocation inside the tick").
+// docs/localization.md ("Allocation inside the tick"). What the region then reserves is
+// FrameScratch::ReservedBytes of it (whole pages); the memory budget counts that (budget.h).
+[[nodiscard]] std::size_t FrameScratchBytesFor(std::uint32_t width, std::uint32_t height);
 [[nodiscard]] std::size_t FrameScratchBytesFor(const CameraIntrinsics& camera);
 
 // Checks ranges (word_features <= max_features, scale > 1, ...); names the field and the limit.

@@ -258,6 +258,9 @@ constexpr auto kSummaryFields = [](auto& v, auto& s) {
   v.Field("arena_bytes_reserved", s.arena_bytes_reserved);
   v.Field("arena_locked", s.arena_locked);
   v.Field("map_share_bytes", s.map_share_bytes);
+  v.Field("vocabulary_bytes", s.vocabulary_bytes);
+  v.Field("index_bytes", s.index_bytes);
+  v.Field("frame_scratch_bytes", s.frame_scratch_bytes);
   v.Field("ticks", s.ticks);
   v.Field("interrupted", s.interrupted);
   v.Field("update_rate_hz", s.update_rate_hz, IfEmpty::kNull);
@@ -337,6 +340,9 @@ RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
   s.arena_bytes_reserved = loop.arena().stats().bytes_reserved;
   s.arena_locked = loop.arena().locked();
   s.map_share_bytes = loop.budget().map_share_bytes;
+  s.vocabulary_bytes = loop.budget().vocabulary_bytes;
+  s.index_bytes = loop.budget().index_bytes;
+  s.frame_scratch_bytes = loop.budget().frame_scratch_bytes;
   s.ticks = t.ticks;
   s.interrupted = interrupted;
   s.update_rate_hz = t.simulated_s > 0 ? static_cast<double>(t.ticks) / t.simulated_s : 0.0;

@@ -22,7 +22,8 @@ namespace zm {
 // does not); RunSummaryFromJson refuses a newer version than this build knows and reads the older
 // ones. 2: `loop_closures` became `closures_accepted` beside `frames_localized` (a version-1 file's
 // loop_closures is read as both: it counted the frames whose closure was accepted, one at most
-// each); `stages`, `images_refused`, `first_image_error` and `frame_scratch` were added.
+// each); `stages`, `images_refused`, `first_image_error`, `frame_scratch` and the budget's
+// `vocabulary_bytes`, `index_bytes`, `frame_scratch_bytes` were added.
 inline constexpr int kSummarySchemaVersion = 2;
 
 // Steady-state tick times (the first, start-up tick is reported apart in `startup`).
@@ -160,6 +161,10 @@ struct RunSummary {
   std::uint64_t arena_bytes_reserved = 0;
   bool arena_locked = false;
   std::uint64_t map_share_bytes = 0;
+  // Localization's memory the budget counted beside the slots (Budget; 0 where none).
+  std::uint64_t vocabulary_bytes = 0;
+  std::uint64_t index_bytes = 0;
+  std::uint64_t frame_scratch_bytes = 0;
   std::uint64_t ticks = 0;
   bool interrupted = false;
   std::optional<double> update_rate_hz;  // null: not measured (a killed unpaced run)

@@ -42,12 +42,14 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   ZM_ASSIGN_OR_RETURN(ZoneSet zone_set, ZoneSetFromRecords(zone_records, members));
   ZM_ASSIGN_OR_RETURN(MapIndex index, BuildPolicyIndex(keyframes, links, zone_set, members));
 
-  // The one derivation of K_max and the arena (budget.h).
+  // The map's vocabulary, when it has one: the localizer's likelihood over the resident set.
+  // Read before the budget, which counts it (and the index over the arena's slots).
+  ZM_ASSIGN_OR_RETURN(std::optional<Vocabulary> vocabulary, LoadMapVocabulary(map, "the map"));
+  const FrameSource::Images images = frames.images();
+  // The one derivation of K_max, the arena and localization's memory (budget.h).
   ZM_ASSIGN_OR_RETURN(const Budget budget,
-                      DeriveBudget(BudgetInputsFor(config.device, config.model, config.map,
-                                                   config.policy.kind,
-                                                   meta.largest_payload_bytes,
-                                                   meta.keyframe_count)));
+                      DeriveBudget(LoopBudgetInputs(config, meta,
+                                                    vocabulary ? &*vocabulary : nullptr, images)));
 
   // The bounded policies get an arena of exactly K_max slots: exceeding the budget is then
   // physically impossible. basic and unbounded model RTAB-Map's heap, which grows: their arena
@@ -92,19 +94,31 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   LocalizerConfig lc = config.localizer;
   lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes, budget.arena_slots);
   lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, frames.max_features());
-  const FrameSource::Images images = frames.images();
   if (images.max_colour_bytes > 0) {
-    // Camera frames: the loop extracts their features itself, inside the tick.
+    // Camera frames: the loop extracts their features itself, inside the tick, in the frame
+    // scratch the budget counted.
     lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, config.orb.max_features);
+    OrbOptions orb = config.orb;
+    orb.scratch_bytes = budget.frame_scratch_bytes;
     ZM_ASSIGN_OR_RETURN(loop->front_end_,
-                        FrontEnd::Create(config.orb, meta.camera, images.width, images.height));
+                        FrontEnd::Create(orb, meta.camera, images.width, images.height));
   }
   ZM_RETURN_IF_ERROR(ValidateLocalizerConfig(lc, meta.camera));
   loop->localizer_ = std::make_unique<Localizer>(lc, meta.camera);
-  // The map's vocabulary, when it has one: the localizer's likelihood over the resident set.
-  ZM_ASSIGN_OR_RETURN(loop->vocabulary_, LoadMapVocabulary(map, "the map"));
+  loop->vocabulary_ = std::move(vocabulary);
   if (loop->vocabulary_.has_value()) {
     ZM_RETURN_IF_ERROR(loop->localizer_->UseVocabulary(&*loop->vocabulary_, budget.arena_slots));
+  }
+  // One derivation: what was reserved is what the budget counted (a mismatch is a bug here).
+  const std::uint64_t scratch =
+      loop->front_end_ ? loop->front_end_->extractor().scratch_stats().capacity_bytes : 0;
+  if (loop->localizer_->index_memory_bytes() != budget.index_bytes ||
+      scratch != budget.frame_scratch_bytes) {
+    return Internal("the loop reserved an inverted index of " +
+                    std::to_string(loop->localizer_->index_memory_bytes()) +
+                    " bytes and a frame scratch of " + std::to_string(scratch) +
+                    " bytes; the budget counted " + std::to_string(budget.index_bytes) + " and " +
+                    std::to_string(budget.frame_scratch_bytes));
   }
 
   loop->frame_.Reserve(std::max<std::uint32_t>({frames.max_features(), config.orb.max_features, 1}),
@@ -117,6 +131,26 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   loop->keyframe_poses_.reserve(keyframes.size());
   for (const KeyframeMeta& k : keyframes) loop->keyframe_poses_.push_back(k.pose);
   return loop;
+}
+
+BudgetInputs LoopBudgetInputs(const LoopConfig& config, const MapMetadata& map,
+                              const Vocabulary* vocabulary, const FrameSource::Images& images) {
+  BudgetInputs in = BudgetInputsFor(config.device, config.model, config.map, config.policy.kind,
+                                    map.largest_payload_bytes, map.keyframe_count);
+  LocalizationInputs& l = in.localization;
+  if (vocabulary != nullptr) {
+    l.vocabulary_bytes = vocabulary->memory_bytes();
+    l.vocabulary_words = vocabulary->word_count();
+    l.word_features = config.localizer.word_features;
+  }
+  if (images.max_colour_bytes > 0) {
+    // The front-end's images: their declared size, else the map camera's (FrontEnd::Create).
+    const bool sized = images.width != 0 && images.height != 0;
+    l.image_width = sized ? images.width : map.camera.width;
+    l.image_height = sized ? images.height : map.camera.height;
+    l.scratch_bytes = config.orb.scratch_bytes;
+  }
+  return in;
 }
 
 DbWork SteadyDbWork(const LoopTotals& t) {

@@ -191,6 +191,13 @@ struct DbWork {
 };
 [[nodiscard]] DbWork SteadyDbWork(const LoopTotals& totals);
 
+// The budget's inputs for a loop over a map and frames (DeriveBudget, budget.h): the options,
+// the map's facts, its vocabulary (null when it has none) and the frames' images (camera frames:
+// the front-end's scratch). The one place for the loop and `zonemap budget --map`.
+[[nodiscard]] BudgetInputs LoopBudgetInputs(const LoopConfig& config, const MapMetadata& map,
+                                            const Vocabulary* vocabulary,
+                                            const FrameSource::Images& images);
+
 // What TickLoop::SetBudget did (acknowledged to the robot as `ack budget ...`).
 struct BudgetChange {
   enum class Outcome : std::uint8_t {

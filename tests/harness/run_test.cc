@@ -116,8 +116,14 @@ TEST_CASE("run from pixels: every stage timed, closures beside frames localized"
     CHECK_MESSAGE(s->stages[static_cast<std::size_t>(i)].p50_ms > 0.0,
                   LoopStageName(static_cast<LoopStage>(i)));
   }
+  // The budget counted the vocabulary, the index and the scratch, and the loop reserved exactly
+  // those (TickLoop::Create refuses otherwise).
+  CHECK(s->vocabulary_bytes == scenario->vocabulary_bytes);
+  CHECK(s->index_bytes > 0);
+  CHECK(s->frame_scratch_bytes > 0);
   // The frame scratch took OpenCV's per-frame allocations without missing one.
   REQUIRE(s->frame_scratch.has_value());
+  CHECK(s->frame_scratch->capacity_bytes == s->frame_scratch_bytes);
   CHECK(s->frame_scratch->allocations > 0);
   CHECK(s->frame_scratch->overflows == 0);
   CHECK(s->frame_scratch->blocks_outliving_scope == 0);

@@ -232,6 +232,8 @@ TEST_CASE("inverted index: full to K_max x M in the worst block patterns, no all
     CHECK(news.allocations() == 0);
     CHECK(mallocs.mallocs() == 0);
     CHECK(index.memory_bytes() > std::size_t{kSlots} * kM * 8);
+    // Filled and emptied three times over, it holds what BytesFor says (the budget's figure).
+    CHECK(index.memory_bytes() == InvertedIndex::BytesFor(index.options()));
   }
 }
 
