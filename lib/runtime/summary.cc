@@ -227,6 +227,7 @@ constexpr auto kFrameScratchFields = [](auto& v, auto& f) {
   v.Field("high_water_bytes", f.high_water_bytes);
   v.Field("allocations", f.allocations);
   v.Field("overflows", f.overflows);
+  v.Field("scopes", f.scopes);
   v.Field("blocks_outliving_scope", f.blocks_outliving_scope);
 };
 // A replay's part, at the top level (marked by wall_s).
@@ -374,12 +375,7 @@ RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
   s.images_refused = t.images_refused;
   if (!t.first_image_error.ok()) s.first_image_error = t.first_image_error.ToString();
   if (const FrontEnd* fe = loop.front_end(); fe != nullptr) {
-    const FrameScratchStats f = fe->extractor().scratch_stats();
-    s.frame_scratch = FrameScratchSummary{.capacity_bytes = f.capacity_bytes,
-                                          .high_water_bytes = f.high_water_bytes,
-                                          .allocations = f.allocations,
-                                          .overflows = f.overflows,
-                                          .blocks_outliving_scope = f.blocks_outliving_scope};
+    s.frame_scratch = fe->extractor().scratch_stats();
   }
   s.peak_resident_keyframes = t.peak_resident_keyframes;
   s.peak_resident_bytes = t.peak_resident_bytes;

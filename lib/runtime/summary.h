@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "arena/frame_scratch.h"
 #include "common/status.h"
 #include "runtime/tick_loop.h"
 
@@ -47,17 +48,6 @@ struct StageSummary {
 // loop's totals (LoopSummary) and for a run rebuilt from its ticks.jsonl (harness/device_run.cc).
 [[nodiscard]] TickMsSummary TickMsSummaryOf(const StreamingStats& ms);
 [[nodiscard]] StageSummary StageSummaryOf(const StreamingStats& ms);
-
-// The front-end's frame scratch (arena/frame_scratch.h) at the end of the run: how much of the
-// region a frame used, and whether any request missed it (overflows: served by the heap) or
-// kept it from resetting (blocks that outlived their scope). Only when frames carried images.
-struct FrameScratchSummary {
-  std::uint64_t capacity_bytes = 0;
-  std::uint64_t high_water_bytes = 0;
-  std::uint64_t allocations = 0;
-  std::uint64_t overflows = 0;
-  std::uint64_t blocks_outliving_scope = 0;
-};
 
 // The paper's TimeTotal (RTAB-Map's per-frame processing time) four ways, summary.json's
 // "time_total_ms" (issue 27 §4), from what a run counted:
@@ -182,7 +172,10 @@ struct RunSummary {
   std::uint64_t closures_rejected = 0;
   std::uint64_t images_refused = 0;
   std::optional<std::string> first_image_error;  // omitted when none was refused
-  std::optional<FrameScratchSummary> frame_scratch;  // omitted without a front-end
+  // The front-end's frame scratch at the end of the run (FrameScratchStats: how much of the
+  // region a frame used, requests the heap served, blocks that kept it from resetting); omitted
+  // without a front-end.
+  std::optional<FrameScratchStats> frame_scratch;
   std::uint64_t peak_resident_keyframes = 0;
   std::uint64_t peak_resident_bytes = 0;
   std::uint64_t over_budget_ticks = 0;

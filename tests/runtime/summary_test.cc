@@ -53,11 +53,12 @@ RunSummary Example() {
                                                                .mean_ms = 3.75};
   s.stages[static_cast<std::size_t>(LoopStage::kLikelihood)] = {.p50_ms = 0.25, .p99_ms = 1.5,
                                                                  .mean_ms = 0.5};
-  s.frame_scratch = FrameScratchSummary{.capacity_bytes = 2682880,
-                                        .high_water_bytes = 610304,
-                                        .allocations = 512000,
-                                        .overflows = 0,
-                                        .blocks_outliving_scope = 0};
+  s.frame_scratch = FrameScratchStats{.capacity_bytes = 2682880,
+                                      .high_water_bytes = 610304,
+                                      .allocations = 512000,
+                                      .overflows = 0,
+                                      .scopes = 4128,
+                                      .blocks_outliving_scope = 0};
   s.loads.late_ms_total = 12.5;
   s.first_error = "I/O error: disk";
   ReplaySummary r;

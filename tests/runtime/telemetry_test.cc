@@ -6,11 +6,23 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "support/counting_allocator.h"
 
 namespace zm {
 namespace {
+
+// The JSON object of each line of `path`, which is then removed.
+std::vector<nlohmann::json> ReadAndRemove(const std::filesystem::path& path) {
+  std::vector<nlohmann::json> lines;
+  {
+    std::ifstream in(path);
+    for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
+  }
+  std::filesystem::remove(path);
+  return lines;
+}
 
 TEST_CASE("each tick is one parseable JSON line and writing allocates nothing") {
   const auto path = std::filesystem::temp_directory_path() / "zm_telemetry_test.jsonl";
@@ -37,11 +49,8 @@ TEST_CASE("each tick is one parseable JSON line and writing allocates nothing") 
     CHECK(counter.allocations() == 0);
   }
   w.Close();
-  std::ifstream in(path);
-  std::string line;
   int n = 0;
-  while (std::getline(in, line)) {
-    const auto j = nlohmann::json::parse(line);
+  for (const nlohmann::json& j : ReadAndRemove(path)) {
     CHECK(j["tick"] == n);
     CHECK(j["zone"] == 3);
     CHECK(j["resident_keyframes"] == 120);
@@ -59,7 +68,6 @@ TEST_CASE("each tick is one parseable JSON line and writing allocates nothing") 
     ++n;
   }
   CHECK(n == 50);
-  std::filesystem::remove(path);
 }
 
 TEST_CASE("a frame with features and no vocabulary: only the members that exist") {
@@ -70,16 +78,14 @@ TEST_CASE("a frame with features and no vocabulary: only the members that exist"
   r.features = 30;
   REQUIRE(w.Write(r));
   w.Close();
-  std::ifstream in(path);
-  std::string line;
-  REQUIRE(std::getline(in, line));
-  const auto j = nlohmann::json::parse(line);
+  const std::vector<nlohmann::json> lines = ReadAndRemove(path);
+  REQUIRE(lines.size() == 1);
+  const nlohmann::json& j = lines[0];
   CHECK(j["features"] == 30);
   CHECK(j["stages_ms"]["memory"] == 0.0);
   CHECK_FALSE(j.contains("image_refused"));  // no image: nothing to refuse
   CHECK_FALSE(j.contains("likelihood"));     // no vocabulary: no likelihood
   CHECK_FALSE(j.contains("postings_walked"));
-  std::filesystem::remove(path);
 }
 
 TEST_CASE("the widest record with the publisher's longest extra still fits one line") {
@@ -125,18 +131,12 @@ TEST_CASE("a caller's extra members land inside the same JSON object") {
   const std::string huge(8192, 'x');
   CHECK_FALSE(w.Write(r, huge));
   w.Close();
-  std::ifstream in(path);
-  std::string line;
-  REQUIRE(std::getline(in, line));
-  auto j = nlohmann::json::parse(line);
-  CHECK(j["oom_kills"] == 2);
-  CHECK(j["cgroup_bytes"] == 123);
-  CHECK(j["startup"] == true);
-  REQUIRE(std::getline(in, line));
-  j = nlohmann::json::parse(line);
-  CHECK_FALSE(j.contains("oom_kills"));
-  CHECK_FALSE(std::getline(in, line));
-  std::filesystem::remove(path);
+  const std::vector<nlohmann::json> lines = ReadAndRemove(path);
+  REQUIRE(lines.size() == 2);
+  CHECK(lines[0]["oom_kills"] == 2);
+  CHECK(lines[0]["cgroup_bytes"] == 123);
+  CHECK(lines[0]["startup"] == true);
+  CHECK_FALSE(lines[1].contains("oom_kills"));
 }
 
 TEST_CASE("opening an unwritable path is a clear error") {
