@@ -165,25 +165,26 @@ void TickLoop::NoteError(const Status& s) {
 }
 
 void TickLoop::Account(const TickTelemetry& t) {
-  totals_.keyframes_loaded += t.keyframes_loaded;
-  totals_.keyframes_cancelled += t.keyframes_cancelled;
-  totals_.loads_preempted += t.loads_preempted;
-  totals_.keyframes_unloaded += t.keyframes_unloaded;
-  totals_.zone_loads += t.zones_loaded;
+  // The working set's counts a run sums: keyframes and zones moved, database work in one unit.
+  using Count = std::pair<std::uint64_t LoopTotals::*, std::uint32_t TickTelemetry::*>;
+  static constexpr Count kCounts[] = {
+      {&LoopTotals::keyframes_loaded, &TickTelemetry::keyframes_loaded},
+      {&LoopTotals::keyframes_unloaded, &TickTelemetry::keyframes_unloaded},
+      {&LoopTotals::keyframes_cancelled, &TickTelemetry::keyframes_cancelled},
+      {&LoopTotals::loads_preempted, &TickTelemetry::loads_preempted},
+      {&LoopTotals::zone_loads, &TickTelemetry::zones_loaded},
+      {&LoopTotals::db_transactions, &TickTelemetry::db_transactions},
+      {&LoopTotals::db_queries, &TickTelemetry::db_queries},
+      {&LoopTotals::db_blob_reads, &TickTelemetry::db_blob_reads},
+      {&LoopTotals::search_queries, &TickTelemetry::search_queries},
+      {&LoopTotals::search_transactions, &TickTelemetry::search_transactions},
+  };
+  for (const auto& [total, count] : kCounts) totals_.*total += t.*count;
+  totals_.db_bytes_read += t.db_bytes_read;
   totals_.load_ms += t.load_ms;
   totals_.unload_ms += t.unload_ms;
   totals_.peak_resident_keyframes =
       std::max(totals_.peak_resident_keyframes, t.peak_resident_keyframes);
-  AccountDbWork(t);
-}
-
-void TickLoop::AccountDbWork(const TickTelemetry& t) {
-  totals_.db_transactions += t.db_transactions;
-  totals_.db_queries += t.db_queries;
-  totals_.db_blob_reads += t.db_blob_reads;
-  totals_.search_queries += t.search_queries;
-  totals_.search_transactions += t.search_transactions;
-  totals_.db_bytes_read += t.db_bytes_read;
 }
 
 Result<bool> TickLoop::Tick() {

@@ -300,7 +300,6 @@ class TickLoop {
   TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index);
   // Adds what the working set did (a tick's or an idle part's telemetry) to the totals.
   void Account(const TickTelemetry& t);
-  void AccountDbWork(const TickTelemetry& t);
   void NoteError(const Status& s);
   // Polls the frame source between two keyframes of the idle part.
   class FrameWaiting final : public SliceInterrupt {
