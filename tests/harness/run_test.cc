@@ -63,7 +63,7 @@ struct SmallRun {
   }
 };
 
-TEST_CASE("run: the recorded frames pass the input gate; each tick is published once") {
+TEST_CASE("run: the recorded frames pass the input gate, and each tick is published once") {
   sim::ScenarioOptions o;
   o.seed = 5;
   o.camera.intrinsics = sim::MakeIntrinsics(320, 240, 90.0);

@@ -127,7 +127,7 @@ TEST_CASE("inverted index: options and inputs are checked, the limit named") {
   CHECK(index.postings() == 2);
 }
 
-TEST_CASE("inverted index: same top-k as a brute-force L1 score; Remove restores the state") {
+TEST_CASE("inverted index: same top-k as a brute-force L1 score, Remove restores the state") {
   constexpr std::uint32_t kKeyframes = 300;
   std::mt19937_64 rng(26);
   std::vector<BowVector> bags;

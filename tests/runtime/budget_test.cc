@@ -22,7 +22,7 @@ BudgetInputs Orin(std::uint64_t slot, std::uint64_t keyframes) {
   return in;
 }
 
-TEST_CASE("share = device - OS - model - headroom; K_max = (share - overhead) / slot") {
+TEST_CASE("share = device - OS - model - headroom, K_max = (share - overhead) / slot") {
   const BudgetInputs in = Orin(2'000'000, 10'000);
   Result<Budget> b = DeriveBudget(in);
   REQUIRE(b.ok());

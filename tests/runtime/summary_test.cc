@@ -129,7 +129,7 @@ TEST_CASE("summary.json: a version-1 file's loop_closures is read as both counts
   CHECK(v2->closures_accepted == 0u);
 }
 
-TEST_CASE("summary.json: a live session has no replay part; its metrics keys are absent") {
+TEST_CASE("summary.json: a live session has no replay part, and its metrics keys are absent") {
   RunSummary s = Example();
   s.replay.reset();
   s.ledger_refusals.reset();
@@ -145,7 +145,7 @@ TEST_CASE("summary.json: a live session has no replay part; its metrics keys are
   CHECK_FALSE(back->frame_scratch.has_value());
 }
 
-TEST_CASE("summary.json: an older file keeps defaults; a wrong type or a newer version is named") {
+TEST_CASE("summary.json: an older file keeps defaults, a wrong type or a newer version is named") {
   auto old = RunSummaryFromJson({{"policy", "basic"}, {"ticks", 7}});
   REQUIRE(old.ok());
   CHECK(old->schema_version == 0);

@@ -17,7 +17,7 @@ namespace {
 
 using test::RoomsMap;
 
-TEST_CASE("stage times sum to at most the tick time; the summary has every stage") {
+TEST_CASE("stage times sum to at most the tick time, and the summary has every stage") {
   RoomsMap map(3, 8, "stages");
   auto db = MapDb::Open(map.db());
   REQUIRE(db.ok());
