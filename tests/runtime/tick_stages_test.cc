@@ -2,10 +2,12 @@
 // to at most the tick's time, the run's statistics of each reach summary.json's `stages`, and the
 // closures accepted beside the frames localized. On a map the localizer really closes loops on
 // (rooms_map.h), so the verify and memory stages do work; the pixel path (features, quantize,
-// likelihood) is tests/harness/run_test.cc's.
+// likelihood) is tests/harness/run_test.cc's. Camera frames whose image cannot be used are
+// counted (images_refused) and run on odometry, in the frame scratch the budget counted.
 #include <doctest/doctest.h>
 
 #include <numeric>
+#include <random>
 
 #include "rooms_map.h"
 #include "runtime/frame_source.h"
@@ -16,6 +18,47 @@ namespace zm {
 namespace {
 
 using test::RoomsMap;
+
+// Camera frames of 160 x 120 along the rooms' corridor: the first image is not a JPEG, the
+// others are (noise: whatever ORB finds there).
+class CameraFrames final : public FrameSource {
+ public:
+  static constexpr std::uint32_t kWidth = 160, kHeight = 120;
+  explicit CameraFrames(std::uint64_t frames) : frames_(frames) {
+    std::vector<std::uint8_t> rgb(std::size_t{kWidth} * kHeight * 3);
+    std::mt19937 rng(5);
+    for (auto& v : rgb) v = static_cast<std::uint8_t>(rng());
+    auto jpeg = EncodeJpegRgb(rgb, kWidth, kHeight, 90);
+    REQUIRE(jpeg.ok());
+    jpeg_ = std::move(jpeg).value();
+  }
+  Result<bool> Next(Frame* frame) override {
+    if (next_ == frames_) return false;
+    frame->index = next_;
+    frame->stamp_s = 0.5 * static_cast<double>(next_);
+    frame->odom = PoseFromXYYaw(1.0 + 0.5 * static_cast<double>(next_), 5.0, 0.0);
+    frame->descriptors.clear();
+    frame->keypoints.clear();
+    frame->colour_codec = ImageCodec::kJpeg;
+    if (next_ == 0) {
+      frame->colour.assign(64, std::byte{0x5a});
+    } else {
+      frame->colour.assign(jpeg_.begin(), jpeg_.end());
+    }
+    ++next_;
+    return true;
+  }
+  [[nodiscard]] std::uint32_t max_features() const override { return 0; }
+  [[nodiscard]] Images images() const override {
+    return {.max_colour_bytes = static_cast<std::uint32_t>(jpeg_.size()), .width = kWidth,
+            .height = kHeight};
+  }
+
+ private:
+  std::uint64_t frames_;
+  std::uint64_t next_ = 0;
+  std::vector<std::byte> jpeg_;
+};
 
 TEST_CASE("stage times sum to at most the tick time, and the summary has every stage") {
   RoomsMap map(3, 8, "stages");
@@ -71,6 +114,48 @@ TEST_CASE("stage times sum to at most the tick time, and the summary has every s
   CHECK(j["closures_accepted"] == localized);
   CHECK(j["images_refused"] == 0);
   CHECK_FALSE(j.contains("frame_scratch"));  // no images, no front-end
+}
+
+TEST_CASE("a camera frame whose image cannot be used is counted, and its tick runs on odometry") {
+  RoomsMap map(2, 5, "images");
+  auto db = MapDb::Open(map.db());
+  REQUIRE(db.ok());
+  CameraFrames frames(4);
+  LoopConfig c;
+  c.policy.kind = PolicyKind::kSemantic;
+  c.map.memory_thr_keyframes = 10;
+  auto loop = TickLoop::Create(c, **db, frames);
+  REQUIRE_MESSAGE(loop.ok(), loop.status().ToString());
+  TickLoop& l = **loop;
+  REQUIRE(l.front_end() != nullptr);
+  // The front-end's region is the budget's, to the byte.
+  CHECK(l.budget().frame_scratch_bytes > 0);
+  CHECK(l.front_end()->extractor().scratch_stats().capacity_bytes == l.budget().frame_scratch_bytes);
+
+  REQUIRE(l.Tick().value());
+  const TickRecord& bad = l.last_record();
+  CHECK(bad.has_image);
+  CHECK(bad.image_refused);
+  CHECK(bad.features == 0);
+  CHECK_FALSE(bad.loop_closure);
+  CHECK(bad.pose.isApprox(PoseFromXYYaw(1.0, 5.0, 0.0)));  // odometry (no correction yet)
+  CHECK_FALSE(bad.stalled);  // a refused image is not a failed step
+  for (int i = 1; i < 4; ++i) {
+    REQUIRE(l.Tick().value());
+    CHECK_FALSE(l.last_record().image_refused);
+    CHECK(l.last_record().stage_ms[static_cast<int>(LoopStage::kFeatures)] > 0.0);
+  }
+  const LoopTotals& t = l.totals();
+  CHECK(t.images_refused == 1);
+  CHECK(t.first_image_error.message().find("frame 0") != std::string::npos);
+  const RunSummary s = LoopSummary(l, false);
+  CHECK(s.images_refused == 1);
+  REQUIRE(s.first_image_error.has_value());
+  CHECK(s.first_image_error->find("frame 0: colour image") != std::string::npos);
+  REQUIRE(s.frame_scratch.has_value());
+  CHECK(s.frame_scratch->capacity_bytes == s.frame_scratch_bytes);
+  CHECK(s.frame_scratch->overflows == 0);
+  CHECK(s.stages[static_cast<std::size_t>(LoopStage::kFeatures)].p50_ms > 0.0);
 }
 
 }  // namespace
