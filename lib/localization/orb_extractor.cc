@@ -24,13 +24,6 @@ std::string Size(int w, int h) { return std::to_string(w) + "x" + std::to_string
 
 }  // namespace
 
-std::size_t FrameScratchBytesFor(std::uint32_t width, std::uint32_t height) {
-  // Measured high water at 640x480 with the default options: see docs/localization.md. The
-  // pyramid and its blurred copies scale with the pixels; keypoint vectors with max_features.
-  const std::size_t pixels = std::size_t{width} * height;
-  return 8 * pixels + (std::size_t{2} << 20);
-}
-
 std::size_t FrameScratchBytesFor(const CameraIntrinsics& camera) {
   return FrameScratchBytesFor(camera.width, camera.height);
 }

@@ -7,7 +7,7 @@
 #include "arena/arena.h"
 #include "arena/frame_scratch.h"
 #include "localization/localizer.h"
-#include "localization/orb_extractor.h"
+#include "localization/frame_scratch_size.h"
 #include "memory/policy_kind.h"
 
 namespace zm {

@@ -5,7 +5,7 @@
 
 #include "arena/frame_scratch.h"
 #include "localization/localizer.h"
-#include "localization/orb_extractor.h"
+#include "localization/frame_scratch_size.h"
 
 namespace zm {
 namespace {
