@@ -60,18 +60,29 @@ class CameraFrames final : public FrameSource {
   std::vector<std::byte> jpeg_;
 };
 
+// A semantic loop at MemoryThr k_max over the rooms map and `frames` (both outlive it).
+struct SemanticLoop {
+  std::unique_ptr<MapDb> db;
+  std::unique_ptr<TickLoop> loop;
+  SemanticLoop(const RoomsMap& map, FrameSource& frames, std::uint64_t k_max) {
+    auto opened = MapDb::Open(map.db());
+    REQUIRE(opened.ok());
+    db = std::move(opened).value();
+    LoopConfig c;
+    c.policy.kind = PolicyKind::kSemantic;
+    c.map.memory_thr_keyframes = k_max;
+    c.localizer.reserve_features = 64;
+    auto made = TickLoop::Create(c, *db, frames);
+    REQUIRE_MESSAGE(made.ok(), made.status().ToString());
+    loop = std::move(made).value();
+  }
+};
+
 TEST_CASE("stage times sum to at most the tick time, and the summary has every stage") {
   RoomsMap map(3, 8, "stages");
-  auto db = MapDb::Open(map.db());
-  REQUIRE(db.ok());
   StagedFrameSource frames(64);
-  LoopConfig c;
-  c.policy.kind = PolicyKind::kSemantic;
-  c.map.memory_thr_keyframes = 16;
-  c.localizer.reserve_features = 64;
-  auto loop = TickLoop::Create(c, **db, frames);
-  REQUIRE_MESSAGE(loop.ok(), loop.status().ToString());
-  TickLoop& l = **loop;
+  SemanticLoop semantic(map, frames, 16);
+  TickLoop& l = *semantic.loop;
 
   std::uint64_t localized = 0;
   for (int i = 0; i < 40; ++i) {
@@ -118,15 +129,9 @@ TEST_CASE("stage times sum to at most the tick time, and the summary has every s
 
 TEST_CASE("a camera frame whose image cannot be used is counted, and its tick runs on odometry") {
   RoomsMap map(2, 5, "images");
-  auto db = MapDb::Open(map.db());
-  REQUIRE(db.ok());
   CameraFrames frames(4);
-  LoopConfig c;
-  c.policy.kind = PolicyKind::kSemantic;
-  c.map.memory_thr_keyframes = 10;
-  auto loop = TickLoop::Create(c, **db, frames);
-  REQUIRE_MESSAGE(loop.ok(), loop.status().ToString());
-  TickLoop& l = **loop;
+  SemanticLoop semantic(map, frames, 10);
+  TickLoop& l = *semantic.loop;
   REQUIRE(l.front_end() != nullptr);
   // The front-end's region is the budget's, to the byte.
   CHECK(l.budget().frame_scratch_bytes > 0);
