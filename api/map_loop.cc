@@ -218,7 +218,7 @@ LoopStats MapLoop::stats() const {
   const zm::RunSummary t = zm::LoopSummary(*impl_->loop, false);
   LoopStats s;
   s.ticks = t.ticks;
-  s.loop_closures = t.loop_closures;
+  s.loop_closures = t.closures_accepted;
   s.keyframes_loaded = t.keyframes_loaded;
   s.keyframes_unloaded = t.keyframes_unloaded;
   s.zone_loads = t.zone_loads;

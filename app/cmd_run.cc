@@ -114,15 +114,27 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
         r.map.arena_locked ? "locked" : "not locked",
         static_cast<unsigned long long>(replay.frames_arrived),
         static_cast<unsigned long long>(replay.frames_dropped), o->time_compression);
-    std::printf("%s: %llu ticks, K_max %llu, peak resident %llu, loop closures %llu, ATE %.3f m, "
-                "tick p50 %.2f ms p99 %.2f ms, over-budget ticks %llu%s\n",
+    std::printf("%s: %llu ticks, K_max %llu, peak resident %llu, loop closures accepted %llu "
+                "(frames localized %llu), ATE %.3f m, tick p50 %.2f ms p99 %.2f ms, over-budget "
+                "ticks %llu%s\n",
                 j.policy.c_str(), static_cast<unsigned long long>(j.ticks),
                 static_cast<unsigned long long>(j.k_max),
                 static_cast<unsigned long long>(j.peak_resident_keyframes),
-                static_cast<unsigned long long>(j.loop_closures),
+                static_cast<unsigned long long>(j.closures_accepted),
+                static_cast<unsigned long long>(j.frames_localized),
                 replay.trajectory.ate_rmse_m.value_or(-1.0), j.tick_ms.p50, j.tick_ms.p99,
                 static_cast<unsigned long long>(j.over_budget_ticks),
                 j.interrupted ? " (interrupted)" : "");
+    std::printf("stages p50 / p99 ms:");
+    for (std::size_t i = 0; i < j.stages.size(); ++i) {
+      std::printf(" %s %.2f / %.2f", LoopStageName(static_cast<LoopStage>(i)), j.stages[i].p50_ms,
+                  j.stages[i].p99_ms);
+    }
+    std::printf("\n");
+    if (j.first_image_error) {
+      std::printf("images refused: %llu, the first: %s\n",
+                  static_cast<unsigned long long>(j.images_refused), j.first_image_error->c_str());
+    }
     if (!r.cotenant.is_null()) {
       const nlohmann::json& c = r.cotenant;
       const bool has_latency = c.contains("latency_ms") && c["latency_ms"].is_object() &&

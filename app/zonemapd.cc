@@ -233,11 +233,12 @@ int main(int argc, char** argv) {
   const zm::TickLoop& loop = d.loop();
   std::fprintf(stderr,
                "zonemapd: %llu ticks, %llu input lines refused, %llu image frames on odometry, "
-               "peak resident %u, K_max %u, %llu loop closures\n",
+               "peak resident %u, K_max %u, %llu loop closures accepted
+",
                static_cast<unsigned long long>(loop.totals().ticks),
                static_cast<unsigned long long>(d.rejects().total),
                static_cast<unsigned long long>(d.image_refusals().total),
                loop.totals().peak_resident_keyframes, loop.k_max(),
-               static_cast<unsigned long long>(loop.totals().loop_closures));
+               static_cast<unsigned long long>(loop.totals().closures_accepted));
   return 0;
 }

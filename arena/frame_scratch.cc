@@ -42,8 +42,7 @@ std::unique_ptr<FrameScratch> FrameScratch::Create(std::size_t bytes, std::strin
              std::to_string(kMaxScratchBytes) + "]";
     return nullptr;
   }
-  const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
-  const std::size_t size = (bytes + page - 1) / page * page;
+  const std::size_t size = ReservedBytes(bytes);
   void* p = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (p == MAP_FAILED) {
     *error = "frame scratch: mmap of " + std::to_string(size) + " bytes failed: " +
@@ -67,6 +66,11 @@ std::unique_ptr<FrameScratch> FrameScratch::Create(std::size_t bytes, std::strin
   munmap(p, size);
   *error = "frame scratch: more than " + std::to_string(kMaxRegions) + " regions";
   return nullptr;
+}
+
+std::size_t FrameScratch::ReservedBytes(std::size_t bytes) {
+  const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+  return (bytes + page - 1) / page * page;
 }
 
 FrameScratch::~FrameScratch() {

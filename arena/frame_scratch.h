@@ -60,6 +60,8 @@ class FrameScratch {
   // frame does not page-fault it in. Returns nullptr with *error set when the mapping fails or
   // bytes is 0 or above 1 GiB.
   static std::unique_ptr<FrameScratch> Create(std::size_t bytes, std::string* error);
+  // What Create(bytes) reserves: bytes rounded up to whole pages (the memory budget counts this).
+  [[nodiscard]] static std::size_t ReservedBytes(std::size_t bytes);
   ~FrameScratch();
   FrameScratch(const FrameScratch&) = delete;
   FrameScratch& operator=(const FrameScratch&) = delete;

@@ -51,8 +51,10 @@ def fmt(v, decimals):
 
 
 # Table I's metrics: (row, the summary.json pointer of ours, decimals). TimeTotal is the mean
-# tick time after the start-up tick (time_total_ms.steady; tick_ms.mean before issue 27).
-T1_METRICS = [("/update_rate_hz", 2), ("/loop_closures", 0), ("/time_total_ms/steady", 1),
+# tick time after the start-up tick (time_total_ms.steady; tick_ms.mean before issue 27). Loop
+# closures are the accepted ones, as RTAB-Map counts them (closures_accepted; loop_closures in
+# summaries of schema version 1, which counted the same).
+T1_METRICS = [("/update_rate_hz", 2), ("/closures_accepted", 0), ("/time_total_ms/steady", 1),
               ("/ate_rmse_m", 3), ("/rpe_trans_rmse_m", 3), ("/rpe_rot_rmse_deg", 2)]
 # TimeTotal the other ways (lib/runtime/summary.h, TimeTotalJson); the paper has one number.
 T1_TIME_TOTAL = [
@@ -62,11 +64,18 @@ T1_TIME_TOTAL = [
 ]
 
 
+# Pointers of summaries older than the current schema, for the same figure: TimeTotal before
+# issue 27 was tick_ms.mean; schema version 1 had one count, loop_closures, for the closures
+# accepted and the frames localized.
+LEGACY = {"/time_total_ms/steady": "/tick_ms/mean", "/closures_accepted": "/loop_closures",
+          "/frames_localized": "/loop_closures"}
+
+
 def stat_or_legacy(run, pointer):
-    """The cell's statistic; for an output before issue 27, TimeTotal is tick_ms.mean."""
+    """The cell's statistic, or the one an older summary kept it under (LEGACY)."""
     st = run.stat(pointer)
-    if st is None and pointer == "/time_total_ms/steady":
-        st = run.stat("/tick_ms/mean")
+    if st is None and pointer in LEGACY:
+        st = run.stat(LEGACY[pointer])
     return st
 
 
@@ -111,6 +120,8 @@ def extra_rows(cols):
 
     rows = [(name, lambda r, p=p: st(r, p, 1)) for name, p in T1_TIME_TOTAL]
     rows += [
+        ("frames localized (a closure accepted on the frame)",
+         lambda r: fmt_stat(stat_or_legacy(r, "/frames_localized"), 0, 1.0, r.n)),
         ("frames dropped of arrived", frames),
         ("device OOM kills", lambda r: st(r, "/device/oom_kills", 1)),
         ("device peak", peak),

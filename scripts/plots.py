@@ -226,7 +226,7 @@ def plot_trajectories(out, scenario, runs, fig_dir):
         st = style(run)
         ax.plot([q[1] for q in est], [q[2] for q in est], color=st["color"], lw=1.0, zorder=3,
                 ls="--" if not v else "-",
-                label=f'{R.config_name(p, v)} (ATE {ate:.2f} m, {run.s.get("loop_closures", "?")} '
+                label=f'{R.config_name(p, v)} (ATE {ate:.2f} m, {R.closures_accepted(run.s)} '
                       f'loop closures)' if ate is not None else R.config_name(p, v))
     b = R.pick(runs, "basic", True)
     if b is not None:

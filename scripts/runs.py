@@ -67,6 +67,12 @@ def read_tum(path):
     return pts
 
 
+def closures_accepted(summary, default="?"):
+    """Loop closures accepted: closures_accepted, or loop_closures in a summary of schema
+    version 1 (the same count)."""
+    return summary.get("closures_accepted", summary.get("loop_closures", default))
+
+
 def json_pointer(doc, pointer):
     """The value at a JSON pointer ("/tick_ms/mean"), None where there is none."""
     cur = doc

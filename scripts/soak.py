@@ -223,7 +223,7 @@ def main():
         "ticks": args.ticks, "wall_s": round(wall, 1),
         "us_per_tick": round(1e6 * wall / max(1, args.ticks), 1),
         "policy": args.policy, "k_max": k_max, "features_every": args.features_every,
-        "scenario_frames": len(rows), "loop_closures": summary["loop_closures"],
+        "scenario_frames": len(rows), "loop_closures": summary["closures_accepted"],
         "zone_loads": summary["zone_loads"], "keyframes_loaded": summary["keyframes_loaded"],
         "peak_resident_keyframes": summary["peak_resident_keyframes"],
         "over_budget_ticks": summary["over_budget_ticks"],

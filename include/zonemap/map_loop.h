@@ -83,7 +83,7 @@ struct TickOutput {
 
 struct LoopStats {
   std::uint64_t ticks = 0;
-  std::uint64_t loop_closures = 0;
+  std::uint64_t loop_closures = 0;  // accepted (summary.json closures_accepted)
   std::uint64_t keyframes_loaded = 0;
   std::uint64_t keyframes_unloaded = 0;
   std::uint64_t zone_loads = 0;

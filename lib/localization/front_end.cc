@@ -9,16 +9,11 @@
 #include <string>
 
 #include "arena/frame_scratch.h"
+#include "common/elapsed.h"
 
 namespace zm {
-namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
 
 Result<std::unique_ptr<FrontEnd>> FrontEnd::Create(const OrbOptions& options,
                                                    const CameraIntrinsics& camera,

@@ -195,6 +195,14 @@ std::size_t InvertedIndex::Score(const BowVector& query, std::uint32_t k,
   return size;
 }
 
+std::size_t InvertedIndex::BytesFor(const InvertedIndexOptions& o) {
+  // The constructor's sizes, one for one.
+  const std::size_t slots = o.max_keyframes;
+  return sizeof(InvertedIndex) + BlockBound(o) * sizeof(Block) + o.word_count * sizeof(WordList) +
+         (slots << StrideShift(o.max_words_per_keyframe)) * sizeof(DirectEntry) +
+         slots * (sizeof(std::uint32_t) + sizeof(KeyframeId) + sizeof(float) + sizeof(std::uint32_t));
+}
+
 std::size_t InvertedIndex::memory_bytes() const {
   return sizeof(InvertedIndex) + blocks_.capacity() * sizeof(Block) +
          words_.capacity() * sizeof(WordList) + direct_.capacity() * sizeof(DirectEntry) +

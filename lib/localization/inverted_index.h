@@ -87,7 +87,10 @@ class InvertedIndex {
   [[nodiscard]] bool contains(SlotIndex slot) const {
     return slot.value < options_.max_keyframes && slot_size_[slot.value] != kEmptySlot;
   }
+  // The object and everything it reserved (capacities): equals BytesFor(options()).
   [[nodiscard]] std::size_t memory_bytes() const;
+  // What an index with these options reserves, before building one (the memory budget's).
+  [[nodiscard]] static std::size_t BytesFor(const InvertedIndexOptions& options);
   [[nodiscard]] const InvertedIndexOptions& options() const { return options_; }
 
  private:

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <string>
 
+#include "common/elapsed.h"
 #include "localization/camera.h"
 
 namespace zm {
@@ -18,9 +19,6 @@ double HeadingDiff(double a, double b) {
 }
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 PnpParams PnpParamsFrom(const LocalizerConfig& c) {
   return {.reprojection_px = c.ransac_reprojection_px,
@@ -93,14 +91,40 @@ Status Localizer::UseVocabulary(const Vocabulary* vocabulary, std::uint32_t max_
   indexed_slots_.clear();
   indexed_slots_.reserve(max_slots);
   top_.resize(kMaxIndexCandidates);
-  scores_f_.assign(std::max<std::size_t>(config_.reserve_keyframes, max_slots), 0.0f);
+  scores_f_.assign(max_slots, 0.0f);  // per resident keyframe: at most one a slot
   return Status::Ok();
+}
+
+namespace {
+
+// Per slot: the keyframe indexed there, the tick it was last seen, its index into the resident
+// span, its place in indexed_slots_, its likelihood.
+constexpr std::size_t kVocabularyBytesPerSlot = sizeof(std::int64_t) + sizeof(std::uint64_t) +
+                                                2 * sizeof(std::uint32_t) + sizeof(float);
+// A bag of `words`: its entries and Transform's word scratch (BowVector).
+std::size_t BagBytes(std::size_t words) {
+  return words * (sizeof(BowEntry) + sizeof(std::uint32_t));
+}
+
+}  // namespace
+
+std::size_t VocabularyIndexBytes(std::uint32_t word_count, std::uint32_t max_slots,
+                                 std::uint32_t word_features) {
+  const InvertedIndexOptions o{.word_count = word_count,
+                               .max_keyframes = max_slots,
+                               .max_words_per_keyframe = word_features};
+  return InvertedIndex::BytesFor(o) + std::size_t{max_slots} * kVocabularyBytesPerSlot +
+         BagBytes(word_features) + kMaxIndexCandidates * sizeof(IndexCandidate);
 }
 
 std::size_t Localizer::index_memory_bytes() const {
   if (index_ == nullptr) return 0;
+  // The capacities UseVocabulary reserved, each table by its own.
   return index_->memory_bytes() +
-         slot_id_.capacity() * (sizeof(std::int64_t) + sizeof(std::uint64_t) + 2 * sizeof(std::uint32_t));
+         slot_id_.capacity() * sizeof(std::int64_t) + slot_seen_.capacity() * sizeof(std::uint64_t) +
+         slot_resident_.capacity() * sizeof(std::uint32_t) +
+         indexed_slots_.capacity() * sizeof(std::uint32_t) + scores_f_.capacity() * sizeof(float) +
+         BagBytes(bag_.capacity()) + top_.capacity() * sizeof(IndexCandidate);
 }
 
 void Localizer::SyncIndex(std::span<const ResidentKeyframe> resident, LocalizeResult* r) {

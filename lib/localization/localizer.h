@@ -91,6 +91,12 @@ struct LocalizerConfig {
   float min_likelihood = 0.02f;
 };
 
+// What Localizer::UseVocabulary reserves for a vocabulary of `word_count` words over `max_slots`
+// arena slots with config.word_features words per keyframe: the memory budget counts it
+// (runtime/budget.h) before the loop builds anything.
+[[nodiscard]] std::size_t VocabularyIndexBytes(std::uint32_t word_count, std::uint32_t max_slots,
+                                               std::uint32_t word_features);
+
 // Checks ranges (counts, ratio in (0, 1], positive thresholds) and the camera; names the field.
 [[nodiscard]] Status ValidateLocalizerConfig(const LocalizerConfig& config,
                                              const CameraIntrinsics& camera);
@@ -155,7 +161,8 @@ class Localizer {
   // the bags here; kInvalidArgument when max_slots or the vocabulary is unusable.
   [[nodiscard]] Status UseVocabulary(const Vocabulary* vocabulary, std::uint32_t max_slots);
   [[nodiscard]] bool has_vocabulary() const { return vocabulary_ != nullptr; }
-  // The index's memory (0 without a vocabulary): counted in the budget with the vocabulary's.
+  // What UseVocabulary reserved (0 without a vocabulary): the inverted index, the per-slot tables
+  // and the bags; equals VocabularyIndexBytes of its arguments (the memory budget's figure).
   [[nodiscard]] std::size_t index_memory_bytes() const;
 
   [[nodiscard]] const LocalizerStats& stats() const { return stats_; }

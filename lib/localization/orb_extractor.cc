@@ -25,10 +25,7 @@ std::string Size(int w, int h) { return std::to_string(w) + "x" + std::to_string
 }  // namespace
 
 std::size_t FrameScratchBytesFor(const CameraIntrinsics& camera) {
-  // Measured high water at 640x480 with the default options: see docs/localization.md. The
-  // pyramid and its blurred copies scale with the pixels; keypoint vectors with max_features.
-  const std::size_t pixels = std::size_t{camera.width} * camera.height;
-  return 8 * pixels + (std::size_t{2} << 20);
+  return FrameScratchBytesFor(camera.width, camera.height);
 }
 
 Status ValidateOrbOptions(const OrbOptions& o) {

@@ -50,6 +50,7 @@
 
 #include "arena/frame_scratch.h"
 #include "common/status.h"
+#include "localization/frame_scratch_size.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/map_db.h"
 
@@ -70,8 +71,8 @@ struct OrbOptions {
   std::size_t scratch_bytes = 0;
 };
 
-// The scratch a frame of this size needs, with room to spare: see the measurement in
-// docs/localization.md ("Allocation inside the tick").
+// The scratch a frame of the camera's size needs (frame_scratch_size.h); the memory budget counts
+// what the region reserves for it (budget.h).
 [[nodiscard]] std::size_t FrameScratchBytesFor(const CameraIntrinsics& camera);
 
 // Checks ranges (word_features <= max_features, scale > 1, ...); names the field and the limit.

@@ -7,13 +7,23 @@
 //
 //   map share     = map.map_share_bytes if set, else
 //                   device.memory - device.os_reserve - model (weights + KV cache) - headroom
-//   keyframe room = map share - map.overhead (the map process's memory besides its slots)
+//   localization  = the map's vocabulary (Vocabulary::memory_bytes) + the front-end's frame
+//                   scratch (FrameScratch::ReservedBytes(FrameScratchBytesFor(image size))),
+//                   each when there is one (issue 26)
+//   keyframe room = map share - map.overhead (the map process's memory besides its slots and
+//                   localization's) - localization
 //   slot_bytes    = map.slot_bytes if set, else the database's largest resident keyframe
-//   K_max         = min(map.memory_thr_keyframes, keyframe room / slot_bytes, keyframes in map)
+//   K_max         = min(map.memory_thr_keyframes, keyframes in map, the largest k with
+//                   k * slot_bytes + index(k) <= keyframe room), where index(k) is what the
+//                   inverted index over k slots reserves (VocabularyIndexBytes; 0 without a
+//                   vocabulary): every resident keyframe costs its slot and its postings
 //                   (a limit of 0 is "none"; with no limit at all K_max is the whole map)
 //   arena slots   = K_max for the bounded policies (the arena makes exceeding K_max physically
 //                   impossible); the whole map for basic and unbounded, which model RTAB-Map's
 //                   heap: their residency grows and is measured against K_max, not capped.
+//   index bytes   = index(arena slots): the index has a place for every arena slot.
+// The tick loop reserves exactly these: arena slots x arena_slot_bytes, the index over the arena
+// slots, the frame scratch (TickLoop::Create checks both against the budget).
 //
 // Errors name the quantity and the limit ("map.slot_bytes 4096 is smaller than the largest
 // keyframe (2200000 bytes)").
@@ -62,10 +72,23 @@ struct MapOptions {
   std::uint64_t process_cap_bytes = 0;  // setrlimit cap of the map process; 0 = none
 };
 
+// What localization holds beside the keyframe slots, known before the loop starts (issue 26).
+struct LocalizationInputs {
+  std::uint64_t vocabulary_bytes = 0;  // the map's vocabulary (Vocabulary::memory_bytes); 0: none
+  std::uint32_t vocabulary_words = 0;  // its words: the index's word lists
+  std::uint32_t word_features = 500;   // words per keyframe in the index (LocalizerConfig's)
+  // Camera frames (the front-end extracts in the tick): their size; 0 x 0 when frames carry
+  // features. scratch_bytes: the front-end's region if set (OrbOptions), else sized from it.
+  std::uint32_t image_width = 0;
+  std::uint32_t image_height = 0;
+  std::uint64_t scratch_bytes = 0;
+};
+
 struct BudgetInputs {
   DeviceOptions device;
   ModelOptions model;
   MapOptions map;
+  LocalizationInputs localization;
   std::uint64_t largest_keyframe_bytes = 0;  // the database's largest resident keyframe
   std::uint64_t keyframe_count = 0;          // keyframes in the map
   bool bounded_policy = true;                // false for basic and unbounded (see above)
@@ -83,6 +106,11 @@ struct Budget {
   // arena_slots x arena_slot_bytes, nothing recomputed.
   std::uint64_t arena_slot_bytes = 0;
   bool bounded = true;                    // the arena caps residency at k_max
+  // Localization's memory beside the slots (0 where there is none): the map's vocabulary, the
+  // inverted index over the arena's slots, the front-end's frame scratch.
+  std::uint64_t vocabulary_bytes = 0;
+  std::uint64_t index_bytes = 0;
+  std::uint64_t frame_scratch_bytes = 0;
 };
 
 // The map share alone (map.map_share_bytes, or derived); 0 when the device memory is unknown

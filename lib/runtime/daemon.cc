@@ -263,7 +263,7 @@ void Daemon::HandleFrame(double quaternion_norm) {
   if (input_.frame.has_image()) ++counters_.image_frames;  // a frames file's camera frame
   if (!TickStaged()) return;
   // A recorded frame with an image the front-end could not use (a frames file's JPEG).
-  if (loop_->last_record().frame_refused) ReportFrontEndRefusal(stamp, "recorded frame");
+  if (loop_->last_record().image_refused) ReportFrontEndRefusal(stamp, "recorded frame");
   // The idle part, once the robot has its pose: queued zone loads advance until the next frame
   // is due or a line is already waiting (TickLoop::Idle; an error is counted by the loop).
   (void)loop_->Idle();
@@ -290,7 +290,7 @@ void Daemon::HandleImage(double quaternion_norm, std::string_view colour_path,
   if (!TickStaged()) return;
   if (why != ImageRefusal::kCount) {
     RefuseImage(why, stamp, words.view());
-  } else if (loop_->last_record().frame_refused) {
+  } else if (loop_->last_record().image_refused) {
     ReportFrontEndRefusal(stamp, colour_path);
   }
   (void)loop_->Idle();

@@ -3,12 +3,63 @@
 #include "runtime/summary.h"
 
 #include <string_view>
-#include <type_traits>
+#include <optional>
+#include <string>
 
 namespace zm {
 namespace {
 
 using Json = nlohmann::json;
+
+// How an empty optional member is written: null (the key is always there: update_rate_hz and the
+// trajectory metrics) or left out (the others).
+enum class IfEmpty { kNull, kOmit };
+
+// Writes members into one JSON object. The same calls as ObjectReader's, so one field list per
+// struct (below) serves both directions.
+class ObjectWriter {
+ public:
+  explicit ObjectWriter(Json& j) : j_(j) {
+    if (!j_.is_object()) j_ = Json::object();
+  }
+
+  template <typename T>
+  void Field(std::string_view key, const T& value) {
+    j_[std::string(key)] = value;
+  }
+  template <typename T>
+  void Field(std::string_view key, const std::optional<T>& value, IfEmpty empty) {
+    if (value) {
+      j_[std::string(key)] = *value;
+    } else if (empty == IfEmpty::kNull) {
+      j_[std::string(key)] = nullptr;
+    }
+  }
+  // A flag written only when set.
+  void Flag(std::string_view key, bool value) {
+    if (value) j_[std::string(key)] = true;
+  }
+  // A nested object: `fields` writes `value`'s members into it.
+  template <typename T, typename F>
+  void Object(std::string_view key, const T& value, F fields) {
+    ObjectWriter sub(j_[std::string(key)]);
+    fields(sub, value);
+  }
+  // A nested object present only when `value` holds one.
+  template <typename T, typename F>
+  void Object(std::string_view key, const std::optional<T>& value, F fields) {
+    if (value) Object(key, *value, fields);
+  }
+  // Members of a part kept at this level (a replay's), written when the part is there; the
+  // reader knows the part by `marker`, one of its keys.
+  template <typename T, typename F>
+  void Part(std::string_view /*marker*/, const std::optional<T>& part, F fields) {
+    if (part) fields(*this, *part);
+  }
+
+ private:
+  Json& j_;
+};
 
 // Reads members of one JSON object into typed fields: a missing key keeps the field's value (an
 // older file), null empties an optional, any other type mismatch is the first error, named by
@@ -21,24 +72,36 @@ class ObjectReader {
   }
 
   template <typename T>
-  void Get(std::string_view key, T& out) {
-    if (!j_.is_object()) return;
-    const auto it = j_.find(key);
-    if (it == j_.end()) return;
-    Read(*it, Path(key), out);
+  void Field(std::string_view key, T& out) {
+    if (const Json* v = Find(key)) Read(*v, Path(key), out);
   }
-
-  // A nested object: `read` fills `out` from an ObjectReader over it.
+  template <typename T>
+  void Field(std::string_view key, std::optional<T>& out, IfEmpty /*how it was written*/) {
+    Field(key, out);
+  }
+  void Flag(std::string_view key, bool& out) { Field(key, out); }
   template <typename T, typename F>
-  void Object(std::string_view key, T& out, F read) {
-    if (!j_.is_object()) return;
-    const auto it = j_.find(key);
-    if (it == j_.end()) return;
-    ObjectReader sub(*it, Path(key), error_);
-    read(sub, out);
+  void Object(std::string_view key, T& out, F fields) {
+    if (const Json* v = Find(key)) {
+      ObjectReader sub(*v, Path(key), error_);
+      fields(sub, out);
+    }
+  }
+  template <typename T, typename F>
+  void Object(std::string_view key, std::optional<T>& out, F fields) {
+    if (Find(key) != nullptr) Object(key, out.emplace(), fields);
+  }
+  template <typename T, typename F>
+  void Part(std::string_view marker, std::optional<T>& part, F fields) {
+    if (Find(marker) != nullptr) fields(*this, part.emplace());
   }
 
  private:
+  const Json* Find(std::string_view key) const {
+    if (!j_.is_object()) return nullptr;
+    const auto it = j_.find(key);
+    return it == j_.end() ? nullptr : &*it;
+  }
   std::string Path(std::string_view key) const {
     return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
   }
@@ -102,56 +165,144 @@ class ObjectReader {
   Status* error_;
 };
 
-// null for an empty optional.
-template <typename T>
-Json OrNull(const std::optional<T>& v) {
-  return v ? Json(*v) : Json(nullptr);
-}
-
-void ReadTickMs(ObjectReader& r, TickMsSummary& t) {
-  r.Get("mean", t.mean);
-  r.Get("p50", t.p50);
-  r.Get("p99", t.p99);
-  r.Get("max", t.max);
-  r.Get("count", t.count);
-}
-void ReadTimeTotal(ObjectReader& r, TimeTotal& t) {
-  r.Get("steady", t.steady);
-  r.Get("with_startup", t.with_startup);
-  r.Get("without_idle_loads", t.without_idle_loads);
-  r.Get("with_idle_loads", t.with_idle_loads);
-}
-void ReadStartup(ObjectReader& r, StartupSummary& s) {
-  r.Get("tick_ms", s.tick_ms);
-  r.Get("load_ms", s.load_ms);
-  r.Get("keyframes_loaded", s.keyframes_loaded);
-  r.Get("bytes_read", s.bytes_read);
-  r.Get("db_transactions", s.db_transactions);
-  r.Get("db_queries", s.db_queries);
-  r.Get("db_blob_reads", s.db_blob_reads);
-}
-void ReadSteady(ObjectReader& r, SteadyStateSummary& s) {
-  r.Get("db_queries", s.db_queries);
-  r.Get("db_transactions", s.db_transactions);
-  r.Get("db_blob_reads", s.db_blob_reads);
-  r.Get("db_bytes_read", s.db_bytes_read);
-}
-void ReadLoads(ObjectReader& r, LoadsSummary& l) {
-  r.Get("sliced", l.sliced);
-  r.Get("tick_ms", l.tick_ms);
-  r.Get("tick_bytes", l.tick_bytes);
-  r.Get("idle_ms", l.idle_ms);
-  r.Get("idle_bytes", l.idle_bytes);
-  r.Get("margin_ms", l.margin_ms);
-  r.Get("idle_load_ms_total", l.idle_load_ms_total);
-  r.Get("idle_keyframes_loaded", l.idle_keyframes_loaded);
-  r.Get("keyframes_cancelled", l.keyframes_cancelled);
-  r.Get("loads_preempted", l.loads_preempted);
-  r.Get("max_pending_keyframes", l.max_pending_keyframes);
-  r.Get("late_ticks", l.late_ticks);
-  r.Get("max_late_ms", l.max_late_ms);
-  r.Get("late_ms_total", l.late_ms_total);
-}
+// Each struct's keys, once: ToJson walks them with an ObjectWriter, RunSummaryFromJson with an
+// ObjectReader (`v` is either; `s` the struct, const when writing).
+constexpr auto kTickMsFields = [](auto& v, auto& t) {
+  v.Field("mean", t.mean);
+  v.Field("p50", t.p50);
+  v.Field("p99", t.p99);
+  v.Field("max", t.max);
+  v.Field("count", t.count);
+};
+constexpr auto kTimeTotalFields = [](auto& v, auto& t) {
+  v.Field("steady", t.steady);
+  v.Field("with_startup", t.with_startup);
+  v.Field("without_idle_loads", t.without_idle_loads);
+  v.Field("with_idle_loads", t.with_idle_loads);
+};
+constexpr auto kStartupFields = [](auto& v, auto& s) {
+  v.Field("tick_ms", s.tick_ms);
+  v.Field("load_ms", s.load_ms);
+  v.Field("keyframes_loaded", s.keyframes_loaded);
+  v.Field("bytes_read", s.bytes_read);
+  v.Field("db_transactions", s.db_transactions);
+  v.Field("db_queries", s.db_queries);
+  v.Field("db_blob_reads", s.db_blob_reads);
+};
+constexpr auto kSteadyFields = [](auto& v, auto& s) {
+  v.Field("db_queries", s.db_queries);
+  v.Field("db_transactions", s.db_transactions);
+  v.Field("db_blob_reads", s.db_blob_reads);
+  v.Field("db_bytes_read", s.db_bytes_read);
+};
+constexpr auto kLoadsFields = [](auto& v, auto& l) {
+  v.Field("sliced", l.sliced);
+  v.Field("tick_ms", l.tick_ms);
+  v.Field("tick_bytes", l.tick_bytes);
+  v.Field("idle_ms", l.idle_ms);
+  v.Field("idle_bytes", l.idle_bytes);
+  v.Field("margin_ms", l.margin_ms);
+  v.Field("idle_load_ms_total", l.idle_load_ms_total);
+  v.Field("idle_keyframes_loaded", l.idle_keyframes_loaded);
+  v.Field("keyframes_cancelled", l.keyframes_cancelled);
+  v.Field("loads_preempted", l.loads_preempted);
+  v.Field("max_pending_keyframes", l.max_pending_keyframes);
+  v.Field("late_ticks", l.late_ticks);
+  v.Field("max_late_ms", l.max_late_ms);
+  v.Field("late_ms_total", l.late_ms_total);
+};
+constexpr auto kStageFields = [](auto& v, auto& s) {
+  v.Field("p50_ms", s.p50_ms);
+  v.Field("p99_ms", s.p99_ms);
+  v.Field("mean_ms", s.mean_ms);
+};
+constexpr auto kStagesFields = [](auto& v, auto& stages) {
+  for (int i = 0; i < kLoopStageCount; ++i) {
+    v.Object(LoopStageName(static_cast<LoopStage>(i)), stages[static_cast<std::size_t>(i)],
+             kStageFields);
+  }
+};
+constexpr auto kFrameScratchFields = [](auto& v, auto& f) {
+  v.Field("capacity_bytes", f.capacity_bytes);
+  v.Field("high_water_bytes", f.high_water_bytes);
+  v.Field("allocations", f.allocations);
+  v.Field("overflows", f.overflows);
+  v.Field("scopes", f.scopes);
+  v.Field("blocks_outliving_scope", f.blocks_outliving_scope);
+};
+// A replay's part, at the top level (marked by wall_s).
+constexpr auto kReplayFields = [](auto& v, auto& r) {
+  v.Field("profile", r.profile);
+  v.Field("scenario", r.scenario);
+  v.Field("time_compression", r.time_compression);
+  v.Field("realtime_frames", r.realtime_frames);
+  v.Field("frames_arrived", r.frames_arrived);
+  v.Field("frames_dropped", r.frames_dropped);
+  v.Field("frames_not_taken", r.frames_not_taken);
+  v.Field("frames_refused", r.frames_refused);
+  v.Field("wall_s", r.wall_s);
+  v.Field("wall_origin_mono_s", r.wall_origin_mono_s);
+  v.Field("update_rate_model_hz", r.update_rate_model_hz, IfEmpty::kOmit);
+  auto& t = r.trajectory;
+  v.Field("ate_rmse_m", t.ate_rmse_m, IfEmpty::kNull);
+  v.Field("ate_se3_rmse_m", t.ate_se3_rmse_m, IfEmpty::kNull);
+  v.Field("rpe_trans_rmse_m", t.rpe_trans_rmse_m, IfEmpty::kNull);
+  v.Field("rpe_rot_rmse_deg", t.rpe_rot_rmse_deg, IfEmpty::kNull);
+  v.Field("associated_poses", t.associated_poses, IfEmpty::kOmit);
+};
+constexpr auto kSummaryFields = [](auto& v, auto& s) {
+  v.Field("schema_version", s.schema_version);
+  v.Field("policy", s.policy);
+  v.Field("k_max", s.k_max);
+  v.Field("slot_bytes", s.slot_bytes);
+  v.Field("arena_slots", s.arena_slots);
+  v.Field("arena_bytes_reserved", s.arena_bytes_reserved);
+  v.Field("arena_locked", s.arena_locked);
+  v.Field("map_share_bytes", s.map_share_bytes);
+  v.Field("vocabulary_bytes", s.vocabulary_bytes);
+  v.Field("index_bytes", s.index_bytes);
+  v.Field("frame_scratch_bytes", s.frame_scratch_bytes);
+  v.Field("ticks", s.ticks);
+  v.Field("interrupted", s.interrupted);
+  v.Field("update_rate_hz", s.update_rate_hz, IfEmpty::kNull);
+  v.Field("frame_rate_hz", s.frame_rate_hz);
+  v.Object("tick_ms", s.tick_ms, kTickMsFields);
+  v.Object("time_total_ms", s.time_total_ms, kTimeTotalFields);
+  v.Object("startup", s.startup, kStartupFields);
+  v.Object("steady_state", s.steady_state, kSteadyFields);
+  v.Object("stages", s.stages, kStagesFields);
+  v.Field("closures_accepted", s.closures_accepted);
+  v.Field("frames_localized", s.frames_localized);
+  v.Field("closures_rejected", s.closures_rejected);
+  v.Field("images_refused", s.images_refused);
+  v.Field("first_image_error", s.first_image_error, IfEmpty::kOmit);
+  v.Object("frame_scratch", s.frame_scratch, kFrameScratchFields);
+  v.Field("peak_resident_keyframes", s.peak_resident_keyframes);
+  v.Field("peak_resident_bytes", s.peak_resident_bytes);
+  v.Field("over_budget_ticks", s.over_budget_ticks);
+  v.Field("max_over_budget_keyframes", s.max_over_budget_keyframes);
+  v.Field("longest_over_budget_run_ticks", s.longest_over_budget_run_ticks);
+  v.Field("alloc_failures", s.alloc_failures);
+  v.Field("stalled_ticks", s.stalled_ticks);
+  v.Field("step_errors", s.step_errors);
+  v.Field("first_error", s.first_error, IfEmpty::kOmit);
+  v.Field("keyframes_loaded", s.keyframes_loaded);
+  v.Field("keyframes_unloaded", s.keyframes_unloaded);
+  v.Field("zone_loads", s.zone_loads);
+  v.Field("db_transactions", s.db_transactions);
+  v.Field("db_queries", s.db_queries);
+  v.Field("db_blob_reads", s.db_blob_reads);
+  v.Field("search_queries", s.search_queries);
+  v.Field("search_transactions", s.search_transactions);
+  v.Field("db_bytes_read", s.db_bytes_read);
+  v.Field("load_ms_total", s.load_ms_total);
+  v.Field("unload_ms_total", s.unload_ms_total);
+  v.Object("loads", s.loads, kLoadsFields);
+  v.Field("malformed_lines", s.malformed_lines);
+  v.Part("wall_s", s.replay, kReplayFields);
+  v.Field("ledger_refusals", s.ledger_refusals, IfEmpty::kOmit);
+  v.Flag("partial", s.partial);
+};
 
 }  // namespace
 
@@ -168,6 +319,18 @@ TimeTotal TimeTotalOf(const TimeTotalInputs& in) {
           .with_idle_loads = steady - late + idle};
 }
 
+TickMsSummary TickMsSummaryOf(const StreamingStats& ms) {
+  return {.mean = ms.mean(),
+          .p50 = ms.Quantile(0.50),
+          .p99 = ms.Quantile(0.99),
+          .max = ms.max(),
+          .count = ms.count()};
+}
+
+StageSummary StageSummaryOf(const StreamingStats& ms) {
+  return {.p50_ms = ms.Quantile(0.50), .p99_ms = ms.Quantile(0.99), .mean_ms = ms.mean()};
+}
+
 RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
   const LoopTotals& t = loop.totals();
   RunSummary s;
@@ -178,15 +341,15 @@ RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
   s.arena_bytes_reserved = loop.arena().stats().bytes_reserved;
   s.arena_locked = loop.arena().locked();
   s.map_share_bytes = loop.budget().map_share_bytes;
+  s.vocabulary_bytes = loop.budget().vocabulary_bytes;
+  s.index_bytes = loop.budget().index_bytes;
+  s.frame_scratch_bytes = loop.budget().frame_scratch_bytes;
   s.ticks = t.ticks;
   s.interrupted = interrupted;
   s.update_rate_hz = t.simulated_s > 0 ? static_cast<double>(t.ticks) / t.simulated_s : 0.0;
   s.frame_rate_hz = loop.config().loop.rate_hz;
-  s.tick_ms = {.mean = t.tick_ms.mean(),
-               .p50 = t.tick_ms.Quantile(0.50),
-               .p99 = t.tick_ms.Quantile(0.99),
-               .max = t.tick_ms.max(),
-               .count = t.tick_ms.count()};
+  s.tick_ms = TickMsSummaryOf(t.tick_ms);
+  for (std::size_t i = 0; i < s.stages.size(); ++i) s.stages[i] = StageSummaryOf(t.stage_ms[i]);
   s.time_total_ms = TimeTotalOf({.steady_mean_ms = t.tick_ms.mean(),
                                  .steady_ticks = t.tick_ms.count(),
                                  .has_startup = t.ticks > 0,
@@ -206,8 +369,14 @@ RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
                     .db_transactions = steady.transactions,
                     .db_blob_reads = steady.blob_reads,
                     .db_bytes_read = steady.bytes_read};
-  s.loop_closures = t.loop_closures;
+  s.closures_accepted = t.closures_accepted;
+  s.frames_localized = t.frames_localized;
   s.closures_rejected = t.closures_rejected;
+  s.images_refused = t.images_refused;
+  if (!t.first_image_error.ok()) s.first_image_error = t.first_image_error.ToString();
+  if (const FrontEnd* fe = loop.front_end(); fe != nullptr) {
+    s.frame_scratch = fe->extractor().scratch_stats();
+  }
   s.peak_resident_keyframes = t.peak_resident_keyframes;
   s.peak_resident_bytes = t.peak_resident_bytes;
   s.over_budget_ticks = t.over_budget_ticks;
@@ -248,99 +417,9 @@ RunSummary LoopSummary(const TickLoop& loop, bool interrupted) {
 }
 
 Json ToJson(const RunSummary& s) {
-  Json j;
-  j["schema_version"] = s.schema_version;
-  j["policy"] = s.policy;
-  j["k_max"] = s.k_max;
-  j["slot_bytes"] = s.slot_bytes;
-  j["arena_slots"] = s.arena_slots;
-  j["arena_bytes_reserved"] = s.arena_bytes_reserved;
-  j["arena_locked"] = s.arena_locked;
-  j["map_share_bytes"] = s.map_share_bytes;
-  j["ticks"] = s.ticks;
-  j["interrupted"] = s.interrupted;
-  j["update_rate_hz"] = OrNull(s.update_rate_hz);
-  j["frame_rate_hz"] = s.frame_rate_hz;
-  j["tick_ms"] = {{"mean", s.tick_ms.mean},
-                  {"p50", s.tick_ms.p50},
-                  {"p99", s.tick_ms.p99},
-                  {"max", s.tick_ms.max},
-                  {"count", s.tick_ms.count}};
-  j["time_total_ms"] = {{"steady", s.time_total_ms.steady},
-                        {"with_startup", s.time_total_ms.with_startup},
-                        {"without_idle_loads", s.time_total_ms.without_idle_loads},
-                        {"with_idle_loads", s.time_total_ms.with_idle_loads}};
-  j["startup"] = {{"tick_ms", s.startup.tick_ms},
-                  {"load_ms", s.startup.load_ms},
-                  {"keyframes_loaded", s.startup.keyframes_loaded},
-                  {"bytes_read", s.startup.bytes_read},
-                  {"db_transactions", s.startup.db_transactions},
-                  {"db_queries", s.startup.db_queries},
-                  {"db_blob_reads", s.startup.db_blob_reads}};
-  j["steady_state"] = {{"db_queries", s.steady_state.db_queries},
-                       {"db_transactions", s.steady_state.db_transactions},
-                       {"db_blob_reads", s.steady_state.db_blob_reads},
-                       {"db_bytes_read", s.steady_state.db_bytes_read}};
-  j["loop_closures"] = s.loop_closures;
-  j["closures_rejected"] = s.closures_rejected;
-  j["peak_resident_keyframes"] = s.peak_resident_keyframes;
-  j["peak_resident_bytes"] = s.peak_resident_bytes;
-  j["over_budget_ticks"] = s.over_budget_ticks;
-  j["max_over_budget_keyframes"] = s.max_over_budget_keyframes;
-  j["longest_over_budget_run_ticks"] = s.longest_over_budget_run_ticks;
-  j["alloc_failures"] = s.alloc_failures;
-  j["stalled_ticks"] = s.stalled_ticks;
-  j["step_errors"] = s.step_errors;
-  if (s.first_error) j["first_error"] = *s.first_error;
-  j["keyframes_loaded"] = s.keyframes_loaded;
-  j["keyframes_unloaded"] = s.keyframes_unloaded;
-  j["zone_loads"] = s.zone_loads;
-  j["db_transactions"] = s.db_transactions;
-  j["db_queries"] = s.db_queries;
-  j["db_blob_reads"] = s.db_blob_reads;
-  j["search_queries"] = s.search_queries;
-  j["search_transactions"] = s.search_transactions;
-  j["db_bytes_read"] = s.db_bytes_read;
-  j["load_ms_total"] = s.load_ms_total;
-  j["unload_ms_total"] = s.unload_ms_total;
-  const LoadsSummary& l = s.loads;
-  j["loads"] = {{"sliced", l.sliced},
-                {"tick_ms", l.tick_ms},
-                {"tick_bytes", l.tick_bytes},
-                {"idle_ms", l.idle_ms},
-                {"idle_bytes", l.idle_bytes},
-                {"margin_ms", l.margin_ms},
-                {"idle_load_ms_total", l.idle_load_ms_total},
-                {"idle_keyframes_loaded", l.idle_keyframes_loaded},
-                {"keyframes_cancelled", l.keyframes_cancelled},
-                {"loads_preempted", l.loads_preempted},
-                {"max_pending_keyframes", l.max_pending_keyframes},
-                {"late_ticks", l.late_ticks},
-                {"max_late_ms", l.max_late_ms},
-                {"late_ms_total", l.late_ms_total}};
-  j["malformed_lines"] = s.malformed_lines;
-  if (s.replay) {
-    const ReplaySummary& r = *s.replay;
-    j["profile"] = r.profile;
-    j["scenario"] = r.scenario;
-    j["time_compression"] = r.time_compression;
-    j["realtime_frames"] = r.realtime_frames;
-    j["frames_arrived"] = r.frames_arrived;
-    j["frames_dropped"] = r.frames_dropped;
-    j["frames_not_taken"] = r.frames_not_taken;
-    j["frames_refused"] = r.frames_refused;
-    j["wall_s"] = r.wall_s;
-    j["wall_origin_mono_s"] = r.wall_origin_mono_s;
-    if (r.update_rate_model_hz) j["update_rate_model_hz"] = *r.update_rate_model_hz;
-    const TrajectorySummary& t = r.trajectory;
-    j["ate_rmse_m"] = OrNull(t.ate_rmse_m);
-    j["ate_se3_rmse_m"] = OrNull(t.ate_se3_rmse_m);
-    j["rpe_trans_rmse_m"] = OrNull(t.rpe_trans_rmse_m);
-    j["rpe_rot_rmse_deg"] = OrNull(t.rpe_rot_rmse_deg);
-    if (t.associated_poses) j["associated_poses"] = *t.associated_poses;
-  }
-  if (s.ledger_refusals) j["ledger_refusals"] = *s.ledger_refusals;
-  if (s.partial) j["partial"] = true;
+  Json j = Json::object();
+  ObjectWriter w(j);
+  kSummaryFields(w, s);
   return j;
 }
 
@@ -349,74 +428,17 @@ Result<RunSummary> RunSummaryFromJson(const Json& j) {
   RunSummary s;
   ObjectReader r(j, "", &error);
   s.schema_version = 0;  // a file from before the version existed
-  r.Get("schema_version", s.schema_version);
+  r.Field("schema_version", s.schema_version);
   if (error.ok() && s.schema_version > kSummarySchemaVersion) {
     return InvalidArgument("summary.json: schema_version " + std::to_string(s.schema_version) +
                            " is newer than this build reads (" +
                            std::to_string(kSummarySchemaVersion) + ")");
   }
-  r.Get("policy", s.policy);
-  r.Get("k_max", s.k_max);
-  r.Get("slot_bytes", s.slot_bytes);
-  r.Get("arena_slots", s.arena_slots);
-  r.Get("arena_bytes_reserved", s.arena_bytes_reserved);
-  r.Get("arena_locked", s.arena_locked);
-  r.Get("map_share_bytes", s.map_share_bytes);
-  r.Get("ticks", s.ticks);
-  r.Get("interrupted", s.interrupted);
-  r.Get("update_rate_hz", s.update_rate_hz);
-  r.Get("frame_rate_hz", s.frame_rate_hz);
-  r.Object("tick_ms", s.tick_ms, ReadTickMs);
-  r.Object("time_total_ms", s.time_total_ms, ReadTimeTotal);
-  r.Object("startup", s.startup, ReadStartup);
-  r.Object("steady_state", s.steady_state, ReadSteady);
-  r.Get("loop_closures", s.loop_closures);
-  r.Get("closures_rejected", s.closures_rejected);
-  r.Get("peak_resident_keyframes", s.peak_resident_keyframes);
-  r.Get("peak_resident_bytes", s.peak_resident_bytes);
-  r.Get("over_budget_ticks", s.over_budget_ticks);
-  r.Get("max_over_budget_keyframes", s.max_over_budget_keyframes);
-  r.Get("longest_over_budget_run_ticks", s.longest_over_budget_run_ticks);
-  r.Get("alloc_failures", s.alloc_failures);
-  r.Get("stalled_ticks", s.stalled_ticks);
-  r.Get("step_errors", s.step_errors);
-  r.Get("first_error", s.first_error);
-  r.Get("keyframes_loaded", s.keyframes_loaded);
-  r.Get("keyframes_unloaded", s.keyframes_unloaded);
-  r.Get("zone_loads", s.zone_loads);
-  r.Get("db_transactions", s.db_transactions);
-  r.Get("db_queries", s.db_queries);
-  r.Get("db_blob_reads", s.db_blob_reads);
-  r.Get("search_queries", s.search_queries);
-  r.Get("search_transactions", s.search_transactions);
-  r.Get("db_bytes_read", s.db_bytes_read);
-  r.Get("load_ms_total", s.load_ms_total);
-  r.Get("unload_ms_total", s.unload_ms_total);
-  r.Object("loads", s.loads, ReadLoads);
-  r.Get("malformed_lines", s.malformed_lines);
-  // The replay's part is there when its keys are (a file of zonemapd's has none).
-  if (j.is_object() && j.contains("wall_s")) {
-    ReplaySummary rp;
-    r.Get("profile", rp.profile);
-    r.Get("scenario", rp.scenario);
-    r.Get("time_compression", rp.time_compression);
-    r.Get("realtime_frames", rp.realtime_frames);
-    r.Get("frames_arrived", rp.frames_arrived);
-    r.Get("frames_dropped", rp.frames_dropped);
-    r.Get("frames_not_taken", rp.frames_not_taken);
-    r.Get("frames_refused", rp.frames_refused);
-    r.Get("wall_s", rp.wall_s);
-    r.Get("wall_origin_mono_s", rp.wall_origin_mono_s);
-    r.Get("update_rate_model_hz", rp.update_rate_model_hz);
-    r.Get("ate_rmse_m", rp.trajectory.ate_rmse_m);
-    r.Get("ate_se3_rmse_m", rp.trajectory.ate_se3_rmse_m);
-    r.Get("rpe_trans_rmse_m", rp.trajectory.rpe_trans_rmse_m);
-    r.Get("rpe_rot_rmse_deg", rp.trajectory.rpe_rot_rmse_deg);
-    r.Get("associated_poses", rp.trajectory.associated_poses);
-    s.replay = std::move(rp);
+  kSummaryFields(r, s);
+  if (s.schema_version < 2) {  // version 1's one count: the frames whose closure was accepted
+    r.Field("loop_closures", s.closures_accepted);
+    s.frames_localized = s.closures_accepted;
   }
-  r.Get("ledger_refusals", s.ledger_refusals);
-  r.Get("partial", s.partial);
   if (!error.ok()) return error;
   return s;
 }

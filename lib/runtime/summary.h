@@ -7,19 +7,25 @@
 // documented in docs/runtime.md ("summary.json").
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
+#include "arena/frame_scratch.h"
 #include "common/status.h"
 #include "runtime/tick_loop.h"
 
 namespace zm {
 
 // summary.json's `schema_version`. Raise it when a key changes meaning or goes away (adding a key
-// does not); RunSummaryFromJson refuses a newer version than this build knows.
-inline constexpr int kSummarySchemaVersion = 1;
+// does not); RunSummaryFromJson refuses a newer version than this build knows and reads the older
+// ones. 2: `loop_closures` became `closures_accepted` beside `frames_localized` (a version-1 file's
+// loop_closures is read as both: it counted the frames whose closure was accepted, one at most
+// each); `stages`, `images_refused`, `first_image_error`, `frame_scratch` and the budget's
+// `vocabulary_bytes`, `index_bytes`, `frame_scratch_bytes` were added.
+inline constexpr int kSummarySchemaVersion = 2;
 
 // Steady-state tick times (the first, start-up tick is reported apart in `startup`).
 struct TickMsSummary {
@@ -29,6 +35,19 @@ struct TickMsSummary {
   double max = 0.0;
   std::uint64_t count = 0;
 };
+
+// One stage's time per steady-state tick (LoopStage: features, quantize, likelihood, verify,
+// memory; telemetry.h), from the same ticks as tick_ms.
+struct StageSummary {
+  double p50_ms = 0.0;
+  double p99_ms = 0.0;
+  double mean_ms = 0.0;
+};
+
+// A StreamingStats of tick or stage times as summary.json states it: the one derivation for a
+// loop's totals (LoopSummary) and for a run rebuilt from its ticks.jsonl (harness/device_run.cc).
+[[nodiscard]] TickMsSummary TickMsSummaryOf(const StreamingStats& ms);
+[[nodiscard]] StageSummary StageSummaryOf(const StreamingStats& ms);
 
 // The paper's TimeTotal (RTAB-Map's per-frame processing time) four ways, summary.json's
 // "time_total_ms" (issue 27 §4), from what a run counted:
@@ -132,6 +151,10 @@ struct RunSummary {
   std::uint64_t arena_bytes_reserved = 0;
   bool arena_locked = false;
   std::uint64_t map_share_bytes = 0;
+  // Localization's memory the budget counted beside the slots (Budget; 0 where none).
+  std::uint64_t vocabulary_bytes = 0;
+  std::uint64_t index_bytes = 0;
+  std::uint64_t frame_scratch_bytes = 0;
   std::uint64_t ticks = 0;
   bool interrupted = false;
   std::optional<double> update_rate_hz;  // null: not measured (a killed unpaced run)
@@ -140,8 +163,19 @@ struct RunSummary {
   TimeTotal time_total_ms;
   StartupSummary startup;
   SteadyStateSummary steady_state;
-  std::uint64_t loop_closures = 0;
+  // Per stage, by LoopStage (summary.json `stages`, keyed by LoopStageName).
+  std::array<StageSummary, kLoopStageCount> stages{};
+  // Loop closures accepted and frames localized (LoopTotals: the same count today), closures
+  // rejected; camera frames whose image the front-end refused (the tick ran on odometry).
+  std::uint64_t closures_accepted = 0;
+  std::uint64_t frames_localized = 0;
   std::uint64_t closures_rejected = 0;
+  std::uint64_t images_refused = 0;
+  std::optional<std::string> first_image_error;  // omitted when none was refused
+  // The front-end's frame scratch at the end of the run (FrameScratchStats: how much of the
+  // region a frame used, requests the heap served, blocks that kept it from resetting); omitted
+  // without a front-end.
+  std::optional<FrameScratchStats> frame_scratch;
   std::uint64_t peak_resident_keyframes = 0;
   std::uint64_t peak_resident_bytes = 0;
   std::uint64_t over_budget_ticks = 0;

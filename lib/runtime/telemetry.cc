@@ -3,6 +3,20 @@
 #include "runtime/text_line.h"
 
 namespace zm {
+namespace {
+
+// `,"key":{"name":ms,...}`: n times in ms, the i-th named name(i).
+template <typename Name>
+void Times(TextLine& t, std::string_view key, const double* ms, int n, Name name) {
+  t.Str(",\"").Str(key).Str("\":{");
+  for (int i = 0; i < n; ++i) {
+    if (i != 0) t.Char(',');
+    t.Char('"').Str(name(i)).Str("\":").Fixed(ms[i], 4);
+  }
+  t.Char('}');
+}
+
+}  // namespace
 
 const char* LoopStageName(LoopStage stage) {
   switch (stage) {
@@ -14,7 +28,6 @@ const char* LoopStageName(LoopStage stage) {
   }
   return "?";
 }
-
 
 const char* TickStepName(TickStep step) {
   switch (step) {
@@ -61,12 +74,19 @@ bool TelemetryWriter::Write(const TickRecord& r, std::string_view extra) {
   t.Str(",\"matched\":").I64(r.matched_keyframe).Str(",\"inliers\":").U64(r.inliers);
   t.Str(",\"highest\":").I64(r.highest_hypothesis).Str(",\"candidates\":").U64(r.candidates);
   t.Str(",\"startup\":").Str(b(r.startup)).Str(",\"stalled\":").Str(b(r.stalled));
-  t.Str(",\"tick_ms\":").Fixed(r.tick_ms, 4).Str(",\"steps_ms\":{");
-  for (int s = 0; s < kTickStepCount; ++s) {
-    if (s != 0) t.Char(',');
-    t.Char('"').Str(TickStepName(static_cast<TickStep>(s))).Str("\":").Fixed(r.step_ms[s], 4);
+  t.Str(",\"tick_ms\":").Fixed(r.tick_ms, 4);
+  Times(t, "steps_ms", r.step_ms, kTickStepCount,
+        [](int i) { return TickStepName(static_cast<TickStep>(i)); });
+  // Where the tick's time went as RTAB-Map reports it (LoopStage), and what localization had to
+  // work with: the frame's features, its image's fate, the vocabulary's likelihood and work.
+  Times(t, "stages_ms", r.stage_ms, kLoopStageCount,
+        [](int i) { return LoopStageName(static_cast<LoopStage>(i)); });
+  t.Str(",\"features\":").U64(r.features);
+  if (r.has_image) t.Str(",\"image_refused\":").Str(b(r.image_refused));
+  if (r.vocabulary) {
+    t.Str(",\"likelihood\":").Fixed(r.likelihood, 5);
+    t.Str(",\"postings_walked\":").U64(r.postings_walked);
   }
-  t.Char('}');
   // Database work beyond the loads' (issue 17 §5): blob reads, the searching part, and on the
   // start-up tick the part that was the start-up load.
   t.Str(",\"db_blob_reads\":").U64(r.db_blob_reads);

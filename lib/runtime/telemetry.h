@@ -97,9 +97,11 @@ struct TickRecord {
   double step_ms[kTickStepCount] = {};
   double stage_ms[kLoopStageCount] = {};
   std::uint32_t features = 0;           // the frame's features (extracted or carried)
-  bool frame_refused = false;           // its image could not be used: the tick ran on odometry
-  float likelihood = 0.0f;              // the highest hypothesis' (vocabulary maps)
-  std::uint64_t postings_walked = 0;    // the likelihood's work (vocabulary maps)
+  bool has_image = false;               // a camera frame: the front-end extracted its features
+  bool image_refused = false;           // its image could not be used: the tick ran on odometry
+  bool vocabulary = false;              // scored with the map's vocabulary (the next two hold)
+  float likelihood = 0.0f;              // the highest hypothesis' likelihood
+  std::uint64_t postings_walked = 0;    // the likelihood's work
   double tick_ms = 0.0;
 };
 
@@ -122,7 +124,9 @@ class TelemetryWriter {
 
  private:
   BufferedFile file_;
-  char line_[2048] = {};
+  // The record's members (at most ~1.3 kB with every number at its widest) plus an `extra` as
+  // long as TickPublisher's 1.5 kB buffer.
+  char line_[4096] = {};
   std::uint64_t lines_ = 0;
 };
 

@@ -6,19 +6,13 @@
 #include <cmath>
 #include <utility>
 
+#include "common/elapsed.h"
 #include "localization/map_vocabulary.h"
 #include "runtime/map_setup.h"
 
 namespace zm {
-namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
 
 TickLoop::TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index)
     : config_(config), frames_(frames), arena_(std::move(arena)), map_index_(std::move(index)) {}
@@ -48,12 +42,14 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   ZM_ASSIGN_OR_RETURN(ZoneSet zone_set, ZoneSetFromRecords(zone_records, members));
   ZM_ASSIGN_OR_RETURN(MapIndex index, BuildPolicyIndex(keyframes, links, zone_set, members));
 
-  // The one derivation of K_max and the arena (budget.h).
+  // The map's vocabulary, when it has one: the localizer's likelihood over the resident set.
+  // Read before the budget, which counts it (and the index over the arena's slots).
+  ZM_ASSIGN_OR_RETURN(std::optional<Vocabulary> vocabulary, LoadMapVocabulary(map, "the map"));
+  const FrameSource::Images images = frames.images();
+  // The one derivation of K_max, the arena and localization's memory (budget.h).
   ZM_ASSIGN_OR_RETURN(const Budget budget,
-                      DeriveBudget(BudgetInputsFor(config.device, config.model, config.map,
-                                                   config.policy.kind,
-                                                   meta.largest_payload_bytes,
-                                                   meta.keyframe_count)));
+                      DeriveBudget(LoopBudgetInputs(config, meta,
+                                                    vocabulary ? &*vocabulary : nullptr, images)));
 
   // The bounded policies get an arena of exactly K_max slots: exceeding the budget is then
   // physically impossible. basic and unbounded model RTAB-Map's heap, which grows: their arena
@@ -98,19 +94,31 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   LocalizerConfig lc = config.localizer;
   lc.reserve_keyframes = std::max<std::uint32_t>(lc.reserve_keyframes, budget.arena_slots);
   lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, frames.max_features());
-  const FrameSource::Images images = frames.images();
   if (images.max_colour_bytes > 0) {
-    // Camera frames: the loop extracts their features itself, inside the tick.
+    // Camera frames: the loop extracts their features itself, inside the tick, in the frame
+    // scratch the budget counted.
     lc.reserve_features = std::max<std::uint32_t>(lc.reserve_features, config.orb.max_features);
+    OrbOptions orb = config.orb;
+    orb.scratch_bytes = budget.frame_scratch_bytes;
     ZM_ASSIGN_OR_RETURN(loop->front_end_,
-                        FrontEnd::Create(config.orb, meta.camera, images.width, images.height));
+                        FrontEnd::Create(orb, meta.camera, images.width, images.height));
   }
   ZM_RETURN_IF_ERROR(ValidateLocalizerConfig(lc, meta.camera));
   loop->localizer_ = std::make_unique<Localizer>(lc, meta.camera);
-  // The map's vocabulary, when it has one: the localizer's likelihood over the resident set.
-  ZM_ASSIGN_OR_RETURN(loop->vocabulary_, LoadMapVocabulary(map, "the map"));
+  loop->vocabulary_ = std::move(vocabulary);
   if (loop->vocabulary_.has_value()) {
     ZM_RETURN_IF_ERROR(loop->localizer_->UseVocabulary(&*loop->vocabulary_, budget.arena_slots));
+  }
+  // One derivation: what was reserved is what the budget counted (a mismatch is a bug here).
+  const std::uint64_t scratch =
+      loop->front_end_ ? loop->front_end_->extractor().scratch_stats().capacity_bytes : 0;
+  if (loop->localizer_->index_memory_bytes() != budget.index_bytes ||
+      scratch != budget.frame_scratch_bytes) {
+    return Internal("the loop reserved an inverted index of " +
+                    std::to_string(loop->localizer_->index_memory_bytes()) +
+                    " bytes and a frame scratch of " + std::to_string(scratch) +
+                    " bytes; the budget counted " + std::to_string(budget.index_bytes) + " and " +
+                    std::to_string(budget.frame_scratch_bytes));
   }
 
   loop->frame_.Reserve(std::max<std::uint32_t>({frames.max_features(), config.orb.max_features, 1}),
@@ -125,6 +133,26 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   return loop;
 }
 
+BudgetInputs LoopBudgetInputs(const LoopConfig& config, const MapMetadata& map,
+                              const Vocabulary* vocabulary, const FrameSource::Images& images) {
+  BudgetInputs in = BudgetInputsFor(config.device, config.model, config.map, config.policy.kind,
+                                    map.largest_payload_bytes, map.keyframe_count);
+  LocalizationInputs& l = in.localization;
+  if (vocabulary != nullptr) {
+    l.vocabulary_bytes = vocabulary->memory_bytes();
+    l.vocabulary_words = vocabulary->word_count();
+    l.word_features = config.localizer.word_features;
+  }
+  if (images.max_colour_bytes > 0) {
+    // The front-end's images: their declared size, else the map camera's (FrontEnd::Create).
+    const bool sized = images.width != 0 && images.height != 0;
+    l.image_width = sized ? images.width : map.camera.width;
+    l.image_height = sized ? images.height : map.camera.height;
+    l.scratch_bytes = config.orb.scratch_bytes;
+  }
+  return in;
+}
+
 DbWork SteadyDbWork(const LoopTotals& t) {
   return DbWork{t.db_queries - t.startup.db_queries, t.db_transactions - t.startup.db_transactions,
                 t.db_blob_reads - t.startup.db_blob_reads, t.db_bytes_read - t.startup.bytes_read};
@@ -137,16 +165,21 @@ void TickLoop::NoteError(const Status& s) {
 }
 
 void TickLoop::Account(const TickTelemetry& t) {
-  totals_.keyframes_loaded += t.keyframes_loaded;
-  totals_.keyframes_cancelled += t.keyframes_cancelled;
-  totals_.loads_preempted += t.loads_preempted;
-  totals_.keyframes_unloaded += t.keyframes_unloaded;
-  totals_.zone_loads += t.zones_loaded;
-  totals_.db_transactions += t.db_transactions;
-  totals_.db_queries += t.db_queries;
-  totals_.db_blob_reads += t.db_blob_reads;
-  totals_.search_queries += t.search_queries;
-  totals_.search_transactions += t.search_transactions;
+  // The working set's counts a run sums: keyframes and zones moved, database work in one unit.
+  using Count = std::pair<std::uint64_t LoopTotals::*, std::uint32_t TickTelemetry::*>;
+  static constexpr Count kCounts[] = {
+      {&LoopTotals::keyframes_loaded, &TickTelemetry::keyframes_loaded},
+      {&LoopTotals::keyframes_unloaded, &TickTelemetry::keyframes_unloaded},
+      {&LoopTotals::keyframes_cancelled, &TickTelemetry::keyframes_cancelled},
+      {&LoopTotals::loads_preempted, &TickTelemetry::loads_preempted},
+      {&LoopTotals::zone_loads, &TickTelemetry::zones_loaded},
+      {&LoopTotals::db_transactions, &TickTelemetry::db_transactions},
+      {&LoopTotals::db_queries, &TickTelemetry::db_queries},
+      {&LoopTotals::db_blob_reads, &TickTelemetry::db_blob_reads},
+      {&LoopTotals::search_queries, &TickTelemetry::search_queries},
+      {&LoopTotals::search_transactions, &TickTelemetry::search_transactions},
+  };
+  for (const auto& [total, count] : kCounts) totals_.*total += t.*count;
   totals_.db_bytes_read += t.db_bytes_read;
   totals_.load_ms += t.load_ms;
   totals_.unload_ms += t.unload_ms;
@@ -176,11 +209,12 @@ Result<bool> TickLoop::Tick() {
                    : FailedPrecondition("frame " + std::to_string(frame_.index) +
                                         " has an image but the source declared none");
     record_.stage_ms[static_cast<int>(LoopStage::kFeatures)] = fe.decode_ms + fe.extract_ms;
+    record_.has_image = true;
     if (!s.ok()) {
       // Refused: no features, so the localizer does nothing and the tick runs on odometry.
-      record_.frame_refused = true;
-      ++totals_.frames_refused;
-      if (totals_.first_frame_error.ok()) totals_.first_frame_error = s;
+      record_.image_refused = true;
+      ++totals_.images_refused;
+      if (totals_.first_image_error.ok()) totals_.first_image_error = s;
       frame_error_ = std::move(s);
     }
   }
@@ -254,8 +288,9 @@ Result<bool> TickLoop::Tick() {
   if (loc.accepted) {
     t_map_odom_ = MapFromOdomCorrection(loc.t_map_cam, frame_.odom);  // used from next tick
     estimate = loc.t_map_body;
-    ++totals_.loop_closures;
+    ++totals_.frames_localized;
   }
+  totals_.closures_accepted += loc.closures_accepted;
   totals_.closures_rejected += loc.closures_rejected;
   const Plan& after =
       decide_->After(loc.highest_hypothesis, loc.accepted ? loc.matched : KeyframeId{0});
@@ -277,6 +312,7 @@ Result<bool> TickLoop::Tick() {
       record_.step_ms[static_cast<int>(TickStep::kApply)] + loc.index_ms +
       std::max(0.0, record_.step_ms[static_cast<int>(TickStep::kLocalize)] - loc.index_ms -
                         loc.quantize_ms - loc.likelihood_ms - loc.verify_ms);
+  record_.vocabulary = localizer_->has_vocabulary();
   record_.likelihood = loc.highest_likelihood;
   record_.postings_walked = loc.postings_walked;
 
@@ -346,6 +382,9 @@ Result<bool> TickLoop::Tick() {
     totals_.startup.tick_ms = record_.tick_ms;
   } else {
     totals_.tick_ms.Add(record_.tick_ms);
+    for (std::size_t i = 0; i < totals_.stage_ms.size(); ++i) {
+      totals_.stage_ms[i].Add(record_.stage_ms[i]);
+    }
     totals_.late_ms += record_.late_ms;
   }
   totals_.simulated_s += std::max(frame_period_s_, record_.tick_ms / 1000.0);

@@ -53,6 +53,7 @@
 // on the machine's speed, as it would on a robot.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -128,10 +129,18 @@ struct StartupTotals {
 // Totals over a run, typed (summary writers turn them into JSON).
 struct LoopTotals {
   std::uint64_t ticks = 0;
-  std::uint64_t loop_closures = 0;
-  std::uint64_t frames_refused = 0;  // camera frames whose image could not be used (odometry only)
-  Status first_frame_error;          // the first refused frame's reason
+  // Localization as RTAB-Map reports it: loop closures accepted (the localizer's
+  // LocalizeResult::closures_accepted, summed), beside the frames localized (ticks whose pose is
+  // an accepted closure's fix). The same count today: the localizer stops at the first accepted
+  // candidate, so a frame has at most one. closures_rejected: candidates examined, not accepted.
+  std::uint64_t closures_accepted = 0;
+  std::uint64_t frames_localized = 0;
   std::uint64_t closures_rejected = 0;
+  // Camera frames whose image the front-end could not use (the tick ran on odometry), and the
+  // first one's reason. Not the input gate's refusals (summary.json frames_refused): those
+  // frames never reach the loop.
+  std::uint64_t images_refused = 0;
+  Status first_image_error;
   std::uint64_t keyframes_loaded = 0;
   std::uint64_t keyframes_unloaded = 0;
   std::uint64_t zone_loads = 0;
@@ -168,6 +177,8 @@ struct LoopTotals {
   double simulated_s = 0.0;  // sum over ticks of max(frame period, tick time)
   StartupTotals startup;
   StreamingStats tick_ms;    // every tick after the first (the steady state)
+  // The same ticks' stage times (TickRecord::stage_ms), by LoopStage.
+  std::array<StreamingStats, kLoopStageCount> stage_ms;
 };
 
 // Database work after start-up: the run's totals minus the start-up load (the one derivation;
@@ -179,6 +190,13 @@ struct DbWork {
   std::uint64_t bytes_read = 0;
 };
 [[nodiscard]] DbWork SteadyDbWork(const LoopTotals& totals);
+
+// The budget's inputs for a loop over a map and frames (DeriveBudget, budget.h): the options,
+// the map's facts, its vocabulary (null when it has none) and the frames' images (camera frames:
+// the front-end's scratch). The one place for the loop and `zonemap budget --map`.
+[[nodiscard]] BudgetInputs LoopBudgetInputs(const LoopConfig& config, const MapMetadata& map,
+                                            const Vocabulary* vocabulary,
+                                            const FrameSource::Images& images);
 
 // What TickLoop::SetBudget did (acknowledged to the robot as `ack budget ...`).
 struct BudgetChange {
@@ -239,11 +257,13 @@ class TickLoop {
   [[nodiscard]] const WorkingSet& working_set() const { return *working_set_; }
   [[nodiscard]] const MemoryPolicy& policy() const { return decide_->policy(); }
   [[nodiscard]] const Localizer& localizer() const { return *localizer_; }
+  // The camera frames' front-end; null when the source's frames carry features, not images.
+  [[nodiscard]] const FrontEnd* front_end() const { return front_end_.get(); }
   [[nodiscard]] const MapIndex& map_index() const { return map_index_; }
   [[nodiscard]] const ZoneSet& zone_set() const { return zone_set_; }
   // The record of the last processed frame (valid after Tick() returned true).
   [[nodiscard]] const TickRecord& last_record() const { return record_; }
-  // Why the last refused camera frame's image could not be used (last_record().frame_refused):
+  // Why the last refused camera frame's image could not be used (last_record().image_refused):
   // the front-end's words, naming the frame and the limit (zonemapd's diagnostic).
   [[nodiscard]] const Status& last_frame_error() const { return frame_error_; }
   [[nodiscard]] std::uint64_t malformed_lines() const { return frames_.malformed_lines(); }
@@ -281,6 +301,7 @@ class TickLoop {
 
  private:
   TickLoop(const LoopConfig& config, FrameSource& frames, Arena arena, MapIndex index);
+  // Adds what the working set did (a tick's or an idle part's telemetry) to the totals.
   void Account(const TickTelemetry& t);
   void NoteError(const Status& s);
   // Polls the frame source between two keyframes of the idle part.

@@ -82,7 +82,7 @@ TEST_CASE("frame scratch: a full region hands the request to the heap and counts
   CHECK(scratch->stats().overflows == 1);
 }
 
-TEST_CASE("frame scratch: a block that outlives its scope stays valid; the region waits for it") {
+TEST_CASE("frame scratch: a block that outlives its scope stays valid, the region waits for it") {
   auto scratch = Make(64 << 10);
   std::uint64_t* kept = nullptr;
   {

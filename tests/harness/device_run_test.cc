@@ -224,8 +224,13 @@ TEST_CASE("device run (ledger): a killed run's summary rebuilt from its ticks ma
   CHECK_FALSE(whole.partial);
   CHECK(p->ticks == whole.ticks);
   CHECK(p->k_max == whole.k_max);  // from map_start.json
-  CHECK(p->loop_closures == whole.loop_closures);
+  CHECK(p->closures_accepted == whole.closures_accepted);
+  CHECK(p->frames_localized == whole.frames_localized);
   CHECK(p->tick_ms.count == whole.tick_ms.count);
+  // The stages from ticks.jsonl's stages_ms (4 decimals there): the same statistics.
+  const auto memory = static_cast<std::size_t>(LoopStage::kMemory);
+  CHECK(whole.stages[memory].p50_ms > 0.0);
+  CHECK(p->stages[memory].p50_ms == doctest::Approx(whole.stages[memory].p50_ms).epsilon(0.05));
   REQUIRE(p->replay.has_value());
   REQUIRE(whole.replay.has_value());
   CHECK(p->replay->frames_arrived == whole.replay->frames_arrived);

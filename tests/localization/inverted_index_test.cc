@@ -127,7 +127,7 @@ TEST_CASE("inverted index: options and inputs are checked, the limit named") {
   CHECK(index.postings() == 2);
 }
 
-TEST_CASE("inverted index: same top-k as a brute-force L1 score; Remove restores the state") {
+TEST_CASE("inverted index: same top-k as a brute-force L1 score, Remove restores the state") {
   constexpr std::uint32_t kKeyframes = 300;
   std::mt19937_64 rng(26);
   std::vector<BowVector> bags;
@@ -232,6 +232,8 @@ TEST_CASE("inverted index: full to K_max x M in the worst block patterns, no all
     CHECK(news.allocations() == 0);
     CHECK(mallocs.mallocs() == 0);
     CHECK(index.memory_bytes() > std::size_t{kSlots} * kM * 8);
+    // Filled and emptied three times over, it holds what BytesFor says (the budget's figure).
+    CHECK(index.memory_bytes() == InvertedIndex::BytesFor(index.options()));
   }
 }
 

@@ -130,6 +130,25 @@ TEST_CASE("vocabulary likelihood: the index follows the resident set, and its wo
   CHECK(loc.index_memory_bytes() > 0);
 }
 
+TEST_CASE("vocabulary likelihood: it reserves what the memory budget counts for it") {
+  World world({});
+  const KeyframeStore store = MakeKeyframes(world);
+  const std::vector<ResidentKeyframe> all = InSlots(store.all());
+  const Vocabulary vocab = TrainOn(all);
+  LocalizerConfig config;
+  Localizer loc(config, world.camera());
+  CHECK(loc.index_memory_bytes() == 0);  // no vocabulary, nothing reserved for one
+  for (const std::uint32_t slots : {64U, 1000U}) {
+    REQUIRE(loc.UseVocabulary(&vocab, slots).ok());
+    CHECK(loc.index_memory_bytes() ==
+          VocabularyIndexBytes(vocab.word_count(), slots, config.word_features));
+  }
+  // Ticks over the resident set reserve nothing more.
+  const Pose3 truth = PoseFromXYYaw(12.3, 0.0, 0.0);
+  (void)loc.Localize(test::MakeFrame(0, 0.0, truth, world.Observe(truth)), truth, all);
+  CHECK(loc.index_memory_bytes() == VocabularyIndexBytes(vocab.word_count(), 1000, config.word_features));
+}
+
 TEST_CASE("vocabulary likelihood: a warm tick allocates nothing, through PnP") {
   World world({});
   const KeyframeStore store = MakeKeyframes(world);

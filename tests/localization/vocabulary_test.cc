@@ -223,7 +223,7 @@ TEST_CASE("vocabulary: Transform gives a sorted, unique, L1-normalised tf-idf ba
   }
 }
 
-TEST_CASE("vocabulary: blob round trip is identical; memory footprint is reported") {
+TEST_CASE("vocabulary: blob round trip is identical, memory footprint is reported") {
   const std::vector<Descriptor256> set = RandomSet(9, 500);
   VocabularyOptions o;
   o.branching = 6;

@@ -3,6 +3,10 @@
 
 #include <doctest/doctest.h>
 
+#include "arena/frame_scratch.h"
+#include "localization/localizer.h"
+#include "localization/frame_scratch_size.h"
+
 namespace zm {
 namespace {
 
@@ -18,7 +22,7 @@ BudgetInputs Orin(std::uint64_t slot, std::uint64_t keyframes) {
   return in;
 }
 
-TEST_CASE("share = device - OS - model - headroom; K_max = (share - overhead) / slot") {
+TEST_CASE("share = device - OS - model - headroom, K_max = (share - overhead) / slot") {
   const BudgetInputs in = Orin(2'000'000, 10'000);
   Result<Budget> b = DeriveBudget(in);
   REQUIRE(b.ok());
@@ -53,6 +57,54 @@ TEST_CASE("basic and unbounded: the arena holds the whole map, residency is meas
   b = DeriveBudget(in);
   CHECK(b->k_max == 10'000);
   CHECK(b->map_share_bytes == 0);
+}
+
+TEST_CASE("localization is counted: the vocabulary, the index over the slots, the frame scratch") {
+  BudgetInputs in = Orin(2'000'000, 10'000);
+  const Budget plain = DeriveBudget(in).value();
+  CHECK(plain.vocabulary_bytes == 0);  // a map without a vocabulary, frames with features
+  CHECK(plain.index_bytes == 0);
+  CHECK(plain.frame_scratch_bytes == 0);
+
+  in.localization = {.vocabulary_bytes = 527'008,
+                     .vocabulary_words = 9'960,
+                     .word_features = 500,
+                     .image_width = 640,
+                     .image_height = 480};
+  Result<Budget> b = DeriveBudget(in);
+  REQUIRE(b.ok());
+  const std::uint64_t scratch = FrameScratch::ReservedBytes(FrameScratchBytesFor(640, 480));
+  CHECK(scratch >= 8ULL * 640 * 480 + (2ULL << 20));
+  CHECK(b->vocabulary_bytes == 527'008);
+  CHECK(b->frame_scratch_bytes == scratch);
+  CHECK(b->keyframe_bytes == plain.keyframe_bytes - 527'008 - scratch);
+  // Each keyframe costs its slot and its postings: K_max is the most that fit with the index.
+  const auto cost = [](std::uint64_t k) {
+    return k * 2'000'000 + VocabularyIndexBytes(9'960, static_cast<std::uint32_t>(k), 500);
+  };
+  CHECK(cost(b->k_max) <= b->keyframe_bytes);
+  CHECK(cost(b->k_max + 1) > b->keyframe_bytes);
+  CHECK(b->k_max < plain.k_max);
+  CHECK(b->index_bytes == VocabularyIndexBytes(9'960, b->arena_slots, 500));
+
+  // basic: K_max the same way, the index over its whole-map arena.
+  in.bounded_policy = false;
+  b = DeriveBudget(in);
+  REQUIRE(b.ok());
+  CHECK(b->arena_slots == 10'000);
+  CHECK(b->index_bytes == VocabularyIndexBytes(9'960, 10'000, 500));
+  CHECK(cost(b->k_max) <= b->keyframe_bytes);
+
+  // A profile's own scratch size is what the region reserves (to the page).
+  in.bounded_policy = true;
+  in.localization.scratch_bytes = 5'000'001;
+  CHECK(DeriveBudget(in)->frame_scratch_bytes == FrameScratch::ReservedBytes(5'000'001));
+
+  // Too little left beside the vocabulary and the scratch: named.
+  in.map.map_share_bytes = (256ULL << 20) + 527'008 + 1;
+  const Result<Budget> none = DeriveBudget(in);
+  REQUIRE_FALSE(none.ok());
+  CHECK(none.status().message().find("frame scratch") != std::string::npos);
 }
 
 TEST_CASE("a run's options become budget inputs by the policy's name") {

@@ -205,7 +205,7 @@ TEST_CASE("image lines over a pipe: a pose line each, bad images on odometry, co
   }
   const TickLoop& loop = s.daemon->loop();
   CHECK(loop.totals().ticks == 11);
-  CHECK(loop.totals().frames_refused == 2);  // the front-end's two
+  CHECK(loop.totals().images_refused == 2);  // the front-end's two
 
   const ImageRefusalCounts& r = s.daemon->image_refusals();
   CHECK(r[ImageRefusal::kUnreadable] == 3);
@@ -281,7 +281,7 @@ TEST_CASE(
   CHECK(on.Poses().size() == 2);
   CHECK(on.daemon->images().width == 640);
   CHECK(on.daemon->image_refusals().total == 0);
-  CHECK(on.daemon->loop().totals().frames_refused == 0);
+  CHECK(on.daemon->loop().totals().images_refused == 0);
 }
 
 TEST_CASE("an image size that is not a plain scale of the map camera is refused at start") {
@@ -360,7 +360,7 @@ TEST_CASE("warm image steps allocate nothing: JPEG and PNG frames, and refused i
   CHECK(steps == in.size() - warm);
   CHECK(s.daemon->image_refusals()[ImageRefusal::kUnreadable] > 5);
   CHECK(s.daemon->image_refusals()[ImageRefusal::kNoDepth] > 5);
-  CHECK(s.daemon->loop().totals().frames_refused == 0);
+  CHECK(s.daemon->loop().totals().images_refused == 0);
 }
 
 }  // namespace

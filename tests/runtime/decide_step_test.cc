@@ -103,7 +103,7 @@ TEST_CASE("decide step: zones from the nearest keyframe, the caller's, or the cu
   CHECK(step.zone() == ZoneId{0});
 }
 
-TEST_CASE("decide step: a lower budget is releases only; nothing allocates after construction") {
+TEST_CASE("decide step: a lower budget is releases only, nothing allocates after construction") {
   const MapIndex index = test::BuildIndex(test::LineMap({3, 3, 3}));
   DecideStep step(index, Make(index, PolicyKind::kSemantic, 6), {}, nullptr);
   const std::vector<ZoneId> route = {ZoneId{0}, ZoneId{1}, ZoneId{2}};

@@ -109,7 +109,7 @@ TEST_CASE("frames file: a truncated or foreign file is a clear error") {
 namespace zm {
 namespace {
 
-TEST_CASE("frames file v2: a frame's colour image round-trips; a damaged one is a clear error") {
+TEST_CASE("frames file v2: a frame's colour image round-trips, a damaged one is a clear error") {
   const std::string path = TempPath("zm_frames_images.bin");
   {
     auto w = FrameWriter::Create(path, TestCamera(), 10.0);

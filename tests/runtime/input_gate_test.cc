@@ -44,7 +44,7 @@ TEST_CASE("stamps must increase: 2 -> -5 -> 0 processes only the first") {
   CHECK(g.last_stamp_s() == 2.5);
 }
 
-TEST_CASE("a refused frame does not move the clock; the first frame may be negative") {
+TEST_CASE("a refused frame does not move the clock, the first frame may be negative") {
   InputGate g = Gate();
   RejectReason why = RejectReason::kSyntax;
   CHECK(g.AcceptFrame(At(-5, 1), 1.0, Pose3::Identity(), &why));

@@ -21,7 +21,7 @@ double NearestRank(std::vector<double> v, double q) {
   return v.at(std::clamp<std::size_t>(rank, 1, v.size()) - 1);
 }
 
-TEST_CASE("quantiles are the nearest-rank sample within 0.5 %; count, mean, min, max exact") {
+TEST_CASE("quantiles are the nearest-rank sample within 0.5 %, count, mean, min, max exact") {
   std::mt19937_64 rng(3);
   std::lognormal_distribution<double> tick_ms(1.0, 0.8);
   for (std::size_t n : {1u, 2u, 7u, 100u, 10'000u}) {

@@ -44,7 +44,21 @@ RunSummary Example() {
                      .with_idle_loads = 7.25};
   s.startup.keyframes_loaded = 120;
   s.steady_state.db_transactions = 77;
-  s.loop_closures = 53;
+  s.closures_accepted = 53;
+  s.frames_localized = 53;
+  s.closures_rejected = 12;
+  s.images_refused = 2;
+  s.first_image_error = "invalid argument: frame 7: colour image is empty";
+  s.stages[static_cast<std::size_t>(LoopStage::kFeatures)] = {.p50_ms = 3.5, .p99_ms = 6.0,
+                                                               .mean_ms = 3.75};
+  s.stages[static_cast<std::size_t>(LoopStage::kLikelihood)] = {.p50_ms = 0.25, .p99_ms = 1.5,
+                                                                 .mean_ms = 0.5};
+  s.frame_scratch = FrameScratchStats{.capacity_bytes = 2682880,
+                                      .high_water_bytes = 610304,
+                                      .allocations = 512000,
+                                      .overflows = 0,
+                                      .scopes = 4128,
+                                      .blocks_outliving_scope = 0};
   s.loads.late_ms_total = 12.5;
   s.first_error = "I/O error: disk";
   ReplaySummary r;
@@ -78,6 +92,15 @@ TEST_CASE("summary.json: versioned, and what ToJson writes reads back the same")
   CHECK(j["frames_dropped"] == 72);
   CHECK(j["ledger_refusals"] == 3);
   CHECK_FALSE(j.contains("partial"));
+  CHECK(j["stages"]["features"]["p50_ms"] == 3.5);
+  CHECK(j["stages"]["likelihood"]["p99_ms"] == 1.5);
+  CHECK(j["stages"]["verify"]["p99_ms"] == 0.0);  // every stage, also one that took no time
+  CHECK(j["stages"].size() == kLoopStageCount);
+  CHECK(j["closures_accepted"] == 53);
+  CHECK(j["frames_localized"] == 53);
+  CHECK_FALSE(j.contains("loop_closures"));  // version 2: the count has its explicit name
+  CHECK(j["images_refused"] == 2);
+  CHECK(j["frame_scratch"]["high_water_bytes"] == 610304);
 
   auto back = RunSummaryFromJson(j);
   REQUIRE(back.ok());
@@ -85,22 +108,44 @@ TEST_CASE("summary.json: versioned, and what ToJson writes reads back the same")
   REQUIRE(back->replay.has_value());
   CHECK(back->replay->trajectory.associated_poses == 4128u);
   CHECK(back->first_error == "I/O error: disk");
+  CHECK(back->stages[static_cast<std::size_t>(LoopStage::kFeatures)].mean_ms == 3.75);
+  REQUIRE(back->frame_scratch.has_value());
+  CHECK(back->frame_scratch->capacity_bytes == 2682880u);
 }
 
-TEST_CASE("summary.json: a live session has no replay part; its metrics keys are absent") {
+TEST_CASE("summary.json: a version-1 file's loop_closures is read as both counts") {
+  // Version 1 counted the frames whose closure was accepted (at most one a frame).
+  auto v1 = RunSummaryFromJson({{"schema_version", 1}, {"policy", "semantic"}, {"loop_closures", 35},
+                                {"closures_rejected", 9}});
+  REQUIRE(v1.ok());
+  CHECK(v1->closures_accepted == 35u);
+  CHECK(v1->frames_localized == 35u);
+  CHECK(v1->closures_rejected == 9u);
+  CHECK(v1->stages[0].p50_ms == 0.0);  // no stages before version 2
+  CHECK_FALSE(v1->frame_scratch.has_value());
+  // A version-2 file has no loop_closures: one there is not read.
+  auto v2 = RunSummaryFromJson({{"schema_version", 2}, {"loop_closures", 35}});
+  REQUIRE(v2.ok());
+  CHECK(v2->closures_accepted == 0u);
+}
+
+TEST_CASE("summary.json: a live session has no replay part, and its metrics keys are absent") {
   RunSummary s = Example();
   s.replay.reset();
   s.ledger_refusals.reset();
+  s.frame_scratch.reset();
   const nlohmann::json j = ToJson(s);
+  CHECK_FALSE(j.contains("frame_scratch"));  // frames without images: no front-end
   CHECK_FALSE(j.contains("wall_s"));
   CHECK_FALSE(j.contains("ate_rmse_m"));
   CHECK_FALSE(j.contains("ledger_refusals"));
   auto back = RunSummaryFromJson(j);
   REQUIRE(back.ok());
   CHECK_FALSE(back->replay.has_value());
+  CHECK_FALSE(back->frame_scratch.has_value());
 }
 
-TEST_CASE("summary.json: an older file keeps defaults; a wrong type or a newer version is named") {
+TEST_CASE("summary.json: an older file keeps defaults, a wrong type or a newer version is named") {
   auto old = RunSummaryFromJson({{"policy", "basic"}, {"ticks", 7}});
   REQUIRE(old.ok());
   CHECK(old->schema_version == 0);

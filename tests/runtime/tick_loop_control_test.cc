@@ -126,7 +126,9 @@ TEST_CASE("the correction: the last pose is map_from_odom() * its odometry") {
     REQUIRE(l.loop->Tick().value());
     CHECK((l.loop->map_from_odom() * f.odom).isApprox(l.loop->last_record().pose, 1e-9));
   }
-  CHECK(l.loop->totals().loop_closures > 0);
+  CHECK(l.loop->totals().closures_accepted > 0);
+  // At most one closure a frame: the frames localized are the closures accepted.
+  CHECK(l.loop->totals().frames_localized == l.loop->totals().closures_accepted);
   CHECK(l.loop->map_from_odom().translation().x() == doctest::Approx(-0.3).epsilon(0.01));
 }
 

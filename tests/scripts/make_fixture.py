@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """A tiny synthetic `zonemap bench` output for the script tests: one scenario, the paper's four
 configurations (basic and semantic, without and with the co-tenant), written with the keys of
-issue 17's experiment (docs/harness.md, README "summary.json"). The numbers are made up but
+issue 17's experiment (docs/harness.md, README "summary.json"): basic's summaries in schema
+version 1 (one count, loop_closures), semantic's in version 2 (closures_accepted beside
+frames_localized, stages), so the scripts read both. The numbers are made up but
 shaped like the experiment's: Basic + VLM's map is OOM-killed at tick 30 and its co-tenant
 stalls; Semantic + VLM completes.
 
@@ -62,9 +64,16 @@ def write_run(out, name, policy, with_vlm, rep=None):
     with open(os.path.join(d, "estimate.tum"), "w") as f:
         f.write("\n".join(est) + "\n")
     loop_closures = sum(1 for t in ticks if t["loop_closure"])
+    if policy == "basic":
+        closures = {"loop_closures": loop_closures}
+    else:
+        closures = {"schema_version": 2, "closures_accepted": loop_closures,
+                    "frames_localized": loop_closures,
+                    "stages": {k: {"p50_ms": 1.0, "p99_ms": 2.0, "mean_ms": 1.2}
+                               for k in ("features", "quantize", "likelihood", "verify", "memory")}}
     s = {
         "policy": policy, "k_max": k_max, "slot_bytes": SLOT, "ticks": n,
-        "update_rate_hz": (0.65 if killed else 0.95), "loop_closures": loop_closures,
+        "update_rate_hz": (0.65 if killed else 0.95), **closures,
         "tick_ms": {"mean": sum(t["tick_ms"] for t in ticks) / n, "p50": 20, "p99": 200,
                     "max": 220, "count": n - 1},
         "ate_rmse_m": err, "rpe_trans_rmse_m": err * 1.3, "rpe_rot_rmse_deg": 0.4,

@@ -310,7 +310,7 @@ TEST_CASE(
     CHECK(sum["images"]["refused"] == 0);
     CHECK(sum["images"]["frames_without_odometry"] == (odometry ? 0 : 12));
     CHECK(sum["malformed_lines"] == 0);
-    CHECK(run.daemon->loop().totals().frames_refused == 0);
+    CHECK(run.daemon->loop().totals().images_refused == 0);
   }
 }
 
