@@ -128,6 +128,28 @@ class StreamedChecksum {
 
 namespace zm {
 
+// The shared names the mapdb .cc files use unqualified, listed once here rather than in each
+// file (this header is private to lib/mapdb, so nothing else sees them).
+using mapdb_detail::CheckSchema;
+using mapdb_detail::kCopyChunkBytes;
+using mapdb_detail::kInformationBlobBytes;
+using mapdb_detail::Kf;
+using mapdb_detail::kPoseBlobBytes;
+using mapdb_detail::kSchemaSql;
+using mapdb_detail::kVocabularyTableSql;
+using mapdb_detail::LinkFromRow;
+using mapdb_detail::Ms;
+using mapdb_detail::PoseFromColumn;
+using mapdb_detail::PoseToDoubles;
+using mapdb_detail::PrepareOn;
+using mapdb_detail::ReadKeyframes;
+using mapdb_detail::ReadLinks;
+using mapdb_detail::StreamedChecksum;
+using sqlite::ForEachRow;
+using sqlite::FromSqlite;
+using sqlite::Prepare;
+using sqlite::StmtReset;
+
 // The reader's state: the connection, every prepared statement, the counters and the zone load
 // in flight. Its zone-load methods are in map_db_zone_load.cc, the rest in map_db.cc.
 struct MapDb::Impl {
@@ -164,12 +186,12 @@ struct MapDb::Impl {
   // Validates the payload that now sits in `slot` (exactly `bytes` long) for keyframe `id`,
   // with its body checksum as computed while it landed.
   Status Validate(KeyframeId id, std::span<const std::byte> blob_bytes,
-                  const mapdb_detail::StreamedChecksum& checksum) const;
+                  const StreamedChecksum& checksum) const;
 
   // Validates the payload that now sits at the start of `slot` (`bytes` long) and decodes its
   // dense part into the slot; returns the keyframe's resident bytes.
   Result<std::uint32_t> Land(KeyframeId id, std::span<std::byte> slot, std::size_t bytes,
-                             const mapdb_detail::StreamedChecksum& checksum) const;
+                             const StreamedChecksum& checksum) const;
 
   void Count(LoadStats& st, std::uint32_t queries, std::uint32_t blob_reads,
              std::uint32_t transactions) {

@@ -13,15 +13,6 @@
 
 namespace zm {
 
-using mapdb_detail::Kf;
-using mapdb_detail::Ms;
-using mapdb_detail::PrepareOn;
-using mapdb_detail::StreamedChecksum;
-using sqlite::FromSqlite;
-using sqlite::Prepare;
-using sqlite::StmtReset;
-using mapdb_detail::kCopyChunkBytes;
-
 Status MapDb::Impl::EndZoneLoad(bool commit_it) {
   sqlite3_stmt* members = zone_members.get();
   sqlite3_reset(members);
