@@ -212,23 +212,23 @@ def robot_world(items, free, occupied, rooms, n, rng):
     return free, occupied
 
 
-def cast_rays(free, vx, vy, range_m):
-    """The 1440 rays of a 360-degree laser at (vx, vy), sampled every half cell out to range_m:
-    (r, c, first), the cells along each ray (clipped to the grid) and each ray's first sample
-    that is not free or leaves the grid (the sample count where none), or None when the
-    viewpoint itself is not free (inside furniture it sees nothing)."""
+def laser_rays(free, viewpoints, range_m):
+    """For each viewpoint, the 1440 rays of a 360-degree laser sampled every half cell out to
+    range_m: (r, c, first), the cells along each ray (clipped to the grid) and each ray's first
+    sample that is not free or leaves the grid (the sample count where none). A viewpoint that
+    is not free itself (inside furniture) sees nothing and yields nothing."""
     h, w = free.shape
     angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
     steps = np.arange(0, range_m / RES, 0.5)
-    c = (vx + np.outer(np.cos(angles), steps)).astype(int)
-    r = (vy + np.outer(np.sin(angles), steps)).astype(int)
-    valid = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-    r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
-    if not free[r[0, 0], c[0, 0]]:
-        return None
-    blocked = (~free[r, c]) | ~valid
-    first = np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
-    return r, c, first
+    for vx, vy in viewpoints:
+        c = (vx + np.outer(np.cos(angles), steps)).astype(int)
+        r = (vy + np.outer(np.sin(angles), steps)).astype(int)
+        valid = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
+        if not free[r[0, 0], c[0, 0]]:
+            continue
+        blocked = (~free[r, c]) | ~valid
+        yield r, c, np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
 
 
 def robot_scan(free, occupied, viewpoints, rng):
@@ -248,11 +248,7 @@ def robot_scan(free, occupied, viewpoints, rng):
     range_m = rng.uniform(4.0, 8.0)
     seen_free = np.zeros_like(free)
     seen_occ = np.zeros_like(free)
-    for vx, vy in moved:
-        rays = cast_rays(free, vx, vy, range_m)
-        if rays is None:
-            continue
-        r, c, first = rays
+    for r, c, first in laser_rays(free, moved, range_m):
         samples = r.shape[1]
         hit = np.nonzero(first < samples)[0]
         keep_hit = occupied[r[hit, first[hit]], c[hit, first[hit]]]
@@ -274,11 +270,7 @@ def scan(free, occupied, viewpoints):
     """Cells a 360-degree laser sees from each viewpoint: (seen_free, seen_occupied)."""
     seen_free = np.zeros_like(free)
     seen_occ = np.zeros_like(free)
-    for vx, vy in viewpoints:
-        rays = cast_rays(free, vx, vy, RANGE_M)
-        if rays is None:
-            continue
-        r, c, first = rays
+    for r, c, first in laser_rays(free, viewpoints, RANGE_M):
         samples = r.shape[1]
         before = np.arange(samples)[None, :] < first[:, None]
         seen_free[r[before], c[before]] = True
