@@ -17,20 +17,8 @@
 namespace zm::sim {
 namespace {
 
-constexpr Rgb kWallPalette[] = {{205, 222, 200}, {232, 226, 205}, {200, 215, 230},
-                                {238, 238, 232}, {236, 228, 190}, {215, 215, 215}};
 constexpr Rgb kFurniturePalette[] = {{150, 110, 70}, {225, 225, 220}, {160, 185, 210}};
-constexpr Rgb kFloor = {170, 168, 160};
-constexpr Rgb kCeiling = {232, 232, 226};
 constexpr Rgb kFar = {60, 60, 64};  // nothing within the cast range
-
-
-// Floor without SSE4.1's roundss (the builds target baseline x86-64 and ARMv8-A).
-float FastFloor(float v) {
-  const auto i = static_cast<float>(static_cast<int>(v));
-  return i > v ? i - 1.0f : i;
-}
-float Frac(float v) { return v - FastFloor(v); }
 
 std::uint8_t ToByte(float v) { return static_cast<std::uint8_t>(std::clamp(v, 0.0f, 255.0f)); }
 
@@ -263,7 +251,7 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
       } else {
         z = plane_z;
         const float tx = ax + bx * xn_of[u], ty = ay + by * xn_of[u];
-        const float fx_t = FastFloor(tx), fy_t = FastFloor(ty);
+        const float fx_t = FloorF(tx), fy_t = FloorF(ty);
         float shade = plane_shade;
         if (tx - fx_t < seam || ty - fy_t < seam) shade *= is_floor ? 0.8f : 0.85f;
         const int parity = static_cast<int>(fx_t) + (is_floor ? 1 : 3) * static_cast<int>(fy_t);
