@@ -11,8 +11,7 @@
 #include <string>
 
 #include "runtime/profile.h"
-#include "sim/building.h"
-#include "sim/scenario.h"
+#include "tests/support/small_scenario.h"
 
 namespace zm {
 namespace {
@@ -30,26 +29,9 @@ TEST_CASE("run: the recorded frames pass the input gate; each tick is published 
   const fs::path dir =
       fs::temp_directory_path() / ("zm_run_test_" + std::to_string(static_cast<long>(getpid())));
   fs::remove_all(dir);
-  sim::HospitalOptions h;
-  h.seed = 5;
-  h.area_m2 = 300.0;
-  h.resolution_m = 0.1;
-  auto b = sim::GenerateHospital(h);
+  auto b = sim::GenerateHospital(test::SmallHospital(5));
   REQUIRE(b.ok());
-  sim::ScenarioOptions o;
-  o.seed = 5;
-  o.camera.intrinsics = sim::MakeIntrinsics(320, 240, 90.0);
-  o.dense.width = 160;
-  o.dense.height = 120;
-  o.dense.cloud_step = 1;
-  o.noise.max_features = 80;
-  o.camera.range_m = 6.0;
-  o.tasks = 1;
-  o.rate_hz = 1.0;
-  o.keyframe_distance_m = 1.5;
-  o.keyframe_angle_deg = 60.0;
-  o.threads = 2;
-  auto scenario = sim::WriteScenario(*b, o, (dir / "scenario").string());
+  auto scenario = sim::WriteScenario(*b, test::SmallReplayScenario(5, 1), (dir / "scenario").string());
   REQUIRE_MESSAGE(scenario.ok(), scenario.status().ToString());
 
   RunRequest r;
