@@ -7,6 +7,7 @@
 #include <numbers>
 #include <string>
 
+#include "common/clock.h"
 #include "localization/camera.h"
 
 namespace zm {
@@ -18,9 +19,6 @@ double HeadingDiff(double a, double b) {
 }
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 PnpParams PnpParamsFrom(const LocalizerConfig& c) {
   return {.reprojection_px = c.ransac_reprojection_px,

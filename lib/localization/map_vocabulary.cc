@@ -6,16 +6,10 @@
 #include <memory>
 #include <vector>
 
+#include "common/clock.h"
 #include "mapdb/map_scan.h"
 
 namespace zm {
-namespace {
-
-double MsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
 
 Status ValidateMapVocabularyOptions(const MapVocabularyOptions& options) {
   if (options.word_features == 0 || options.word_features > kMaxFeaturesPerKeyframe) {

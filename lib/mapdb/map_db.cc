@@ -454,7 +454,7 @@ Result<LoadStats> MapDb::LoadKeyframes(std::span<const KeyframeId> ids, Arena& a
     sink.Loaded(id, *slot, *landed);
     im.CountBytes(st, static_cast<std::uint32_t>(bytes));
   }
-  st.ms = Ms(t0);
+  st.ms = MsSince(t0);
   return st;
 }
 
@@ -480,7 +480,7 @@ Result<LoadStats> MapDb::ReadGraphNodes(std::span<const KeyframeId> ids, GraphNo
     im.Count(st, 1, 0, 1);
     ZM_RETURN_IF_ERROR(im.ReadLinksOf(id, sink));
   }
-  st.ms = Ms(t0);
+  st.ms = MsSince(t0);
   return st;
 }
 

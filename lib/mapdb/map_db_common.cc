@@ -30,10 +30,6 @@ bool PoseFromColumn(sqlite3_stmt* s, int col, Pose3& out) {
   return true;
 }
 
-double Ms(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
 Status CheckSchema(sqlite3* db, const std::string& path, int* version_out) {
   ZM_ASSIGN_OR_RETURN(sqlite::Stmt s, Prepare(db, "PRAGMA user_version"));
   const int rc = sqlite3_step(s.get());

@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/clock.h"
 #include "mapdb/dense_codec.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/map_db.h"
@@ -73,7 +74,6 @@ inline constexpr int kInformationBlobBytes = 36 * 8;
 void PoseToDoubles(const Pose3& p, double out[12]);
 // False when the column is not a 12-float64 blob.
 [[nodiscard]] bool PoseFromColumn(sqlite3_stmt* s, int col, Pose3& out);
-[[nodiscard]] double Ms(std::chrono::steady_clock::time_point t0);
 
 // Payload bytes are copied into a slot in pieces of this size and each piece's share of the
 // body checksum is computed right after it lands, while it is still in the L2 cache: the body is
@@ -138,7 +138,6 @@ using mapdb_detail::kPoseBlobBytes;
 using mapdb_detail::kSchemaSql;
 using mapdb_detail::kVocabularyTableSql;
 using mapdb_detail::LinkFromRow;
-using mapdb_detail::Ms;
 using mapdb_detail::PoseFromColumn;
 using mapdb_detail::PoseToDoubles;
 using mapdb_detail::PrepareOn;

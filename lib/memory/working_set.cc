@@ -6,13 +6,12 @@
 #include <cassert>
 #include <string>
 
+#include "common/clock.h"
+
 namespace zm {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 bool Unlimited(const LoadSlice& s) {
   return s.deadline == Clock::time_point::max() &&
