@@ -148,19 +148,12 @@ Result<nlohmann::json> RunBenchMatrix(const BenchMatrixOptions& o,
     // The profile's request length (512 + 128 for the paper's device) unless asked otherwise.
     if (o.prompt_tokens != 0) profile.cotenant.prompt_tokens = o.prompt_tokens;
     if (o.answer_tokens != 0) profile.cotenant.answer_tokens = o.answer_tokens;
-    DeviceRunRequest req;
+    DeviceRunRequest req = o.run;
     req.scenario_dir = c.scenario_dir;
     req.out_dir =
         o.out + "/runs/" + c.scenario_name + "/" + c.run_name + "/rep" + std::to_string(rep);
     req.profile = std::move(profile);
     req.with_cotenant = c.model != "none";
-    req.device = o.device;
-    req.device_explicit = o.device_explicit;
-    req.device_scale = o.device_scale;
-    // Every run, alone and with the co-tenant, on the same frames' clock (issue 17 §4).
-    req.time_compression = o.time_compression;
-    req.cotenant_requests = o.cotenant_requests;
-    req.charge_zram = o.charge_zram;
     std::fprintf(stderr, "bench: %s %s repeat %u/%u (run %zu of %zu)\n", c.scenario_name.c_str(),
                  c.run_name.c_str(), rep + 1, o.repeats, i + 1, order.size());
     auto r = RunOnDevice(req, stop);

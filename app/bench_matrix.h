@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "common/status.h"
-#include "harness/device_model.h"
+#include "harness/device_run.h"
 
 namespace zm::app {
 
@@ -44,14 +44,11 @@ struct BenchMatrixOptions {
   std::vector<std::string> scenarios, policies, models, budgets;
   bool quick = false;  // smaller generated scenarios
   std::uint32_t repeats = 1;
-  DeviceKind device = DeviceKind::kCgroup;
-  bool device_explicit = false;
-  double device_scale = 1.0;
-  double time_compression = 1.0;
-  std::uint32_t cotenant_requests = 30;
+  // Every run's request but its scenario, directory, profile and co-tenant: the device, its
+  // scale, the time compression, the co-tenant requests, the zram charge (SetDeviceRun).
+  DeviceRunRequest run;
   std::uint32_t prompt_tokens = 0, answer_tokens = 0;  // 0 = the profile's
   std::string lock_arena;  // "" = the profile's
-  bool charge_zram = true;
 };
 
 // The cells, scenarios generated first (with this very program, `zonemap sim`) where missing.

@@ -53,15 +53,10 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     std::string out, profile = "orin-nano-8gb";
     std::string scenarios, policies, models, budgets;
     std::string floorplans = ZM_DEFAULT_FLOORPLANS_DIR;
-    std::string device = "cgroup";
-    double device_scale = 1.0;
-    double time_compression = 1.0;
-    std::uint32_t cotenant_requests = 30;
+    DeviceRunOptions device;  // passed to every run
     int repeat = 0;
     std::uint32_t prompt_tokens = 0, answer_tokens = 0;
     bool quick = false, no_plots = false;
-    std::string lock_arena;  // --lock-arena on|off: passed to every run ("" = the profile's)
-    std::string zram_charge = "on";  // --zram-charge on|off: passed to every run
   };
   auto o = std::make_shared<Opts>();
   auto* cmd = app.add_subcommand(
@@ -79,17 +74,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                   "comma list of MemoryThr as fractions of the map (e.g. 1,0.5,0.25), 'two-zones' "
                   "or a count 'Nkf'");
   cmd->add_option("--floorplans", o->floorplans, "folder with <name>_map.png and <name>_gt.png");
-  auto* device_opt = cmd->add_option(
-      "--device", o->device,
-      "cgroup (default; the ledger, labelled simulated, where none can be made) or ledger");
-  cmd->add_option(
-      "--device-scale", o->device_scale,
-      "0 < S <= 1: device memory, OS reserve, weights, KV cache and keyframe bytes x S");
-  cmd->add_option("--time-compression", o->time_compression,
-                  "every run's frames arrive at the profile's rate, X times faster than real time "
-                  "(1 = real time; 0 = every frame as fast as possible, no drops)");
-  cmd->add_option("--cotenant-requests", o->cotenant_requests,
-                  "co-tenant requests per run, spread over the patrol (default 30)");
+  AddDeviceRunOptions(*cmd, &o->device);
   cmd->add_option("--repeat", o->repeat,
                   "runs per cell, interleaved across cells (default 5; --quick: 3); tables show "
                   "mean ± 95 % CI");
@@ -97,13 +82,11 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
                   "co-tenant prompt length (default: the profile's)");
   cmd->add_option("--answer-tokens", o->answer_tokens,
                   "co-tenant answer length (default: the profile's)");
-  cmd->add_option("--pace", o->time_compression, "old name of --time-compression");
   cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
-  AddDeviceMemoryOptions(*cmd, &o->lock_arena, &o->zram_charge);  // passed to every run
-  cmd->callback([o, &ctx, device_opt] {
+  cmd->callback([o, &ctx] {
     InstallStopSignals();
-    auto device_kind = ParseDeviceKind(o->device);
-    if (!device_kind.ok()) return ctx.Fail("bench", device_kind.status());
+    BenchMatrixOptions m;
+    if (Status s = SetDeviceRun(o->device, m.run); !s.ok()) return ctx.Fail("bench", s);
     constexpr int kMaxRepeat = 1000;
     if (o->repeat < 0 || o->repeat > kMaxRepeat) {
       return ctx.Fail("bench", InvalidArgument("--repeat " + std::to_string(o->repeat) +
@@ -125,10 +108,6 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     const auto budgets = Split(!o->budgets.empty() ? o->budgets
                                : q                 ? "0.3"
                                                    : "1,0.5,0.3,two-zones");
-
-
-
-    BenchMatrixOptions m;
     m.out = o->out;
     m.profile = o->profile;
     m.floorplans = o->floorplans;
@@ -138,23 +117,16 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     m.budgets = budgets;
     m.quick = q;
     m.repeats = repeats;
-    m.device = *device_kind;
-    m.device_explicit = device_opt->count() > 0;
-    m.device_scale = o->device_scale;
-    // Every run, alone and with the co-tenant, on the same frames' clock (issue 17 §4).
-    m.time_compression = o->time_compression;
-    m.cotenant_requests = o->cotenant_requests;
     m.prompt_tokens = o->prompt_tokens;
     m.answer_tokens = o->answer_tokens;
-    m.lock_arena = o->lock_arena;
-    m.charge_zram = o->zram_charge == "on";
+    m.lock_arena = o->device.lock_arena;
     auto cells = PlanBenchCells(m);
     if (!cells.ok()) return ctx.Fail("bench", cells.status());
     auto results = RunBenchMatrix(m, *cells, StopFlag());
     if (!results.ok()) return ctx.Fail("bench", results.status());
     WriteBenchReport(*results, {.out = o->out,
-                                .device_scale = o->device_scale,
-                                .time_compression = o->time_compression,
+                                .device_scale = o->device.device_scale,
+                                .time_compression = o->device.time_compression,
                                 .repeats = repeats,
                                 .plots = !o->no_plots});
   });

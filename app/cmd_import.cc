@@ -9,6 +9,7 @@
 #include <string>
 
 #include "commands.h"
+#include "report_json.h"
 #include "import/rtabmap_import.h"
 
 namespace zm::app {
@@ -49,13 +50,7 @@ nlohmann::json ToJson(const RtabmapImportReport& r, const std::string& out) {
           {"stereo_right_dropped", r.stereo_right_dropped},
           {"largest_payload_bytes", r.largest_payload_bytes},
           {"total_payload_bytes", r.total_payload_bytes},
-          {"camera", r.has_camera ? nlohmann::json{{"fx", r.camera.fx},
-                                                   {"fy", r.camera.fy},
-                                                   {"cx", r.camera.cx},
-                                                   {"cy", r.camera.cy},
-                                                   {"width", r.camera.width},
-                                                   {"height", r.camera.height}}
-                                  : nlohmann::json(nullptr)},
+          {"camera", r.has_camera ? CameraJson(r.camera) : nlohmann::json(nullptr)},
           {"last_working_memory", r.last_wm_recorded
                                       ? nlohmann::json{{"nodes", r.last_wm_nodes},
                                                        {"info_time_enter", r.last_info_time_enter}}

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "commands.h"
+#include "report_json.h"
 #include "import/tum_import.h"
 
 namespace zm::app {
@@ -48,8 +49,7 @@ nlohmann::json ToJson(const TumImportReport& r, const std::string& out) {
           {"zones", r.zones},
           {"total_payload_bytes", r.total_payload_bytes},
           {"largest_resident_bytes", r.largest_resident_bytes},
-          {"camera", {{"fx", r.camera.fx}, {"fy", r.camera.fy}, {"cx", r.camera.cx},
-                      {"cy", r.camera.cy}, {"width", r.camera.width}, {"height", r.camera.height}}},
+          {"camera", CameraJson(r.camera)},
           {"vocabulary", vocabulary},
           {"problems", r.problems},
           {"extract_ms", r.extract_ms},

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "commands.h"
+#include "report_json.h"
 #include "import/map_inspect.h"
 
 namespace zm::app {
@@ -56,13 +57,7 @@ nlohmann::json ToJson(const MapInspection& m) {
           {"schema_version", m.schema_version},
           {"source", md.source},
           {"page_bytes", md.page_bytes},
-          {"camera", has_camera ? nlohmann::json{{"fx", md.camera.fx},
-                                                 {"fy", md.camera.fy},
-                                                 {"cx", md.camera.cx},
-                                                 {"cy", md.camera.cy},
-                                                 {"width", md.camera.width},
-                                                 {"height", md.camera.height}}
-                                : nlohmann::json(nullptr)},
+          {"camera", has_camera ? CameraJson(md.camera) : nlohmann::json(nullptr)},
           {"totals", {{"keyframes", m.keyframes.size()},
                       {"links", md.link_count},
                       {"zones", m.zones.size()},

@@ -15,10 +15,8 @@ namespace zm::app {
 void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   struct Opts {
     std::string scenario, out, profile = "host", policy, memory_thr, cotenant, process_cap;
-    std::string device = "cgroup";
-    std::string lock_arena, map_files = "cold", zram_charge = "on";
-    double device_scale = 1.0, time_compression = 1.0;
-    std::uint32_t cotenant_requests = 30;
+    std::string map_files = "cold";
+    DeviceRunOptions device;
     double cotenant_period = 0.0;
     std::uint64_t max_ticks = 0;
     bool verify = false, quiet = false;
@@ -31,39 +29,27 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--profile", o->profile, "device profile name or TOML path (default host)");
   AddParamOption(*cmd, kMemoryThrParam, &o->memory_thr);
   cmd->add_option("--cotenant", o->cotenant, "run the VLM stand-in beside the loop (model name)");
-  auto* device_opt = cmd->add_option(
-      "--device", o->device,
-      "cgroup (default; falls back to the ledger, labelled simulated, where none can be made) or "
-      "ledger");
-  cmd->add_option("--device-scale", o->device_scale,
-                  "0 < S <= 1: device memory, OS reserve, weights, KV cache and keyframe bytes x S");
-  cmd->add_option("--time-compression", o->time_compression,
-                  "frames arrive at the profile's rate, X times faster than real time (default 1: "
-                  "the profile's real rate, [loop] rate_hz: a patrol takes as long as it did on the "
-                  "robot; 0 = every frame as fast as the loop goes, no drops). On a terminal a "
-                  "progress line shows frames, rate and ETA");
-  cmd->add_option("--cotenant-requests", o->cotenant_requests,
-                  "co-tenant requests spread over the patrol (default 30)");
+  AddDeviceRunOptions(*cmd, &o->device);
   cmd->add_option("--cotenant-period-s", o->cotenant_period,
                   "wall seconds between co-tenant requests (default: the patrol / requests)");
   cmd->add_option("--process-cap", o->process_cap, "cap this process (setrlimit), e.g. 6GiB; 0 = none");
-  cmd->add_option("--pace", o->time_compression, "old name of --time-compression");
   cmd->add_option("--max-ticks", o->max_ticks, "stop after this many ticks (0 = all)");
   cmd->add_option("--map-files", o->map_files,
                   "cold (default: the scenario's files dropped from the page cache first, so every "
                   "read is charged to the device) | warm (left as cached)")
       ->check(CLI::IsMember({"cold", "warm"}));
-  AddDeviceMemoryOptions(*cmd, &o->lock_arena, &o->zram_charge);
   cmd->add_flag("--verify-checksums", o->verify, "CRC-check every payload as it lands in its slot");
-  cmd->add_flag("--quiet", o->quiet, "print nothing on success");
-  cmd->callback([o, &ctx, device_opt] {
+  cmd->add_flag("--quiet", o->quiet,
+                "print nothing on success (else, on a terminal, a progress line shows frames, rate "
+                "and ETA)");
+  cmd->callback([o, &ctx] {
     auto profile = LoadExperimentProfile(o->profile);
     if (!profile.ok()) return ctx.Fail("run", profile.status());
     ProfileOverrides ov;
     if (!o->policy.empty()) ov.policy = o->policy;
     if (!o->memory_thr.empty()) ov.memory_thr = o->memory_thr;
     if (!o->process_cap.empty()) ov.process_cap = o->process_cap;
-    if (!o->lock_arena.empty()) ov.lock_arena = o->lock_arena;
+    if (!o->device.lock_arena.empty()) ov.lock_arena = o->device.lock_arena;
     if (Status s = ApplyOverrides(ov, profile->core); !s.ok()) return ctx.Fail("run", s);
     if (!o->cotenant.empty()) {
       if (Status s = ApplyModelOverride(o->cotenant, profile.value()); !s.ok()) {
@@ -71,23 +57,16 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
       }
     }
     profile->core.loop.max_ticks = o->max_ticks;
-    auto kind = ParseDeviceKind(o->device);
-    if (!kind.ok()) return ctx.Fail("run", kind.status());
-    InstallStopSignals();
     DeviceRunRequest req;
+    if (Status s = SetDeviceRun(o->device, req); !s.ok()) return ctx.Fail("run", s);
+    InstallStopSignals();
     req.scenario_dir = o->scenario;
     req.out_dir = o->out;
     req.profile = profile.value();
     req.with_cotenant = !o->cotenant.empty();
-    req.device = *kind;
-    req.device_explicit = device_opt->count() > 0;
-    req.device_scale = o->device_scale;
-    req.time_compression = o->time_compression;
-    req.cotenant_requests = o->cotenant_requests;
     req.cotenant_period_s = o->cotenant_period;
     req.verify_checksums = o->verify;
     req.cold_files = o->map_files == "cold";
-    req.charge_zram = o->zram_charge == "on";
     // Progress only where someone watches: quiet when stderr is a file or a pipe.
     req.progress = !o->quiet && isatty(STDERR_FILENO) == 1;
     auto s = RunOnDevice(req, StopFlag());
@@ -100,7 +79,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
                 d.description.c_str(), d.simulated ? " [simulated]" : "",
                 static_cast<double>(d.limit_bytes) / 1048576.0,
                 static_cast<double>(d.peak_bytes) / 1048576.0,
-                static_cast<unsigned long long>(d.oom_kills), o->device_scale);
+                static_cast<unsigned long long>(d.oom_kills), o->device.device_scale);
     const DeviceSwapSummary& sw = d.swap;
     std::printf("device swap: %s, limit %.1f MiB, peak %.1f MiB, zram memory peak %.1f MiB\n",
                 sw.kind.c_str(), static_cast<double>(sw.limit_bytes) / 1048576.0,
@@ -113,7 +92,7 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
         r.map.outcome.c_str(), static_cast<unsigned long long>(r.map.major_faults),
         r.map.arena_locked ? "locked" : "not locked",
         static_cast<unsigned long long>(replay.frames_arrived),
-        static_cast<unsigned long long>(replay.frames_dropped), o->time_compression);
+        static_cast<unsigned long long>(replay.frames_dropped), o->device.time_compression);
     std::printf("%s: %llu ticks, K_max %llu, peak resident %llu, loop closures accepted %llu "
                 "(frames localized %llu), ATE %.3f m, tick p50 %.2f ms p99 %.2f ms, over-budget "
                 "ticks %llu%s\n",

@@ -114,9 +114,8 @@ void RunAnnotate(const AnnotateCliOpts& o, CommandContext& ctx) {
 
 void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx) {
   auto opts = std::make_shared<AnnotateCliOpts>();
-  CLI::App* zones = GetOrAddSubcommand(app, "zones", "Semantic zones: annotate a map, segment a grid");
-  CLI::App* cmd = zones->add_subcommand(
-      "annotate", "Assign every keyframe of DB to the zones of ZONES and store the memberships");
+  CLI::App* cmd = AddZonesSubcommand(
+      app, "annotate", "Assign every keyframe of DB to the zones of ZONES and store the memberships");
   cmd->add_option("DB", opts->db, "map database (modified in place: zones replaced)")->required();
   cmd->add_option("ZONES", opts->zones,
                   "zone file: GeoJSON FeatureCollection or {\"zones\": {name: [keyframe ids]}}")

@@ -4,10 +4,15 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <string>
 #include <string_view>
 
 #include "common/status.h"
+
+namespace zm {
+struct DeviceRunRequest;  // harness/device_run.h
+}  // namespace zm
 
 namespace zm::app {
 
@@ -21,10 +26,25 @@ struct CommandContext {
 // Returns the subcommand `name` of `app`, creating it if needed, so that groups such as
 // `zonemap zones annotate|segment` can be filled from several files in any order.
 CLI::App* GetOrAddSubcommand(CLI::App& app, const std::string& name, const std::string& description);
+// `zonemap zones NAME`: one of the zones group's subcommands (the group described once, here).
+CLI::App* AddZonesSubcommand(CLI::App& app, const std::string& name, const std::string& description);
 
-// The device's memory options every run takes, declared once for `run` and `bench`:
-// --lock-arena on|off (empty = the profile's map.lock_arena) and --zram-charge on|off.
-void AddDeviceMemoryOptions(CLI::App& cmd, std::string* lock_arena, std::string* zram_charge);
+// How a run goes on the device, as the command line says it: the options `run` and `bench` share
+// (bench passes them to every run of its matrix), declared once by AddDeviceRunOptions.
+struct DeviceRunOptions {
+  std::string device = "cgroup";  // --device cgroup|ledger
+  double device_scale = 1.0;      // --device-scale S
+  double time_compression = 1.0;  // --time-compression X (old name --pace)
+  std::uint32_t cotenant_requests = 30;
+  std::string lock_arena;          // --lock-arena on|off ("" = the profile's map.lock_arena)
+  std::string zram_charge = "on";  // --zram-charge on|off
+  CLI::Option* device_option = nullptr;  // --device itself: whether it was given
+};
+void AddDeviceRunOptions(CLI::App& cmd, DeviceRunOptions* options);
+// Fills the device side of a run's request (device, whether explicit, scale, time compression,
+// co-tenant requests, zram charge); fails on an unknown --device. --lock-arena is a profile
+// override, the caller's (ProfileOverrides).
+[[nodiscard]] Status SetDeviceRun(const DeviceRunOptions& options, DeviceRunRequest& request);
 
 // Attaches every subcommand (commands.cc holds the list).
 void AddAllCommands(CLI::App& app, CommandContext& ctx);

@@ -22,16 +22,13 @@
 #include <utility>
 #include <vector>
 
+#include "common/elapsed.h"
 #include "runtime/budget.h"
 
 namespace zm {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 std::string Errno(int e) { return std::strerror(e); }
 

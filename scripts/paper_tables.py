@@ -216,6 +216,11 @@ def repeats_text(cols):
             "median).")
 
 
+def table_section(heading, table, note):
+    """A table under its heading with its note below, or nothing where the table is empty."""
+    return [f"### {heading}\n", table + "\n", note] if table else []
+
+
 def render(out):
     found = R.find_runs(out)
     if not found:
@@ -234,29 +239,26 @@ def render(out):
                      ". The co-tenant is a stand-in for VLM decoding" + weights_text(cols) +
                      ". " + repeats_text(cols) + " Each cell: ours (the paper's, Jetson Orin "
                      "Nano 8 GB).\n")
-        if t1:
-            parts.append("### Table I analogue: SLAM with and without the co-tenant\n")
-            parts.append(t1 + "\n")
-            parts.append("Each cell: ours, mean ± 95 % CI over the column's runs (Student's t, "
-                         "n − 1 dof; one run: its value), then (the paper's, one run). avg "
-                         "TimeTotal = the mean tick time after the start-up tick (RTAB-Map's "
-                         "TimeTotal is its per-frame processing time); incl. the start-up tick: "
-                         "the start-up load counted in; without the idle-time loads: the ticks' "
-                         "own steps, the waits on idle-time loads taken out; with the idle-time "
-                         "loads: every idle-time load's wall time charged to the ticks, as if "
-                         "loaded inside them (RTAB-Map's loads are).\n")
-        t2 = table2(runs)
-        if t2:
-            parts.append("### Table II analogue: the co-tenant beside SLAM\n")
-            parts.append(t2 + "\n")
-            parts.append("○ completed, △ stalled (watchdog), × failed to start, † killed (OOM; "
-                         "restarted by the supervisor). TPS median = the median request's decode "
-                         "tokens/s; TPS aggregate = all answer tokens ÷ all decode time (slow "
-                         "requests weigh by their length); latency = a request's start to its "
-                         "last token (prompt processing + decode); p50/p95 nearest rank over the "
-                         "run's completed requests. Each cell: mean ± 95 % CI over the runs "
-                         "(Student's t), a per-run figure averaged. The paper's Table II gives "
-                         "one run's median TPS and latency.\n")
+        parts += table_section(
+            "Table I analogue: SLAM with and without the co-tenant", t1,
+            "Each cell: ours, mean ± 95 % CI over the column's runs (Student's t, "
+            "n − 1 dof; one run: its value), then (the paper's, one run). avg "
+            "TimeTotal = the mean tick time after the start-up tick (RTAB-Map's "
+            "TimeTotal is its per-frame processing time); incl. the start-up tick: "
+            "the start-up load counted in; without the idle-time loads: the ticks' "
+            "own steps, the waits on idle-time loads taken out; with the idle-time "
+            "loads: every idle-time load's wall time charged to the ticks, as if "
+            "loaded inside them (RTAB-Map's loads are).\n")
+        parts += table_section(
+            "Table II analogue: the co-tenant beside SLAM", table2(runs),
+            "○ completed, △ stalled (watchdog), × failed to start, † killed (OOM; "
+            "restarted by the supervisor). TPS median = the median request's decode "
+            "tokens/s; TPS aggregate = all answer tokens ÷ all decode time (slow "
+            "requests weigh by their length); latency = a request's start to its "
+            "last token (prompt processing + decode); p50/p95 nearest rank over the "
+            "run's completed requests. Each cell: mean ± 95 % CI over the runs "
+            "(Student's t), a per-run figure averaged. The paper's Table II gives "
+            "one run's median TPS and latency.\n")
     return "\n".join(parts)
 
 

@@ -212,6 +212,25 @@ def robot_world(items, free, occupied, rooms, n, rng):
     return free, occupied
 
 
+def laser_rays(free, viewpoints, range_m):
+    """For each viewpoint, the 1440 rays of a 360-degree laser sampled every half cell out to
+    range_m: (r, c, first), the cells along each ray (clipped to the grid) and each ray's first
+    sample that is not free or leaves the grid (the sample count where none). A viewpoint that
+    is not free itself (inside furniture) sees nothing and yields nothing."""
+    h, w = free.shape
+    angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
+    steps = np.arange(0, range_m / RES, 0.5)
+    for vx, vy in viewpoints:
+        c = (vx + np.outer(np.cos(angles), steps)).astype(int)
+        r = (vy + np.outer(np.sin(angles), steps)).astype(int)
+        valid = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
+        if not free[r[0, 0], c[0, 0]]:
+            continue
+        blocked = (~free[r, c]) | ~valid
+        yield r, c, np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
+
+
 def robot_scan(free, occupied, viewpoints, rng):
     """A robot's laser map (robot/): a quarter of the viewpoints dropped (rooms left
     unexplored), the rest moved up to 0.3 m, range 4-8 m, each wall hit a cell in front of or
@@ -229,27 +248,18 @@ def robot_scan(free, occupied, viewpoints, rng):
     range_m = rng.uniform(4.0, 8.0)
     seen_free = np.zeros_like(free)
     seen_occ = np.zeros_like(free)
-    angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
-    steps = np.arange(0, range_m / RES, 0.5)
-    for vx, vy in moved:
-        c = (vx + np.outer(np.cos(angles), steps)).astype(int)
-        r = (vy + np.outer(np.sin(angles), steps)).astype(int)
-        valid = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
-        if not free[r[0, 0], c[0, 0]]:
-            continue
-        blocked = (~free[r, c]) | ~valid
-        first = np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
-        hit = np.nonzero(first < steps.size)[0]
+    for r, c, first in laser_rays(free, moved, range_m):
+        samples = r.shape[1]
+        hit = np.nonzero(first < samples)[0]
         keep_hit = occupied[r[hit, first[hit]], c[hit, first[hit]]]
         hit = hit[keep_hit]
         # Wall-face noise: the return a cell (two half-cell steps) short, on, or past the face.
         jitter = rng.choice([-2, 0, 2], size=hit.size, p=[0.25, 0.5, 0.25])
         end = first.copy()
         end[hit] = np.maximum(1, first[hit] + jitter)
-        before = np.arange(steps.size)[None, :] < np.minimum(end, first)[:, None]
+        before = np.arange(samples)[None, :] < np.minimum(end, first)[:, None]
         seen_free[r[before], c[before]] = True
-        j = np.minimum(end[hit], steps.size - 1)
+        j = np.minimum(end[hit], samples - 1)
         seen_occ[r[hit, j], c[hit, j]] = True
     seen_free &= ~seen_occ
     specks = seen_free & (rng.random(free.shape) < 0.001)
@@ -258,23 +268,13 @@ def robot_scan(free, occupied, viewpoints, rng):
 
 def scan(free, occupied, viewpoints):
     """Cells a 360-degree laser sees from each viewpoint: (seen_free, seen_occupied)."""
-    h, w = free.shape
     seen_free = np.zeros_like(free)
     seen_occ = np.zeros_like(free)
-    angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
-    steps = np.arange(0, RANGE_M / RES, 0.5)
-    for vx, vy in viewpoints:
-        c = (vx + np.outer(np.cos(angles), steps)).astype(int)
-        r = (vy + np.outer(np.sin(angles), steps)).astype(int)
-        valid = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        r, c = np.clip(r, 0, h - 1), np.clip(c, 0, w - 1)
-        if not free[r[0, 0], c[0, 0]]:
-            continue  # a viewpoint inside furniture sees nothing
-        blocked = (~free[r, c]) | ~valid
-        first = np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
-        before = np.arange(steps.size)[None, :] < first[:, None]
+    for r, c, first in laser_rays(free, viewpoints, RANGE_M):
+        samples = r.shape[1]
+        before = np.arange(samples)[None, :] < first[:, None]
         seen_free[r[before], c[before]] = True
-        hit = np.nonzero(first < steps.size)[0]
+        hit = np.nonzero(first < samples)[0]
         hr, hc = r[hit, first[hit]], c[hit, first[hit]]
         keep = occupied[hr, hc]
         seen_occ[hr[keep], hc[keep]] = True

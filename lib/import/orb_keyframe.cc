@@ -36,9 +36,6 @@ Result<OrbKeyframe> BuildOrbKeyframe(OrbExtractor& extractor, OrbFeatures& featu
     cv::cvtColor(colour, rgb, cv::COLOR_BGR2RGB);
   }
   if (!rgb.isContinuous()) rgb = rgb.clone();
-  ZM_ASSIGN_OR_RETURN(std::vector<std::byte> jpeg,
-                      EncodeJpegRgb(std::span<const std::uint8_t>(rgb.data, rgb.total() * 3), w, h,
-                                    options.jpeg_quality));
 
   // Depth in millimetres (the payload's unit): 0 = none, beyond 65.535 m = none.
   DepthImage16 mm;
@@ -56,10 +53,6 @@ Result<OrbKeyframe> BuildOrbKeyframe(OrbExtractor& extractor, OrbFeatures& featu
           std::isfinite(m) && m >= 0.5 && m < 65535.5 ? static_cast<std::uint16_t>(std::lround(m)) : 0;
     }
   }
-  const std::vector<std::byte> rvl = EncodeRvlDepth(mm);
-  std::vector<std::byte> both(jpeg.size() + rvl.size());
-  std::memcpy(both.data(), jpeg.data(), jpeg.size());
-  std::memcpy(both.data() + jpeg.size(), rvl.data(), rvl.size());
 
   if (keypoint_scale.x != 1.0 || keypoint_scale.y != 1.0) {
     for (std::uint32_t i = 0; i < features.count; ++i) {
@@ -69,26 +62,23 @@ Result<OrbKeyframe> BuildOrbKeyframe(OrbExtractor& extractor, OrbFeatures& featu
           static_cast<float>(static_cast<double>(features.keypoints[2 * i + 1]) * keypoint_scale.y);
     }
   }
-  PayloadParts parts;
-  parts.id = id;
-  parts.descriptors = std::span<const Descriptor256>(features.descriptors.data(), features.count);
-  parts.keypoints = std::span<const float>(features.keypoints.data(), 2 * std::size_t{features.count});
-  parts.dense_format = DenseFormat::kJpegColourRvlDepth;
-  parts.dense = both;
-  parts.dense_split = static_cast<std::uint32_t>(jpeg.size());
-  parts.flags = kPayloadPointsFromDepth;
-  parts.dense_width = w;
-  parts.dense_height = h;
-  parts.cloud_step = options.cloud_step;
+  ZM_ASSIGN_OR_RETURN(
+      DenseKeyframePayload p,
+      EncodeDenseKeyframe(
+          id, std::span<const Descriptor256>(features.descriptors.data(), features.count),
+          std::span<const float>(features.keypoints.data(), 2 * std::size_t{features.count}),
+          {.rgb = std::span<const std::uint8_t>(rgb.data, rgb.total() * 3),
+           .depth = &mm,
+           .width = w,
+           .height = h,
+           .jpeg_quality = options.jpeg_quality,
+           .cloud_step = options.cloud_step}));
   OrbKeyframe out;
-  ZM_ASSIGN_OR_RETURN(out.payload, EncodePayload(parts));
+  out.payload = std::move(p.payload);
   out.features = features.count;
   out.with_point = features.with_point;
   out.extract_ms = extract_ms;
-  out.resident_bytes = static_cast<std::uint32_t>(
-      DecodedLayoutFor(out.payload.size(), features.count, w, h, options.cloud_step,
-                       /*points_from_depth=*/true)
-          .end);
+  out.resident_bytes = p.resident_bytes;
   return out;
 }
 

@@ -4,8 +4,6 @@
 // exceptions are caught here and become Status values.
 #include "import/rtabmap_import.h"
 
-#include <zlib.h>
-
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -62,13 +60,6 @@ Result<std::optional<Pose3>> ParseTransform(std::span<const std::byte> b, const 
     p.translation()(r) = static_cast<double>(v[r * 4 + 3]);
   }
   return std::optional<Pose3>{p};
-}
-
-std::size_t ElementBytes(std::int32_t type) {
-  static constexpr std::size_t kDepthBytes[8] = {1, 1, 2, 2, 4, 4, 8, 2};
-  const auto depth = static_cast<std::size_t>(type & 7);
-  const auto channels = static_cast<std::size_t>(1 + (type >> 3));
-  return kDepthBytes[depth] * channels;
 }
 
 bool StartsWith(std::span<const std::byte> b, std::initializer_list<unsigned char> magic) {
@@ -435,12 +426,12 @@ class Importer {
     return Status::Ok();
   }
 
-  Status ReadDense(const NodeRow& n, Dense& dense) {
-    dense = Dense{};
-    if (!data_) return Status::Ok();
+  // Positions the Data cursor on node n's row, the map's camera taken from the first
+  // calibration met; false when the node has no Data row.
+  Result<bool> SeekData(const NodeRow& n) {
     sqlite3_stmt* s = data_.get();
     ZM_RETURN_IF_ERROR(Seek(s, data_rc_, n.id, "Data"));
-    if (data_rc_ != SQLITE_ROW || sqlite3_column_int64(s, 0) != n.id) return Status::Ok();
+    if (data_rc_ != SQLITE_ROW || sqlite3_column_int64(s, 0) != n.id) return false;
     const auto calibration = ColumnBytes(s, 3);
     if (!calibration.empty() && !report_.has_camera) {
       auto cam = ParseRtabmapCalibration(calibration);
@@ -448,7 +439,15 @@ class Importer {
       report_.camera = *cam;
       report_.has_camera = true;
     }
-    if (options_.keep_dense) {
+    return true;
+  }
+
+  Status ReadDense(const NodeRow& n, Dense& dense) {
+    dense = Dense{};
+    if (!data_) return Status::Ok();
+    ZM_ASSIGN_OR_RETURN(const bool has_row, SeekData(n));
+    if (has_row && options_.keep_dense) {
+      sqlite3_stmt* s = data_.get();
       ZM_ASSIGN_OR_RETURN(dense, BuildDense(n.id, ColumnBytes(s, 1), ColumnBytes(s, 2), report_));
     }
     return Status::Ok();
@@ -469,16 +468,9 @@ class Importer {
       return EncodePayload(PayloadParts{id, {}, {}, {}, dense.format, dense.bytes, dense.split});
     };
     if (!data_) return without_images();
+    ZM_ASSIGN_OR_RETURN(const bool has_row, SeekData(n));
+    if (!has_row) return without_images();
     sqlite3_stmt* s = data_.get();
-    ZM_RETURN_IF_ERROR(Seek(s, data_rc_, n.id, "Data"));
-    if (data_rc_ != SQLITE_ROW || sqlite3_column_int64(s, 0) != n.id) return without_images();
-    const auto calibration = ColumnBytes(s, 3);
-    if (!calibration.empty() && !report_.has_camera) {
-      auto cam = ParseRtabmapCalibration(calibration);
-      if (!cam.ok()) return cam.status().Annotate(Node(n.id) + ": Data.calibration");
-      report_.camera = *cam;
-      report_.has_camera = true;
-    }
     const auto image = ColumnBytes(s, 1);
     const auto depth = ColumnBytes(s, 2);
     if (image.empty() || depth.empty()) return without_images();
@@ -717,107 +709,6 @@ void RemoveDbFiles(const std::string& path) {
 }
 
 }  // namespace
-
-Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob, const std::string& what) {
-  if (blob.size() < 12) {
-    return Corrupt(what + ": " + std::to_string(blob.size()) +
-                   " bytes, shorter than the 12-byte rows/cols/type trailer");
-  }
-  RtabmapMatrix m;
-  std::memcpy(&m.rows, blob.data() + blob.size() - 12, 4);
-  std::memcpy(&m.cols, blob.data() + blob.size() - 8, 4);
-  std::memcpy(&m.type, blob.data() + blob.size() - 4, 4);
-  if (m.rows < 0 || m.cols < 0 || m.type < 0 || m.type >= 8 * 512) {
-    return Corrupt(what + ": trailer claims " + std::to_string(m.rows) + "x" + std::to_string(m.cols) +
-                   " of OpenCV type " + std::to_string(m.type) + " (invalid)");
-  }
-  const std::uint64_t want = std::uint64_t(m.rows) * std::uint64_t(m.cols) * ElementBytes(m.type);
-  constexpr std::uint64_t kLimit = 1ull << 30;
-  if (want > kLimit) {
-    return Corrupt(what + ": trailer claims " + std::to_string(want) + " bytes, limit " +
-                   std::to_string(kLimit));
-  }
-  // Deflate expands at most 1032:1, so a claim beyond that is a lie: refuse it before
-  // allocating (a 12-byte blob could otherwise make us zero-fill 1 GiB; found by
-  // fuzz/rtabmap_blob_fuzz.cc).
-  if (want > std::uint64_t{1032} * (blob.size() - 12)) {
-    return Corrupt(what + ": trailer claims " + std::to_string(want) + " bytes from " +
-                   std::to_string(blob.size() - 12) + " bytes of zlib data (more than zlib's 1032:1)");
-  }
-  m.data.resize(static_cast<std::size_t>(want));
-  uLongf got = static_cast<uLongf>(want);
-  // zlib wants a non-null destination even for an empty matrix.
-  Bytef empty = 0;
-  const int zrc = uncompress(want > 0 ? reinterpret_cast<Bytef*>(m.data.data()) : &empty, &got,
-                             reinterpret_cast<const Bytef*>(blob.data()),
-                             static_cast<uLong>(blob.size() - 12));
-  const std::string claim = "trailer claims " + std::to_string(m.rows) + "x" + std::to_string(m.cols) +
-                            " of OpenCV type " + std::to_string(m.type) + " = " +
-                            std::to_string(want) + " bytes";
-  if (zrc == Z_BUF_ERROR) return Corrupt(what + ": " + claim + ", but the data inflates to more");
-  if (zrc != Z_OK) {
-    return Corrupt(what + ": zlib data of " + std::to_string(blob.size() - 12) +
-                   " bytes is corrupt (zlib error " + std::to_string(zrc) + ")");
-  }
-  if (got != want) {
-    return Corrupt(what + ": " + claim + ", but the data inflates to " + std::to_string(got) + " bytes");
-  }
-  return m;
-}
-
-std::vector<std::byte> CompressRtabmapData(const RtabmapMatrix& m) {
-  uLongf n = compressBound(static_cast<uLong>(m.data.size()));
-  std::vector<std::byte> out(n + 12);
-  Bytef empty = 0;
-  const int zrc = compress(reinterpret_cast<Bytef*>(out.data()), &n,
-                           m.data.empty() ? &empty : reinterpret_cast<const Bytef*>(m.data.data()),
-                           static_cast<uLong>(m.data.size()));
-  if (zrc != Z_OK) return {};
-  out.resize(n + 12);
-  std::memcpy(out.data() + n, &m.rows, 4);
-  std::memcpy(out.data() + n + 4, &m.cols, 4);
-  std::memcpy(out.data() + n + 8, &m.type, 4);
-  return out;
-}
-
-Result<CameraIntrinsics> ParseRtabmapCalibration(std::span<const std::byte> blob) {
-  constexpr std::size_t kHeader = 11 * 4;
-  if (blob.size() < kHeader) {
-    return Corrupt("calibration of " + std::to_string(blob.size()) + " bytes is shorter than its " +
-                   std::to_string(kHeader) + "-byte header");
-  }
-  std::int32_t h[11];
-  std::memcpy(h, blob.data(), sizeof h);
-  const std::int32_t k = h[6], d = h[7], r = h[8], p = h[9], t = h[10];
-  const auto bad_count = [](std::int32_t c) { return c < 0 || c > 64; };
-  if (h[4] < 0 || h[5] < 0 || bad_count(k) || bad_count(d) || bad_count(r) || bad_count(p) ||
-      bad_count(t) || (k != 0 && k != 9) || (t != 0 && t != 12)) {
-    return Corrupt("calibration header (" + std::to_string(h[4]) + "x" + std::to_string(h[5]) +
-                   ", |K|=" + std::to_string(k) + " |D|=" + std::to_string(d) + " |R|=" +
-                   std::to_string(r) + " |P|=" + std::to_string(p) + " |T|=" + std::to_string(t) +
-                   ") is not a CameraModel of RTAB-Map >= 0.18");
-  }
-  const std::size_t need = kHeader + 8 * static_cast<std::size_t>(k + d + r + p) + 4 * static_cast<std::size_t>(t);
-  if (blob.size() < need) {
-    return Corrupt("calibration of " + std::to_string(blob.size()) + " bytes, its header needs " +
-                   std::to_string(need));
-  }
-  CameraIntrinsics c;
-  c.width = static_cast<std::uint32_t>(h[4]);
-  c.height = static_cast<std::uint32_t>(h[5]);
-  const auto at = [&](std::size_t index) {
-    double v;
-    std::memcpy(&v, blob.data() + kHeader + 8 * index, 8);
-    return v;
-  };
-  if (k == 9) {
-    c.fx = at(0), c.cx = at(2), c.fy = at(4), c.cy = at(5);
-  } else if (p == 12) {
-    const auto base = static_cast<std::size_t>(k + d + r);
-    c.fx = at(base + 0), c.cx = at(base + 2), c.fy = at(base + 5), c.cy = at(base + 6);
-  }
-  return c;
-}
 
 Result<RtabmapImportReport> ImportRtabmap(const std::string& in_path, const std::string& out_path,
                                           const RtabmapImportOptions& options) {

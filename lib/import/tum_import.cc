@@ -7,6 +7,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "common/elapsed.h"
 #include "geometry/trajectory.h"
 #include "localization/camera.h"
 #include "segment/split.h"
@@ -16,10 +17,6 @@ namespace zm {
 namespace {
 
 namespace fs = std::filesystem;
-
-double MsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 std::string Stamp(double s) {
   std::ostringstream o;

@@ -294,6 +294,38 @@ Result<std::vector<std::byte>> EncodeJpegRgb(std::span<const std::uint8_t> rgb, 
   return result;
 }
 
+Result<DenseKeyframePayload> EncodeDenseKeyframe(KeyframeId id,
+                                                 std::span<const Descriptor256> descriptors,
+                                                 std::span<const float> keypoints,
+                                                 const DenseKeyframeImages& images) {
+  ZM_ASSIGN_OR_RETURN(std::vector<std::byte> jpeg,
+                      EncodeJpegRgb(images.rgb, images.width, images.height, images.jpeg_quality));
+  const std::vector<std::byte> rvl = EncodeRvlDepth(*images.depth);
+  std::vector<std::byte> both(jpeg.size() + rvl.size());
+  std::memcpy(both.data(), jpeg.data(), jpeg.size());
+  std::memcpy(both.data() + jpeg.size(), rvl.data(), rvl.size());
+  PayloadParts parts;
+  parts.id = id;
+  parts.descriptors = descriptors;
+  parts.keypoints = keypoints;
+  parts.dense_format = DenseFormat::kJpegColourRvlDepth;
+  parts.dense = both;
+  parts.dense_split = static_cast<std::uint32_t>(jpeg.size());
+  parts.flags = kPayloadPointsFromDepth;
+  parts.dense_width = images.width;
+  parts.dense_height = images.height;
+  parts.cloud_step = images.cloud_step;
+  DenseKeyframePayload out;
+  ZM_ASSIGN_OR_RETURN(out.payload, EncodePayload(parts));
+  out.jpeg_bytes = static_cast<std::uint32_t>(jpeg.size());
+  out.rvl_bytes = static_cast<std::uint32_t>(rvl.size());
+  out.resident_bytes = static_cast<std::uint32_t>(
+      DecodedLayoutFor(out.payload.size(), static_cast<std::uint32_t>(descriptors.size()),
+                       images.width, images.height, images.cloud_step, /*points_from_depth=*/true)
+          .end);
+  return out;
+}
+
 void PointFromDepth(const CameraIntrinsics& k, const std::uint16_t* depth_mm, std::uint32_t width,
                     std::uint32_t height, float u, float v, float out[3]) {
   const double sx = static_cast<double>(width) / k.width;

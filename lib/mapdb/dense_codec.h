@@ -28,6 +28,7 @@
 #include "common/status.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/map_db.h"
+#include "mapdb/rvl.h"
 
 namespace zm {
 
@@ -38,6 +39,29 @@ namespace zm {
 [[nodiscard]] Result<std::vector<std::byte>> EncodeJpegRgb(std::span<const std::uint8_t> rgb,
                                                            std::uint32_t width,
                                                            std::uint32_t height, int quality);
+
+// A dense keyframe's payload (kJpegColourRvlDepth, the features' 3-D points from the depth):
+// what the simulator and the importers write.
+struct DenseKeyframeImages {
+  std::span<const std::uint8_t> rgb;  // width * height * 3, row-major
+  const DepthImage16* depth = nullptr;  // width * height, millimetres
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+  int jpeg_quality = 95;
+  std::uint32_t cloud_step = 0;  // the resident cloud's decimation
+};
+struct DenseKeyframePayload {
+  std::vector<std::byte> payload;  // EncodePayload's blob
+  std::uint32_t jpeg_bytes = 0;
+  std::uint32_t rvl_bytes = 0;
+  std::uint32_t resident_bytes = 0;  // the slot bytes it takes decoded (DecodedLayoutFor)
+};
+// Encodes the colour as JPEG, the depth as RVL, and the payload of keyframe `id` with its
+// features (descriptors, 2 keypoint coordinates each). Errors are EncodeJpegRgb's and
+// EncodePayload's.
+[[nodiscard]] Result<DenseKeyframePayload> EncodeDenseKeyframe(
+    KeyframeId id, std::span<const Descriptor256> descriptors, std::span<const float> keypoints,
+    const DenseKeyframeImages& images);
 
 // --- Load side ----------------------------------------------------------------------------------
 

@@ -50,21 +50,6 @@
 
 namespace zm {
 
-using mapdb_detail::Kf;
-using mapdb_detail::Ms;
-using mapdb_detail::PrepareOn;
-using mapdb_detail::StreamedChecksum;
-using sqlite::FromSqlite;
-using sqlite::Prepare;
-using sqlite::StmtReset;
-using mapdb_detail::CheckSchema;
-using mapdb_detail::kCopyChunkBytes;
-using mapdb_detail::kPoseBlobBytes;
-using mapdb_detail::LinkFromRow;
-using mapdb_detail::PoseFromColumn;
-using mapdb_detail::ReadKeyframes;
-using mapdb_detail::ReadLinks;
-
 Status MapDb::Impl::Validate(KeyframeId id, std::span<const std::byte> blob_bytes,
                 const StreamedChecksum& checksum) const {
   auto view = DecodePayload(blob_bytes, DecodeOptions{.verify_crc = options.verify_checksums,
@@ -283,11 +268,8 @@ Result<std::vector<LinkRecord>> MapDb::Links() const {
 
 Result<std::vector<ZoneRecord>> MapDb::Zones() const {
   impl_->CountMetadataRead();
-  sqlite3_stmt* s = impl_->zones.get();
-  StmtReset reset(s);
   std::vector<ZoneRecord> out;
-  int rc;
-  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+  const auto row = [&](sqlite3_stmt* s) -> Status {
     ZoneRecord z;
     z.id = ZoneId{sqlite3_column_int(s, 0)};
     const auto* name = reinterpret_cast<const char*>(sqlite3_column_text(s, 1));
@@ -309,39 +291,38 @@ Result<std::vector<ZoneRecord>> MapDb::Zones() const {
                      std::to_string(z.id.value) + " at position " + std::to_string(out.size()));
     }
     out.push_back(std::move(z));
-  }
-  if (rc != SQLITE_DONE) return FromSqlite(rc, impl_->db.get(), "reading table zone");
+    return Status::Ok();
+  };
+  ZM_RETURN_IF_ERROR(ForEachRow(impl_->db.get(), impl_->zones.get(), "reading table zone", row));
   return out;
 }
 
 Result<std::vector<ZoneMember>> MapDb::ZoneMembers() const {
   impl_->CountMetadataRead();
-  sqlite3_stmt* s = impl_->all_members.get();
-  StmtReset reset(s);
   std::vector<ZoneMember> out;
-  int rc;
-  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
-    out.push_back(ZoneMember{ZoneId{sqlite3_column_int(s, 0)}, KeyframeId{sqlite3_column_int64(s, 1)}});
-  }
-  if (rc != SQLITE_DONE) return FromSqlite(rc, impl_->db.get(), "reading table zone_member");
+  ZM_RETURN_IF_ERROR(ForEachRow(impl_->db.get(), impl_->all_members.get(), "reading table zone_member",
+                                [&](sqlite3_stmt* s) {
+                                  out.push_back(ZoneMember{ZoneId{sqlite3_column_int(s, 0)},
+                                                           KeyframeId{sqlite3_column_int64(s, 1)}});
+                                  return Status::Ok();
+                                }));
   return out;
 }
 
 Result<std::vector<std::uint32_t>> MapDb::ZoneSizes() const {
   impl_->CountMetadataRead();
-  sqlite3_stmt* s = impl_->zone_sizes.get();
-  StmtReset reset(s);
   std::vector<std::uint32_t> out(impl_->meta.zone_count, 0);
-  int rc;
-  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+  const auto row = [&](sqlite3_stmt* s) -> Status {
     const auto zone = sqlite3_column_int64(s, 0);
     if (zone < 0 || static_cast<std::uint64_t>(zone) >= out.size()) {
       return Corrupt(impl_->path + ": zone_member lists zone " + std::to_string(zone) +
                      ", but the map has " + std::to_string(out.size()) + " zones");
     }
     out[static_cast<std::size_t>(zone)] = static_cast<std::uint32_t>(sqlite3_column_int64(s, 1));
-  }
-  if (rc != SQLITE_DONE) return FromSqlite(rc, impl_->db.get(), "reading table zone_member");
+    return Status::Ok();
+  };
+  ZM_RETURN_IF_ERROR(
+      ForEachRow(impl_->db.get(), impl_->zone_sizes.get(), "reading table zone_member", row));
   return out;
 }
 
@@ -387,15 +368,15 @@ Result<RecordedWorkingMemory> MapDb::LastWorkingMemory() const {
                       PrepareOn(db, path, "last_wm",
                                 "SELECT l.keyframe_id, k.id FROM last_wm AS l LEFT JOIN keyframe "
                                 "AS k ON k.id = l.keyframe_id ORDER BY l.keyframe_id"));
-  while ((rc = sqlite3_step(ids.get())) == SQLITE_ROW) {
-    const KeyframeId id{sqlite3_column_int64(ids.get(), 0)};
-    if (sqlite3_column_type(ids.get(), 1) == SQLITE_NULL) {
+  ZM_RETURN_IF_ERROR(ForEachRow(db, ids.get(), path + ": reading table last_wm", [&](sqlite3_stmt* s) {
+    const KeyframeId id{sqlite3_column_int64(s, 0)};
+    if (sqlite3_column_type(s, 1) == SQLITE_NULL) {
       return Corrupt(path + ": table last_wm names keyframe " + std::to_string(id.value) +
                      ", which is not in the map");
     }
     out.ids.push_back(id);
-  }
-  if (rc != SQLITE_DONE) return FromSqlite(rc, db, path + ": reading table last_wm");
+    return Status::Ok();
+  }));
   return out;
 }
 
@@ -473,7 +454,7 @@ Result<LoadStats> MapDb::LoadKeyframes(std::span<const KeyframeId> ids, Arena& a
     sink.Loaded(id, *slot, *landed);
     im.CountBytes(st, static_cast<std::uint32_t>(bytes));
   }
-  st.ms = Ms(t0);
+  st.ms = MsSince(t0);
   return st;
 }
 
@@ -499,7 +480,7 @@ Result<LoadStats> MapDb::ReadGraphNodes(std::span<const KeyframeId> ids, GraphNo
     im.Count(st, 1, 0, 1);
     ZM_RETURN_IF_ERROR(im.ReadLinksOf(id, sink));
   }
-  st.ms = Ms(t0);
+  st.ms = MsSince(t0);
   return st;
 }
 

@@ -5,9 +5,9 @@
 
 namespace zm::mapdb_detail {
 
+using sqlite::ForEachRow;
 using sqlite::FromSqlite;
 using sqlite::Prepare;
-using sqlite::StmtReset;
 
 std::string Kf(KeyframeId id) { return "keyframe " + std::to_string(id.value); }
 
@@ -28,10 +28,6 @@ bool PoseFromColumn(sqlite3_stmt* s, int col, Pose3& out) {
     out.translation()(r) = v[r * 4 + 3];
   }
   return true;
-}
-
-double Ms(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 Status CheckSchema(sqlite3* db, const std::string& path, int* version_out) {
@@ -91,10 +87,8 @@ Result<sqlite::Stmt> PrepareOn(sqlite3* db, const std::string& path, std::string
 }
 
 Result<std::vector<KeyframeMeta>> ReadKeyframes(sqlite3* db, sqlite3_stmt* s) {
-  StmtReset reset(s);
   std::vector<KeyframeMeta> out;
-  int rc;
-  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+  ZM_RETURN_IF_ERROR(ForEachRow(db, s, "reading table keyframe", [&](sqlite3_stmt*) -> Status {
     KeyframeMeta m;
     m.id = KeyframeId{sqlite3_column_int64(s, 0)};
     m.stamp_s = sqlite3_column_double(s, 1);
@@ -108,8 +102,8 @@ Result<std::vector<KeyframeMeta>> ReadKeyframes(sqlite3* db, sqlite3_stmt* s) {
                      " out of range");
     }
     out.push_back(m);
-  }
-  if (rc != SQLITE_DONE) return FromSqlite(rc, db, "reading table keyframe");
+    return Status::Ok();
+  }));
   return out;
 }
 
@@ -133,15 +127,14 @@ Status LinkFromRow(sqlite3_stmt* s, LinkRecord& l) {
 }
 
 Result<std::vector<LinkRecord>> ReadLinks(sqlite3* db, sqlite3_stmt* s) {
-  StmtReset reset(s);
   std::vector<LinkRecord> out;
-  int rc;
-  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+  const auto row = [&](sqlite3_stmt*) {
     LinkRecord l;
     ZM_RETURN_IF_ERROR(LinkFromRow(s, l));
     out.push_back(l);
-  }
-  if (rc != SQLITE_DONE) return FromSqlite(rc, db, "reading table link");
+    return Status::Ok();
+  };
+  ZM_RETURN_IF_ERROR(ForEachRow(db, s, "reading table link", row));
   return out;
 }
 

@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/elapsed.h"
 #include "mapdb/dense_codec.h"
 #include "mapdb/keyframe_payload.h"
 #include "mapdb/map_db.h"
@@ -73,7 +74,6 @@ inline constexpr int kInformationBlobBytes = 36 * 8;
 void PoseToDoubles(const Pose3& p, double out[12]);
 // False when the column is not a 12-float64 blob.
 [[nodiscard]] bool PoseFromColumn(sqlite3_stmt* s, int col, Pose3& out);
-[[nodiscard]] double Ms(std::chrono::steady_clock::time_point t0);
 
 // Payload bytes are copied into a slot in pieces of this size and each piece's share of the
 // body checksum is computed right after it lands, while it is still in the L2 cache: the body is
@@ -128,6 +128,27 @@ class StreamedChecksum {
 
 namespace zm {
 
+// The shared names the mapdb .cc files use unqualified, listed once here rather than in each
+// file (this header is private to lib/mapdb, so nothing else sees them).
+using mapdb_detail::CheckSchema;
+using mapdb_detail::kCopyChunkBytes;
+using mapdb_detail::kInformationBlobBytes;
+using mapdb_detail::Kf;
+using mapdb_detail::kPoseBlobBytes;
+using mapdb_detail::kSchemaSql;
+using mapdb_detail::kVocabularyTableSql;
+using mapdb_detail::LinkFromRow;
+using mapdb_detail::PoseFromColumn;
+using mapdb_detail::PoseToDoubles;
+using mapdb_detail::PrepareOn;
+using mapdb_detail::ReadKeyframes;
+using mapdb_detail::ReadLinks;
+using mapdb_detail::StreamedChecksum;
+using sqlite::ForEachRow;
+using sqlite::FromSqlite;
+using sqlite::Prepare;
+using sqlite::StmtReset;
+
 // The reader's state: the connection, every prepared statement, the counters and the zone load
 // in flight. Its zone-load methods are in map_db_zone_load.cc, the rest in map_db.cc.
 struct MapDb::Impl {
@@ -164,12 +185,12 @@ struct MapDb::Impl {
   // Validates the payload that now sits in `slot` (exactly `bytes` long) for keyframe `id`,
   // with its body checksum as computed while it landed.
   Status Validate(KeyframeId id, std::span<const std::byte> blob_bytes,
-                  const mapdb_detail::StreamedChecksum& checksum) const;
+                  const StreamedChecksum& checksum) const;
 
   // Validates the payload that now sits at the start of `slot` (`bytes` long) and decodes its
   // dense part into the slot; returns the keyframe's resident bytes.
   Result<std::uint32_t> Land(KeyframeId id, std::span<std::byte> slot, std::size_t bytes,
-                             const mapdb_detail::StreamedChecksum& checksum) const;
+                             const StreamedChecksum& checksum) const;
 
   void Count(LoadStats& st, std::uint32_t queries, std::uint32_t blob_reads,
              std::uint32_t transactions) {

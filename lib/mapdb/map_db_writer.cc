@@ -15,21 +15,6 @@
 
 namespace zm {
 
-using mapdb_detail::CheckSchema;
-using mapdb_detail::kInformationBlobBytes;
-using mapdb_detail::kSchemaSql;
-using mapdb_detail::kVocabularyTableSql;
-using mapdb_detail::PoseToDoubles;
-using mapdb_detail::ReadKeyframes;
-using mapdb_detail::ReadLinks;
-using mapdb_detail::Kf;
-using mapdb_detail::Ms;
-using mapdb_detail::PrepareOn;
-using mapdb_detail::StreamedChecksum;
-using sqlite::FromSqlite;
-using sqlite::Prepare;
-using sqlite::StmtReset;
-
 std::uint32_t PageBytesForPayload(std::uint64_t mean_payload_bytes) {
   constexpr std::uint64_t kMin = 4096;
   constexpr std::uint64_t kMax = 65536;

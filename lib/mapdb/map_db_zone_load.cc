@@ -13,15 +13,6 @@
 
 namespace zm {
 
-using mapdb_detail::Kf;
-using mapdb_detail::Ms;
-using mapdb_detail::PrepareOn;
-using mapdb_detail::StreamedChecksum;
-using sqlite::FromSqlite;
-using sqlite::Prepare;
-using sqlite::StmtReset;
-using mapdb_detail::kCopyChunkBytes;
-
 Status MapDb::Impl::EndZoneLoad(bool commit_it) {
   sqlite3_stmt* members = zone_members.get();
   sqlite3_reset(members);
@@ -159,7 +150,7 @@ Result<LoadStats> MapDb::BeginZoneLoad(ZoneId zone, Arena& arena, LoadSink& sink
     (void)im.EndZoneLoad(/*commit_it=*/false);
     return status;
   }
-  st.ms = Ms(t0);
+  st.ms = MsSince(t0);
   return st;
 }
 
@@ -179,7 +170,7 @@ Result<ZoneLoadStep> MapDb::StepZoneLoad(const LoadBudget& budget) {
     if (im.cursor.zone != kNoZone) (void)im.EndZoneLoad(/*commit_it=*/false);
     return status;
   }
-  step.stats.ms = Ms(t0);
+  step.stats.ms = MsSince(t0);
   return step;
 }
 
@@ -195,7 +186,7 @@ Result<LoadStats> MapDb::LoadZone(ZoneId zone, Arena& arena, LoadSink& sink) {
   ZM_ASSIGN_OR_RETURN(const ZoneLoadStep step, StepZoneLoad(LoadBudget{}));
   assert(step.done && "an unlimited step finishes the load");
   st += step.stats;
-  st.ms = Ms(t0);
+  st.ms = MsSince(t0);
   return st;
 }
 

@@ -59,6 +59,19 @@ class StmtReset {
 // Steps a statement to completion (SQLITE_DONE) and resets it.
 [[nodiscard]] Status StepDone(sqlite3* db, sqlite3_stmt* s, std::string_view context);
 
+// Steps `s` over every row, calling `row(s)` (returning Status) on each, and resets it when done.
+// The first error of a row, or SQLite's (named by `context`: "reading table zone"), ends it.
+template <typename RowFn>
+[[nodiscard]] Status ForEachRow(sqlite3* db, sqlite3_stmt* s, std::string_view context, RowFn&& row) {
+  StmtReset reset(s);
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    ZM_RETURN_IF_ERROR(row(s));
+  }
+  if (rc != SQLITE_DONE) return FromSqlite(rc, db, context);
+  return Status::Ok();
+}
+
 // Whether `table` exists in the main schema.
 [[nodiscard]] Result<bool> TableExists(sqlite3* db, const std::string& table);
 // Column names of `table` (PRAGMA table_info), empty when the table does not exist.

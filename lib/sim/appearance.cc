@@ -9,24 +9,15 @@
 namespace zm::sim {
 namespace {
 
-constexpr Rgb kWallPalette[] = {{205, 222, 200}, {232, 226, 205}, {200, 215, 230},
-                                {238, 238, 232}, {236, 228, 190}, {215, 215, 215}};
 constexpr Rgb kTilePalette[] = {{226, 232, 236}, {200, 222, 214}, {236, 236, 236}};
 constexpr Rgb kBoard = {176, 138, 98};
 constexpr Rgb kPaperAccent = {150, 170, 190};
 constexpr Rgb kFrame = {92, 74, 58};
 constexpr Rgb kWood = {150, 110, 70};
 constexpr Rgb kWhiteLaminate = {225, 225, 220};
-constexpr Rgb kFloor = {170, 168, 160};
-constexpr Rgb kCeiling = {232, 232, 226};
 constexpr Rgb kPosterInk[] = {{30, 40, 70},   {200, 60, 50},  {40, 120, 80},
                               {230, 190, 60}, {240, 240, 235}, {90, 90, 100}};
 
-float FloorF(float v) {  // without SSE4.1's roundss: the builds target baseline ISAs
-  const auto i = static_cast<float>(static_cast<std::int64_t>(v));
-  return i > v ? i - 1.0f : i;
-}
-float Frac(float v) { return v - FloorF(v); }
 std::int64_t Cell(float v) { return static_cast<std::int64_t>(FloorF(v)); }
 Rgb Scale(const Rgb& c, float s) { return {c[0] * s, c[1] * s, c[2] * s}; }
 

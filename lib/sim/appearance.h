@@ -33,6 +33,21 @@ using Rgb = std::array<float, 3>;
 inline constexpr std::uint32_t kPosterDesigns = 8;
 inline constexpr std::uint32_t kSignDesigns = 6;
 
+// The base colours both rendering styles share: the flat style paints them as they are, the
+// textured one (SurfaceLook) draws its finishes over them.
+inline constexpr Rgb kWallPalette[] = {{205, 222, 200}, {232, 226, 205}, {200, 215, 230},
+                                       {238, 238, 232}, {236, 228, 190}, {215, 215, 215}};
+inline constexpr Rgb kFloor = {170, 168, 160};
+inline constexpr Rgb kCeiling = {232, 232, 226};
+
+// Floor and fractional part without SSE4.1's roundss: the builds target baseline x86-64 and
+// ARMv8-A, and the renderer calls these for every pixel.
+inline float FloorF(float v) {
+  const auto i = static_cast<float>(static_cast<std::int64_t>(v));
+  return i > v ? i - 1.0f : i;
+}
+inline float Frac(float v) { return v - FloorF(v); }
+
 // One wall column as the ray cast found it.
 struct WallSurface {
   float along_m = 0.0f;       // coordinate along the face (map x or y), metres

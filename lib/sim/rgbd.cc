@@ -17,20 +17,8 @@
 namespace zm::sim {
 namespace {
 
-constexpr Rgb kWallPalette[] = {{205, 222, 200}, {232, 226, 205}, {200, 215, 230},
-                                {238, 238, 232}, {236, 228, 190}, {215, 215, 215}};
 constexpr Rgb kFurniturePalette[] = {{150, 110, 70}, {225, 225, 220}, {160, 185, 210}};
-constexpr Rgb kFloor = {170, 168, 160};
-constexpr Rgb kCeiling = {232, 232, 226};
 constexpr Rgb kFar = {60, 60, 64};  // nothing within the cast range
-
-
-// Floor without SSE4.1's roundss (the builds target baseline x86-64 and ARMv8-A).
-float FastFloor(float v) {
-  const auto i = static_cast<float>(static_cast<int>(v));
-  return i > v ? i - 1.0f : i;
-}
-float Frac(float v) { return v - FastFloor(v); }
 
 std::uint8_t ToByte(float v) { return static_cast<std::uint8_t>(std::clamp(v, 0.0f, 255.0f)); }
 
@@ -263,7 +251,7 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
       } else {
         z = plane_z;
         const float tx = ax + bx * xn_of[u], ty = ay + by * xn_of[u];
-        const float fx_t = FastFloor(tx), fy_t = FastFloor(ty);
+        const float fx_t = FloorF(tx), fy_t = FloorF(ty);
         float shade = plane_shade;
         if (tx - fx_t < seam || ty - fy_t < seam) shade *= is_floor ? 0.8f : 0.85f;
         const int parity = static_cast<int>(fx_t) + (is_floor ? 1 : 3) * static_cast<int>(fy_t);
@@ -322,31 +310,20 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
 namespace {
 
 // The dense payload of a keyframe whose features are in out->features.
-Status EncodeDenseKeyframe(const RgbdImage& img, const DenseOptions& dense, std::uint32_t width,
-                           std::uint32_t height, KeyframeId id, RenderedKeyframe* out) {
-  ZM_ASSIGN_OR_RETURN(std::vector<std::byte> jpeg, EncodeJpegRgb(img.rgb, width, height, dense.jpeg_quality));
-  const std::vector<std::byte> rvl = EncodeRvlDepth(img.depth);
-  std::vector<std::byte> both(jpeg.size() + rvl.size());
-  std::memcpy(both.data(), jpeg.data(), jpeg.size());
-  std::memcpy(both.data() + jpeg.size(), rvl.data(), rvl.size());
-  PayloadParts parts;
-  parts.id = id;
-  parts.descriptors = out->features.descriptors;
-  parts.keypoints = out->features.keypoints;
-  parts.dense_format = DenseFormat::kJpegColourRvlDepth;
-  parts.dense = both;
-  parts.dense_split = static_cast<std::uint32_t>(jpeg.size());
-  parts.flags = kPayloadPointsFromDepth;
-  parts.dense_width = width;
-  parts.dense_height = height;
-  parts.cloud_step = dense.cloud_step;
-  ZM_ASSIGN_OR_RETURN(out->payload, EncodePayload(parts));
-  out->jpeg_bytes = static_cast<std::uint32_t>(jpeg.size());
-  out->rvl_bytes = static_cast<std::uint32_t>(rvl.size());
-  out->resident_bytes = static_cast<std::uint32_t>(
-      DecodedLayoutFor(out->payload.size(), static_cast<std::uint32_t>(out->features.descriptors.size()),
-                       width, height, dense.cloud_step, /*points_from_depth=*/true)
-          .end);
+Status EncodeRenderedKeyframe(const RgbdImage& img, const DenseOptions& dense, std::uint32_t width,
+                              std::uint32_t height, KeyframeId id, RenderedKeyframe* out) {
+  ZM_ASSIGN_OR_RETURN(DenseKeyframePayload p,
+                      EncodeDenseKeyframe(id, out->features.descriptors, out->features.keypoints,
+                                          {.rgb = img.rgb,
+                                           .depth = &img.depth,
+                                           .width = width,
+                                           .height = height,
+                                           .jpeg_quality = dense.jpeg_quality,
+                                           .cloud_step = dense.cloud_step}));
+  out->payload = std::move(p.payload);
+  out->jpeg_bytes = p.jpeg_bytes;
+  out->rvl_bytes = p.rvl_bytes;
+  out->resident_bytes = p.resident_bytes;
   return Status::Ok();
 }
 
@@ -364,7 +341,7 @@ Status RenderKeyframe(const Building& building, const LandmarkMap& landmarks, in
   thread_local RgbdImage img;
   RenderRgbd(building, floor, t_map_body, camera, landmarks, visible, width, height, dense, image_seed,
              &img);
-  return EncodeDenseKeyframe(img, dense, width, height, id, out);
+  return EncodeRenderedKeyframe(img, dense, width, height, id, out);
 }
 
 Status RenderKeyframeFromPixels(const Building& building, int floor, const Pose3& t_map_body,
@@ -396,7 +373,7 @@ Status RenderKeyframeFromPixels(const Building& building, int floor, const Pose3
     out->features.keypoints[2 * i] = features->keypoints[2 * i] * to_x;
     out->features.keypoints[2 * i + 1] = features->keypoints[2 * i + 1] * to_y;
   }
-  return EncodeDenseKeyframe(img, textured, width, height, id, out);
+  return EncodeRenderedKeyframe(img, textured, width, height, id, out);
 }
 
 }  // namespace zm::sim

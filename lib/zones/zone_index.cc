@@ -130,15 +130,20 @@ bool ZoneIndex::Inside(std::int32_t zone, const Eigen::Vector3d& p) const {
          PointInPolygon(iz.ring, xy);
 }
 
+std::span<const std::int32_t> ZoneIndex::CellZones(const Layer& layer,
+                                                   const Eigen::Vector3d& p) const {
+  if (p.z() < layer.z_min_m || p.z() >= layer.z_max_m) return {};
+  const std::int64_t c = CellOf(layer, p.head<2>());
+  if (c < 0) return {};
+  const auto cu = static_cast<std::size_t>(c);
+  return std::span<const std::int32_t>(layer.cell_zones)
+      .subspan(layer.cell_begin[cu], layer.cell_begin[cu + 1] - layer.cell_begin[cu]);
+}
+
 ZoneId ZoneIndex::Lookup(const Eigen::Vector3d& p) const {
   std::int32_t best = -1;
   for (const Layer& layer : layers_) {
-    if (p.z() < layer.z_min_m || p.z() >= layer.z_max_m) continue;
-    const std::int64_t c = CellOf(layer, p.head<2>());
-    if (c < 0) continue;
-    const auto cu = static_cast<std::size_t>(c);
-    for (std::uint32_t k = layer.cell_begin[cu]; k < layer.cell_begin[cu + 1]; ++k) {
-      const std::int32_t z = layer.cell_zones[k];
+    for (const std::int32_t z : CellZones(layer, p)) {
       if (best >= 0 && z > best) break;
       if (Inside(z, p)) {
         best = z;
@@ -165,12 +170,7 @@ ZoneId ZoneIndex::GetZone(const Pose3& pose, ZoneId current) const {
   std::int32_t best = -1;
   double best_margin = 0.0;
   for (const Layer& layer : layers_) {
-    if (p.z() < layer.z_min_m || p.z() >= layer.z_max_m) continue;
-    const std::int64_t c = CellOf(layer, p.head<2>());
-    if (c < 0) continue;
-    const auto cu = static_cast<std::size_t>(c);
-    for (std::uint32_t k = layer.cell_begin[cu]; k < layer.cell_begin[cu + 1]; ++k) {
-      const std::int32_t z = layer.cell_zones[k];
+    for (const std::int32_t z : CellZones(layer, p)) {
       if (!Inside(z, p)) continue;
       const IndexedZone& iz = zones_[static_cast<std::size_t>(z)];
       const double margin = DistanceToBoundary(iz.ring, p.head<2>()) - iz.hysteresis_m;

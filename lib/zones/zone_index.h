@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "common/ids.h"
@@ -88,6 +89,10 @@ class ZoneIndex {
   [[nodiscard]] bool Inside(std::int32_t zone, const Eigen::Vector3d& p) const;
   // Cell of p in the layer, or -1 outside its grid.
   [[nodiscard]] std::int64_t CellOf(const Layer& layer, const Eigen::Vector2d& p) const;
+  // The candidate zones of p's cell in the layer (ids ascending): empty when p is outside the
+  // layer's z range or its grid.
+  [[nodiscard]] std::span<const std::int32_t> CellZones(const Layer& layer,
+                                                        const Eigen::Vector3d& p) const;
 
   ZoneIndexOptions options_;
   std::vector<IndexedZone> zones_;

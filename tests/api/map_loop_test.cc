@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 #include <iterator>
+#include <memory>
 #include <random>
 #include <string>
 
@@ -33,6 +34,27 @@ std::vector<Feature> RandomFeatures(std::mt19937& rng, std::size_t n) {
   }
   return f;
 }
+
+// The input gate's cases: a loop over scenario `tag` (MemoryThr 40, at most 64 features a frame)
+// that has processed one good frame, `features` at stamp 1 s; `rng` draws the cases' features.
+struct GateLoop {
+  GateLoop(const std::string& tag, std::uint32_t seed) : rng(seed) {
+    zm::test::BuildApiScenario(&scenario, 1, tag);
+    MapLoopOptions o;
+    o.db_path = scenario.db;
+    o.memory_thr = "40";
+    o.max_features = 64;
+    auto opened = MapLoop::Open(o);
+    REQUIRE_MESSAGE(opened.ok(), opened.status().ToString());
+    loop = std::move(opened).value();
+    features = RandomFeatures(rng, 10);
+    REQUIRE(loop->Process({.stamp_s = 1.0, .odom = zm::test::XYYaw(3, 5, 0), .features = features}).ok());
+  }
+  std::mt19937 rng;
+  zm::test::ApiScenario scenario;
+  std::unique_ptr<MapLoop> loop;
+  std::vector<Feature> features;
+};
 
 TEST_CASE("map loop: a replay keeps resident <= K_max on every tick and ends cleanly") {
   zm::test::ApiScenario s;
@@ -146,18 +168,9 @@ TEST_CASE("map loop and zone manager: the same map gives the same zones and resi
 }
 
 TEST_CASE("map loop: a bad frame is refused, counted and not processed") {
-  zm::test::ApiScenario s;
-  zm::test::BuildApiScenario(&s, 1, "badframes");
-  MapLoopOptions o;
-  o.db_path = s.db;
-  o.memory_thr = "40";
-  o.max_features = 64;
-  auto loop = MapLoop::Open(o);
-  REQUIRE_MESSAGE(loop.ok(), loop.status().ToString());
-  MapLoop& l = **loop;
-  std::mt19937 rng(1);
-  const std::vector<Feature> ok_features = RandomFeatures(rng, 10);
-  REQUIRE(l.Process({.stamp_s = 1.0, .odom = zm::test::XYYaw(3, 5, 0), .features = ok_features}).ok());
+  GateLoop g("badframes", 1);
+  MapLoop& l = *g.loop;
+  const std::vector<Feature>& ok_features = g.features;
   auto code = [&](const FrameInput& f) { return l.Process(f).status().code(); };
   CHECK(code({.stamp_s = 1.0, .odom = zm::test::XYYaw(3, 5, 0), .features = ok_features}) ==
         StatusCode::kInvalidArgument);  // the same stamp again
@@ -171,7 +184,7 @@ TEST_CASE("map loop: a bad frame is refused, counted and not processed") {
   Pose skew = zm::test::XYYaw(3, 5, 0);
   skew.qw = 0.1;
   CHECK(code({.stamp_s = 2.0, .odom = skew, .features = ok_features}) == StatusCode::kInvalidArgument);
-  const std::vector<Feature> many = RandomFeatures(rng, 65);
+  const std::vector<Feature> many = RandomFeatures(g.rng, 65);
   CHECK(code({.stamp_s = 2.0, .odom = zm::test::XYYaw(3, 5, 0), .features = many}) ==
         StatusCode::kInvalidArgument);
   std::vector<Feature> nan_kp = ok_features;
@@ -186,18 +199,9 @@ TEST_CASE("map loop: a bad frame is refused, counted and not processed") {
 }
 
 TEST_CASE("map loop: the input gate's rules, as zonemapd applies them") {
-  zm::test::ApiScenario s;
-  zm::test::BuildApiScenario(&s, 1, "gate");
-  MapLoopOptions o;
-  o.db_path = s.db;
-  o.memory_thr = "40";
-  o.max_features = 64;
-  auto loop = MapLoop::Open(o);
-  REQUIRE_MESSAGE(loop.ok(), loop.status().ToString());
-  MapLoop& l = **loop;
-  std::mt19937 rng(2);
-  const std::vector<Feature> f = RandomFeatures(rng, 10);
-  REQUIRE(l.Process({.stamp_s = 1.0, .odom = zm::test::XYYaw(3, 5, 0), .features = f}).ok());
+  GateLoop g("gate", 2);
+  MapLoop& l = *g.loop;
+  const std::vector<Feature>& f = g.features;
   auto refused = [&](const FrameInput& in, const std::string& reason) {
     auto r = l.Process(in);
     REQUIRE_FALSE(r.ok());

@@ -18,9 +18,8 @@
 #include "harness/cgroup.h"
 #include "harness/device_scale.h"
 #include "harness/swap_device.h"
-#include "sim/building.h"
-#include "sim/scenario.h"
 #include "tests/support/cotenant_test_support.h"
+#include "tests/support/small_scenario.h"
 
 namespace zm {
 namespace {
@@ -48,26 +47,9 @@ const std::string& Scenario() {
                        ("zm_device_run_scenario_" + std::to_string(static_cast<long>(getpid())));
     fs::remove_all(p);
     Temps().paths.push_back(p.string());
-    sim::HospitalOptions h;
-    h.seed = 11;
-    h.area_m2 = 300.0;
-    h.resolution_m = 0.1;
-    auto b = sim::GenerateHospital(h);
+    auto b = sim::GenerateHospital(test::SmallHospital(11));
     REQUIRE(b.ok());
-    sim::ScenarioOptions o;
-    o.seed = 11;
-    o.camera.intrinsics = sim::MakeIntrinsics(320, 240, 90.0);
-    o.dense.width = 160;
-    o.dense.height = 120;
-    o.dense.cloud_step = 1;
-    o.noise.max_features = 80;
-    o.camera.range_m = 6.0;
-    o.tasks = 2;
-    o.rate_hz = 1.0;
-    o.keyframe_distance_m = 1.5;
-    o.keyframe_angle_deg = 60.0;
-    o.threads = 2;
-    auto r = sim::WriteScenario(*b, o, p.string());
+    auto r = sim::WriteScenario(*b, test::SmallReplayScenario(11, 2), p.string());
     REQUIRE_MESSAGE(r.ok(), r.status().ToString());
     return p.string();
   }();

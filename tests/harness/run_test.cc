@@ -13,8 +13,7 @@
 #include <string>
 
 #include "runtime/profile.h"
-#include "sim/building.h"
-#include "sim/scenario.h"
+#include "tests/support/small_scenario.h"
 
 namespace zm {
 namespace {
@@ -39,11 +38,7 @@ struct SmallRun {
       : dir(fs::temp_directory_path() /
             ("zm_run_" + tag + "_" + std::to_string(static_cast<long>(getpid())))) {
     fs::remove_all(dir);
-    sim::HospitalOptions h;
-    h.seed = o.seed;
-    h.area_m2 = 300.0;
-    h.resolution_m = 0.1;
-    auto b = sim::GenerateHospital(h);
+    auto b = sim::GenerateHospital(test::SmallHospital(o.seed));
     REQUIRE(b.ok());
     o.camera.range_m = 6.0;
     o.tasks = 1;
@@ -64,16 +59,7 @@ struct SmallRun {
 };
 
 TEST_CASE("run: the recorded frames pass the input gate, and each tick is published once") {
-  sim::ScenarioOptions o;
-  o.seed = 5;
-  o.camera.intrinsics = sim::MakeIntrinsics(320, 240, 90.0);
-  o.dense.width = 160;
-  o.dense.height = 120;
-  o.dense.cloud_step = 1;
-  o.noise.max_features = 80;
-  o.keyframe_distance_m = 1.5;
-  o.keyframe_angle_deg = 60.0;
-  const SmallRun run("gate", o, 20);
+  const SmallRun run("gate", test::SmallReplayScenario(5, 1), 20);
   auto s = RunScenario(run.request);
   REQUIRE_MESSAGE(s.ok(), s.status().ToString());
   const std::uint64_t ticks = s->ticks;

@@ -15,6 +15,7 @@ namespace zm {
 namespace {
 
 using test::BuildMap;
+using test::LoadFixture;
 using test::MakeArena;
 using test::RecordingSink;
 using test::TempDir;
@@ -83,15 +84,8 @@ TEST_CASE("map database round trip keeps metadata, poses, links and zones") {
   CHECK((*members)[5].keyframe == KeyframeId{5});
 }
 
-TEST_CASE("zone load lands exact payload bytes in slots, one query and one transaction") {
-  TempDir dir;
-  const std::string path = dir.File("map.db");
-  auto built = BuildMap(path);
-  auto db = MapDb::Open(path);
-  REQUIRE(db.ok());
-  Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
-  RecordingSink sink;
-  auto st = (*db)->LoadZone(ZoneId{0}, arena, sink);
+TEST_CASE_FIXTURE(LoadFixture, "zone load lands exact payload bytes in slots, one query and one transaction") {
+  auto st = db->LoadZone(ZoneId{0}, arena, sink);
   REQUIRE_MESSAGE(st.ok(), st.status().ToString());
   CHECK(st->keyframes == 5);
   CHECK(st->skipped == 0);
@@ -111,11 +105,11 @@ TEST_CASE("zone load lands exact payload bytes in slots, one query and one trans
   }
   CHECK(st->bytes == bytes);
   CHECK(arena.in_use() == 5);
-  CHECK((*db)->total_transactions() == 1);
-  CHECK((*db)->total_bytes_read() == bytes);
+  CHECK(db->total_transactions() == 1);
+  CHECK(db->total_bytes_read() == bytes);
 
   SUBCASE("an unknown zone is refused by id") {
-    auto bad = (*db)->LoadZone(ZoneId{3}, arena, sink);
+    auto bad = db->LoadZone(ZoneId{3}, arena, sink);
     REQUIRE_FALSE(bad.ok());
     CHECK(bad.status().code() == StatusCode::kNotFound);
     CHECK(bad.status().message().find("zone 3") != std::string::npos);
@@ -205,33 +199,19 @@ TEST_CASE("payloads of version 1 (zlib CRC-32) in an older map still load and ar
   }
 }
 
-TEST_CASE("overlapping zones: resident members are skipped, not read twice") {
-  TempDir dir;
-  const std::string path = dir.File("map.db");
-  BuildMap(path);
-  auto db = MapDb::Open(path);
-  REQUIRE(db.ok());
-  Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
-  RecordingSink sink;
-  REQUIRE((*db)->LoadZone(ZoneId{0}, arena, sink).ok());  // 1..5
-  auto st = (*db)->LoadZone(ZoneId{1}, arena, sink);      // 5..8, 5 already resident
+TEST_CASE_FIXTURE(LoadFixture, "overlapping zones: resident members are skipped, not read twice") {
+  REQUIRE(db->LoadZone(ZoneId{0}, arena, sink).ok());  // 1..5
+  auto st = db->LoadZone(ZoneId{1}, arena, sink);      // 5..8, 5 already resident
   REQUIRE(st.ok());
   CHECK(st->keyframes == 3);
   CHECK(st->skipped == 1);
   CHECK(arena.in_use() == 8);
-  CHECK((*db)->total_transactions() == 2);
+  CHECK(db->total_transactions() == 2);
 }
 
-TEST_CASE("per-keyframe loads land exact bytes and count four statements per keyframe") {
-  TempDir dir;
-  const std::string path = dir.File("map.db");
-  auto built = BuildMap(path);
-  auto db = MapDb::Open(path);
-  REQUIRE(db.ok());
-  Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
-  RecordingSink sink;
+TEST_CASE_FIXTURE(LoadFixture, "per-keyframe loads land exact bytes and count four statements per keyframe") {
   const std::vector<KeyframeId> ids = {KeyframeId{9}, KeyframeId{3}, KeyframeId{12}, KeyframeId{3}};
-  auto st = (*db)->LoadKeyframes(ids, arena, sink);
+  auto st = db->LoadKeyframes(ids, arena, sink);
   REQUIRE_MESSAGE(st.ok(), st.status().ToString());
   CHECK(st->keyframes == 3);
   CHECK(st->skipped == 1);  // the second 3 is already resident
@@ -241,30 +221,23 @@ TEST_CASE("per-keyframe loads land exact bytes and count four statements per key
     CHECK(std::memcmp(arena.Slot(e.slot).data(), want.data(), want.size()) == 0);
   }
   const std::vector<KeyframeId> missing = {KeyframeId{99}};
-  auto bad = (*db)->LoadKeyframes(missing, arena, sink);
+  auto bad = db->LoadKeyframes(missing, arena, sink);
   REQUIRE_FALSE(bad.ok());
   CHECK(bad.status().code() == StatusCode::kNotFound);
   CHECK(bad.status().message().find("keyframe 99") != std::string::npos);
   CHECK(arena.in_use() == 3);
 }
 
-TEST_CASE("warm zone and per-keyframe loads make no heap allocation") {
-  TempDir dir;
-  const std::string path = dir.File("map.db");
-  BuildMap(path);
-  auto db = MapDb::Open(path);
-  REQUIRE(db.ok());
-  Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
-  RecordingSink sink;
+TEST_CASE_FIXTURE(LoadFixture, "warm zone and per-keyframe loads make no heap allocation") {
   const std::vector<KeyframeId> ids = {KeyframeId{2}, KeyframeId{7}, KeyframeId{11}};
   const auto cycle = [&] {
     for (std::int32_t z = 0; z < 3; ++z) {
-      auto st = (*db)->LoadZone(ZoneId{z}, arena, sink);
+      auto st = db->LoadZone(ZoneId{z}, arena, sink);
       REQUIRE(st.ok());
     }
     for (const auto& e : sink.loaded()) arena.Release(e.slot);
     sink.Clear();
-    auto st = (*db)->LoadKeyframes(ids, arena, sink);
+    auto st = db->LoadKeyframes(ids, arena, sink);
     REQUIRE(st.ok());
     for (const auto& e : sink.loaded()) arena.Release(e.slot);
     sink.Clear();

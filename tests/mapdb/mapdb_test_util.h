@@ -13,6 +13,7 @@
 #include <functional>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <random>
 #include <string>
 #include <variant>
@@ -122,6 +123,12 @@ inline Arena MakeArena(std::uint64_t slots, std::uint64_t slot_bytes) {
   return std::move(std::get<Arena>(created));
 }
 
+inline std::unique_ptr<MapDb> OpenOrFail(const std::string& path) {
+  auto db = MapDb::Open(path);
+  REQUIRE_MESSAGE(db.ok(), db.status().ToString());
+  return std::move(db).value();
+}
+
 // Wants everything not yet resident; records what landed where. Storage is reserved up front
 // so a warm load through it allocates nothing.
 class RecordingSink final : public LoadSink {
@@ -159,6 +166,17 @@ class RecordingSink final : public LoadSink {
  private:
   std::vector<std::uint8_t> resident_;
   std::vector<Entry> loaded_;
+};
+
+// The start of the load tests (TEST_CASE_FIXTURE): BuildMap's map in a fresh directory, opened,
+// an arena of 16 slots sized for its largest keyframe and a recording sink.
+struct LoadFixture {
+  TempDir dir;
+  std::string path = dir.File("map.db");
+  BuiltMap built = BuildMap(path);
+  std::unique_ptr<MapDb> db = OpenOrFail(path);
+  Arena arena = MakeArena(16, db->metadata().largest_payload_bytes);
+  RecordingSink sink;
 };
 
 // Replaces keyframe `id`'s payload blob in `path` by `edit(blob)` (to damage it on purpose).

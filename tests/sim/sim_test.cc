@@ -19,6 +19,7 @@
 #include "sim/observe.h"
 #include "sim/route.h"
 #include "sim/scenario.h"
+#include "tests/support/small_scenario.h"
 
 namespace zm::sim {
 namespace {
@@ -31,28 +32,15 @@ std::string TempDir(const std::string& name) {
   return p.string();
 }
 
-HospitalOptions SmallHospital(std::uint64_t seed = 7) {
-  HospitalOptions h;
-  h.seed = seed;
-  h.area_m2 = 300.0;
-  h.resolution_m = 0.1;
-  return h;
-}
+HospitalOptions SmallHospital(std::uint64_t seed = 7) { return test::SmallHospital(seed); }
 
-// Small, fast scenario options (tests run under ASan and qemu).
+// The shared small scenario with tiny images, three tasks at 0.5 Hz.
 ScenarioOptions SmallScenario(std::uint64_t seed = 7) {
-  ScenarioOptions o;
-  o.seed = seed;
-  o.camera.intrinsics = MakeIntrinsics(320, 240, 90.0);
+  ScenarioOptions o = test::SmallScenario(seed);
   o.dense.width = 64;
   o.dense.height = 48;
-  o.noise.max_features = 80;
-  o.camera.range_m = 6.0;
   o.tasks = 3;
   o.rate_hz = 0.5;
-  o.keyframe_distance_m = 1.5;
-  o.keyframe_angle_deg = 60.0;
-  o.threads = 2;
   return o;
 }
 
