@@ -61,6 +61,8 @@ const std::string& Scenario() {
     o.dense.height = 120;
     o.dense.cloud_step = 1;
     o.noise.max_features = 80;
+    // The device run's memory accounting is under test: the oracle's features, named (issue 26).
+    o.features = sim::FeatureSource::kOracle;
     o.camera.range_m = 6.0;
     o.tasks = 2;
     o.rate_hz = 1.0;
