@@ -19,7 +19,7 @@ struct SimOpts {
   std::string dense = "640x480";
   std::string depth_noise;  // A,B,C
   std::string image = "640x480";
-  std::string features = "oracle";
+  std::string features = "orb";  // the oracle only by name (issue 26)
   double hfov_deg = 90.0;
   bool quiet = false;
   // hospital

@@ -50,7 +50,7 @@ py=/usr/bin/python3
 [ -x "$py" ] || py=python3
 
 scen="$out/scenarios/hospital"
-want="seed=1 area=$area tasks=$tasks scale=$scale"
+want="seed=1 area=$area tasks=$tasks scale=$scale features=orb"
 if [ ! -f "$scen/map.db" ] || [ "$(cat "$scen/.demo-spec" 2>/dev/null)" != "$want" ]; then
   rm -rf "$scen"
   echo "demo: generating the hospital ($want)" >&2

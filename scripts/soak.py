@@ -107,7 +107,9 @@ def main():
     if not os.path.exists(os.path.join(scenario, "frames.bin")):
         subprocess.run(emulator + [zonemap, "sim", "hospital", "--seed", "5", "--area", "400",
                                    "--tasks", "3", "--footprint-scale", args.footprint_scale,
-                                   "--quiet", "--out", scenario],
+                                   # the soak sends `frame` lines with features (a host with its
+                                   # own front-end): the oracle's, named (issue 26)
+                                   "--features", "oracle", "--quiet", "--out", scenario],
                        check=True, stdout=subprocess.DEVNULL)
 
     # One pass of the recorded run, formatted once: (stamp, line tail without the stamp).

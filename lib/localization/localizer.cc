@@ -57,6 +57,7 @@ Status ValidateLocalizerConfig(const LocalizerConfig& c, const CameraIntrinsics&
   }
   if (!(c.max_correction_m >= 0.0))
     return InvalidArgument("localizer max_correction_m must be >= 0");
+  if (Status g = ValidateClosureGateOptions(c.gate); !g.ok()) return g;
   if (!(k.fx > 0.0 && k.fy > 0.0) || k.width == 0 || k.height == 0) {
     return InvalidArgument("camera intrinsics must have fx, fy > 0 and a non-empty image");
   }
@@ -68,7 +69,8 @@ Localizer::Localizer(LocalizerConfig config, CameraIntrinsics camera)
       camera_(camera),
       pnp_(camera, PnpParamsFrom(config), config.reserve_features),
       scores_(config.reserve_keyframes, 0),
-      matches_(config.reserve_features) {
+      matches_(config.reserve_features),
+      gate_(config.gate) {
   assert(ValidateLocalizerConfig(config_, camera_).ok());
   object_points_.reserve(config.reserve_features);
   image_points_.reserve(config.reserve_features);
@@ -208,6 +210,7 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
                                    std::span<const ResidentKeyframe> resident) {
   LocalizeResult r;
   ++stats_.ticks;
+  gate_.Advance(frame.odom);  // every frame, also those that cannot close: the path since a fix
   const std::uint32_t n = frame.feature_count();
   if (frame.keypoints.size() != 2 * static_cast<std::size_t>(n)) {
     r.bad_frame = true;
@@ -348,6 +351,13 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
       ++r.closures_rejected;
       continue;
     }
+    if (!gate_.Check(t_map_body, predicted_map_pose)) {
+      ++r.inconsistent;
+      ++r.closures_rejected;
+      continue;
+    }
+    gate_.Accepted();
+    r.relocalized = gate_.relocalized();
     r.accepted = true;
     r.matched = kf.id;
     r.inliers = solved.inliers;
@@ -362,6 +372,8 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
   stats_.closures_rejected += r.closures_rejected;
   stats_.candidates_examined += r.candidates_examined;
   stats_.pnp_errors += r.pnp_errors;
+  stats_.inconsistent += r.inconsistent;
+  stats_.relocalized += r.relocalized ? 1 : 0;
   return r;
 }
 

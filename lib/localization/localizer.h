@@ -13,7 +13,8 @@
 //      keypoints (2-D) with the keyframe's 3-D points (map frame, or camera frame for points
 //      decoded from depth, put in the map with the keyframe's pose; points without depth are
 //      skipped, a keyframe without decoded points is rejected), runs PnP-RANSAC (pnp.h) and
-//      accepts when inliers >= min_inliers (and, if set, the correction is <= max_correction_m).
+//      accepts when inliers >= min_inliers (and, if set, the correction is <= max_correction_m)
+//      and the pose agrees with odometry (the closure gate, closure_gate.h: aliasing).
 //
 // Invariant 4 (docs/design.md): the localizer sees ONLY the keyframes it is handed, and the
 // runtime hands it only resident ones (views into arena slots); a non-resident keyframe can
@@ -42,6 +43,7 @@
 #include "common/status.h"
 #include "geometry/pose.h"
 #include "localization/appearance.h"
+#include "localization/closure_gate.h"
 #include "localization/frame.h"
 #include "localization/inverted_index.h"
 #include "localization/pnp.h"
@@ -81,6 +83,9 @@ struct LocalizerConfig {
   bool refine = true;                            // LM refinement on the inliers
   std::uint64_t ransac_seed = PnpParams{}.seed;  // PnP RNG seed, reapplied at every solve
   double max_correction_m = 0.0;          // reject a pose this far from the prediction; 0 = off
+  // The consistency check of verified closures against odometry (closure_gate.h): rejects the
+  // aliased ones (identical posters and wards), re-localizes when rejected ones agree.
+  ClosureGateOptions gate;
   std::uint32_t reserve_features = 2048;  // scratch sizes: no allocation below these
   std::uint32_t reserve_keyframes = 4096;
   // With a vocabulary (UseVocabulary): the first word_features descriptors of a frame and of a
@@ -118,6 +123,8 @@ struct LocalizeResult {
   std::uint32_t closures_accepted = 0;  // 0 or 1 this tick
   std::uint32_t closures_rejected = 0;  // candidates examined and not accepted this tick
   std::uint32_t pnp_errors = 0;         // PnP input errors or all-degenerate samples (rejections)
+  std::uint32_t inconsistent = 0;       // verified, but refused by the closure gate (rejections)
+  bool relocalized = false;             // accepted because rejected closures agreed (closure_gate.h)
   bool bad_frame = false;               // keypoints.size() != 2 * descriptors.size()
   // With a vocabulary: the best resident keyframe's likelihood, the index's work, and where the
   // time went (ms): syncing the index with the resident set (keyframes entering or leaving:
@@ -140,6 +147,8 @@ struct LocalizerStats {
   std::uint64_t closures_rejected = 0;
   std::uint64_t candidates_examined = 0;
   std::uint64_t pnp_errors = 0;
+  std::uint64_t inconsistent = 0;   // verified closures the closure gate refused
+  std::uint64_t relocalized = 0;    // closures accepted by agreement after refusals
   std::uint64_t bad_frames = 0;
 };
 
@@ -203,6 +212,7 @@ class Localizer {
   std::vector<simd::DescriptorMatch> matches_;
   std::vector<cv::Point3f> object_points_;
   std::vector<cv::Point2f> image_points_;
+  ClosureGate gate_;
   LocalizerStats stats_;
 };
 

@@ -2,6 +2,7 @@
 #include "sim/observe.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <numbers>
 
@@ -174,9 +175,16 @@ void LandmarkMap::Visible(const Building& building, int floor, const Pose3& t_ma
             [](const VisibleLandmark& a, const VisibleLandmark& b) { return a.landmark < b.landmark; });
 }
 
+namespace {
+std::atomic<std::uint64_t> g_oracle_feature_sets{0};
+}  // namespace
+
+std::uint64_t OracleFeatureSets() { return g_oracle_feature_sets.load(std::memory_order_relaxed); }
+
 void MakeFeatures(const LandmarkMap& map, const std::vector<VisibleLandmark>& visible,
                   const Pose3& t_map_body, const CameraModel& camera, const NoiseOptions& noise,
                   bool with_points, Rng& rng, FeatureSet* out) {
+  g_oracle_feature_sets.fetch_add(1, std::memory_order_relaxed);
   out->Clear();
   const auto& lms = map.landmarks();
   const std::size_t cap_in = static_cast<std::size_t>(

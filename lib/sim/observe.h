@@ -100,4 +100,8 @@ void MakeFeatures(const LandmarkMap& map, const std::vector<VisibleLandmark>& vi
                   const Pose3& t_map_body, const CameraModel& camera, const NoiseOptions& noise,
                   bool with_points, Rng& rng, FeatureSet* out);
 
+// How many feature sets MakeFeatures (the descriptor oracle: features read off landmark ids) has
+// made in this process. The default path must leave it unchanged (issue 26; tests assert it).
+[[nodiscard]] std::uint64_t OracleFeatureSets();
+
 }  // namespace zm::sim

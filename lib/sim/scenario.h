@@ -69,7 +69,7 @@ struct ScenarioOptions {
   LandmarkOptions landmarks;
   NoiseOptions noise;
   DenseOptions dense;
-  FeatureSource features = FeatureSource::kOracle;
+  FeatureSource features = FeatureSource::kOrb;  // the oracle only by name (issue 26)
   OrbOptions orb;            // kOrb: the one extractor's options (mapping and loop)
   LightingOptions lighting;  // kOrb: the localization run's images
   std::uint32_t vocabulary_max_keyframes = 0;  // kOrb: training sample (0: every keyframe)
