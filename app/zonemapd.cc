@@ -233,8 +233,7 @@ int main(int argc, char** argv) {
   const zm::TickLoop& loop = d.loop();
   std::fprintf(stderr,
                "zonemapd: %llu ticks, %llu input lines refused, %llu image frames on odometry, "
-               "peak resident %u, K_max %u, %llu loop closures accepted
-",
+               "peak resident %u, K_max %u, %llu loop closures accepted\n",
                static_cast<unsigned long long>(loop.totals().ticks),
                static_cast<unsigned long long>(d.rejects().total),
                static_cast<unsigned long long>(d.image_refusals().total),
