@@ -4,13 +4,16 @@
 #include <cmath>
 #include <numbers>
 
+#include <Eigen/Geometry>
+
 namespace zm {
 namespace {
 
-double YawError(const Pose3& a, const Pose3& b) {
-  double d = std::fabs(Yaw(a) - Yaw(b));
-  if (d > std::numbers::pi) d = 2.0 * std::numbers::pi - d;
-  return d;
+// The angle of the rotation between two orientations, in [0, pi]. Not the yaw difference: a
+// handheld camera's pose (a TUM recording, taken as the body) can point its x axis anywhere,
+// and a yaw read off such a rotation swings by radians for a degree of pitch.
+double RotationError(const Pose3& a, const Pose3& b) {
+  return std::fabs(Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle());
 }
 
 }  // namespace
@@ -20,10 +23,10 @@ Status ValidateClosureGateOptions(const ClosureGateOptions& o) {
     return InvalidArgument("closure gate base_m must be in [0, 1000] m");
   if (!(o.per_m >= 0.0) || !(o.per_m <= 10.0))
     return InvalidArgument("closure gate per_m must be in [0, 10] m per m");
-  if (!(o.yaw_deg > 0.0) || !(o.yaw_deg <= 180.0))
-    return InvalidArgument("closure gate yaw_deg must be in (0, 180]");
-  if (!(o.yaw_per_m_deg >= 0.0) || !(o.yaw_per_m_deg <= 180.0))
-    return InvalidArgument("closure gate yaw_per_m_deg must be in [0, 180]");
+  if (!(o.rotation_deg > 0.0) || !(o.rotation_deg <= 180.0))
+    return InvalidArgument("closure gate rotation_deg (closure_gate_deg) must be in (0, 180]");
+  if (!(o.rotation_per_m_deg >= 0.0) || !(o.rotation_per_m_deg <= 180.0))
+    return InvalidArgument("closure gate rotation_per_m_deg must be in [0, 180]");
   if (o.agree < 1 || o.agree > 1000) return InvalidArgument("closure gate agree must be in [1, 1000]");
   return Status::Ok();
 }
@@ -36,22 +39,22 @@ void ClosureGate::Advance(const Pose3& odom) {
   relocalized_ = false;
 }
 
-double ClosureGate::gate_yaw_rad() const {
-  return std::min(180.0, o_.yaw_deg + o_.yaw_per_m_deg * path_m_) * std::numbers::pi / 180.0;
+double ClosureGate::gate_rotation_rad() const {
+  return std::min(180.0, o_.rotation_deg + o_.rotation_per_m_deg * path_m_) * std::numbers::pi / 180.0;
 }
 
 bool ClosureGate::Check(const Pose3& t_map_body, const Pose3& predicted) {
   relocalized_ = false;
   if (!enabled() || !has_fix_) return true;
   const double err = (t_map_body.translation() - predicted.translation()).norm();
-  if (err <= gate_m() && YawError(t_map_body, predicted) <= gate_yaw_rad()) return true;
+  if (err <= gate_m() && RotationError(t_map_body, predicted) <= gate_rotation_rad()) return true;
 
   // Inconsistent with odometry: a vote for the hypothesis it implies.
   const Pose3 correction = t_map_body * odom_.inverse();
   if (alt_votes_ > 0 && frame_ != alt_frame_) {
     const Pose3 alt_body = alt_correction_ * odom_;
     const bool agrees = (alt_body.translation() - t_map_body.translation()).norm() <= o_.base_m &&
-                        YawError(alt_body, t_map_body) <= o_.yaw_deg * std::numbers::pi / 180.0;
+                        RotationError(alt_body, t_map_body) <= o_.rotation_deg * std::numbers::pi / 180.0;
     alt_votes_ = agrees ? alt_votes_ + 1 : 1;
   } else if (alt_votes_ == 0) {
     alt_votes_ = 1;

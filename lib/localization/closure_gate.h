@@ -7,7 +7,8 @@
 // the same test is simpler: the closure's body pose must lie within what odometry can have
 // drifted since the last accepted closure,
 //
-//   |t_closure - t_predicted| <= base_m + per_m * path,  |yaw error| <= yaw_deg + yaw_per_m_deg * path
+//   |t_closure - t_predicted| <= base_m + per_m * path,
+//   angle(R_closure^T R_predicted) <= rotation_deg + rotation_per_m_deg * path
 //
 // where path is the odometry path length since that closure. Before the first closure there is
 // no prior and everything is accepted (start-up, a robot placed anywhere).
@@ -32,8 +33,8 @@ namespace zm {
 struct ClosureGateOptions {
   double base_m = 0.5;         // 0: the check is off (every verified closure is accepted)
   double per_m = 0.1;          // metres of allowed disagreement per metre travelled
-  double yaw_deg = 15.0;
-  double yaw_per_m_deg = 1.0;  // degrees per metre travelled
+  double rotation_deg = 15.0;  // the angle between the two orientations (any axis)
+  double rotation_per_m_deg = 1.0;  // degrees per metre travelled
   std::uint32_t agree = 3;     // rejected closures in a row that agree: re-localize
 };
 
@@ -57,7 +58,7 @@ class ClosureGate {
   [[nodiscard]] bool relocalized() const { return relocalized_; }
   [[nodiscard]] double path_since_fix_m() const { return path_m_; }
   [[nodiscard]] double gate_m() const { return o_.base_m + o_.per_m * path_m_; }
-  [[nodiscard]] double gate_yaw_rad() const;
+  [[nodiscard]] double gate_rotation_rad() const;
   [[nodiscard]] const ClosureGateOptions& options() const { return o_; }
 
  private:

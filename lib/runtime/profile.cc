@@ -127,8 +127,8 @@ Result<Profile> ReadProfile(ProfileDocument& doc) {
   // The closure gate (localization/closure_gate.h): closure_gate_m 0 turns it off.
   loc.Double("closure_gate_m", l.gate.base_m, 0.0, 1e3);
   loc.Double("closure_gate_per_m", l.gate.per_m, 0.0, 10.0);
-  loc.Double("closure_gate_deg", l.gate.yaw_deg, 0.001, 180.0);
-  loc.Double("closure_gate_deg_per_m", l.gate.yaw_per_m_deg, 0.0, 180.0);
+  loc.Double("closure_gate_deg", l.gate.rotation_deg, 0.001, 180.0);
+  loc.Double("closure_gate_deg_per_m", l.gate.rotation_per_m_deg, 0.0, 180.0);
   loc.U32("relocalize_after", l.gate.agree, 1, 1000);
   loc.Finish();
 
