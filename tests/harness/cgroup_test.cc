@@ -188,7 +188,7 @@ TEST_CASE("the charged limit: the device less what zram holds, in whole steps, w
   CHECK(ChargedLimit(kLimit, 5, 0, 0) == kLimit - 5);                   // step 0 = bytes
 }
 
-TEST_CASE("the device limit lowered and raised within the created one; beyond it refused") {
+TEST_CASE("the device limit lowered and raised within the created one, beyond it refused") {
   auto cg = CgroupOrSkip(64 * kMiB);
   if (!cg) return;
   CHECK(cg->current_limit_bytes() == 64 * kMiB);

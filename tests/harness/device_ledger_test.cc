@@ -112,7 +112,7 @@ TEST_CASE("Update and OverCommitted never allocate") {
   CHECK(ledger->oom_events() == 450);
 }
 
-TEST_CASE("a forked process registers in the same ledger; its slot is reaped after it dies") {
+TEST_CASE("a forked process registers in the same ledger, its slot is reaped after it dies") {
   TempLedger tmp;
   Result<DeviceLedger> ledger = DeviceLedger::Open(tmp.path, 64 * kMiB);
   REQUIRE(ledger.ok());

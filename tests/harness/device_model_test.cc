@@ -187,7 +187,7 @@ bool NoChildLeft() {
   return waitpid(-1, &status, WNOHANG) < 0 && errno == ECHILD;
 }
 
-TEST_CASE("a child that cannot enter the device never runs; spawn and fork name the device") {
+TEST_CASE("a child that cannot enter the device never runs, spawn and fork name the device") {
   const RefusingDevice dev;
   std::array<int, 2> out{};
   REQUIRE(pipe(out.data()) == 0);

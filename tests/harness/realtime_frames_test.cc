@@ -79,7 +79,7 @@ TEST_CASE(
   CHECK(std::isinf(*s.NextArrival()));
 }
 
-TEST_CASE("real-time frames: time compression shrinks the clock; bad options are refused") {
+TEST_CASE("real-time frames: time compression shrinks the clock, bad options are refused") {
   FakeSource inner(20);
   g_now = 0.0;
   auto rt = RealtimeFrameSource::Create(

@@ -128,7 +128,7 @@ TEST_CASE("/proc/swaps: the active swaps, and whether a path is one of them") {
 }
 
 TEST_CASE(
-    "a zram swap through a fake sysfs: lz4, disksize, header, swapon; Remove leaves nothing") {
+    "a zram swap through a fake sysfs: lz4, disksize, header, swapon, Remove leaves nothing") {
   FakeMachine m(7);
   SwapOptions o{.requested = "zram", .bytes = 32 * kMiB + 100, .system = m.sys};
   DeviceSwap s = OpenDeviceSwap(o);
@@ -210,7 +210,7 @@ TEST_CASE("a swap already active (a real Jetson's own zram) is used, nothing is 
 }
 
 TEST_CASE(
-    "a stale zram device of a killed run is removed; a live owner's and unrecorded ones stay") {
+    "a stale zram device of a killed run is removed, a live owner's and unrecorded ones stay") {
   FakeMachine m(2);
   m.AddDevice(8);
   m.AddDevice(9);

@@ -110,7 +110,7 @@ TEST_CASE("truncated, corrupt and lying blobs are refused with the keyframe name
   }
 }
 
-TEST_CASE("the body checksum is CRC-32C (version 2); version 1 blobs with zlib CRC-32 still read") {
+TEST_CASE("the body checksum is CRC-32C (version 2), version 1 blobs with zlib CRC-32 still read") {
   Parts p = MakeParts(30, 5000, 5);
   auto blob = Encode(p, 12);
   PayloadHeader h;

@@ -352,7 +352,7 @@ TEST_CASE("a route becomes the zone sequence predictive prefetches along") {
   CHECK(s.daemon->counters().routes_rejected == 2);
 }
 
-TEST_CASE("budget down unloads at once and holds; up is clamped to the arena") {
+TEST_CASE("budget down unloads at once and holds, up is clamped to the arena") {
   RoomsMap map(6, 10, "budget");
   for (const std::string policy : {"semantic", "oracle", "predictive", "radius"}) {
     CAPTURE(policy);
@@ -397,7 +397,7 @@ TEST_CASE("budget down unloads at once and holds; up is clamped to the arena") {
   }
 }
 
-TEST_CASE("basic lowers its MemoryThr and sheds over the next ticks; unbounded ignores it") {
+TEST_CASE("basic lowers its MemoryThr and sheds over the next ticks, unbounded ignores it") {
   RoomsMap map(4, 10, "basicb");
   {
     Session s(map, MakeProfile("basic", 40));
@@ -432,7 +432,7 @@ TEST_CASE("a robot that hangs up does not stop the map process") {
   CHECK(s.daemon->counters().output_errors == 1);
 }
 
-TEST_CASE("UDP: frames, routes and budgets in; pose lines and acks back to the sender") {
+TEST_CASE("UDP: frames, routes and budgets in, pose lines and acks back to the sender") {
   RoomsMap map(3, 10, "udp");
   auto db = MapDb::Open(map.db());
   REQUIRE(db.ok());

@@ -44,7 +44,7 @@ TEST_CASE("the dominant wall angle of an axis-aligned map is 0") {
   CHECK(DominantWallAngle(cv::Mat::zeros(50, 50, CV_8U)) == 0.0);
 }
 
-TEST_CASE("walls are long straight runs; doorways join collinear runs only") {
+TEST_CASE("walls are long straight runs, doorways join collinear runs only") {
   // Two horizontal walls 2.0 m apart (a corridor, 40 cells), the upper one with a 0.9 m gap (a
   // door, 18 cells); a 0.4 m blob of furniture in the corridor, over 0.45 m from both walls.
   cv::Mat occ = cv::Mat::zeros(100, 200, CV_8U);
@@ -188,7 +188,7 @@ TEST_CASE("the facade is continued across a balcony's mouth, not across a window
   CHECK(cv::countNonZero(FindWalls(occ, 0.0, cells).openings) == 0);
 }
 
-TEST_CASE("the mouth between two aligned wall ends is an opening; something in it is not") {
+TEST_CASE("the mouth between two aligned wall ends is an opening, something in it is not") {
   // A 6 x 4 m room (1 cell = 5 cm) with a wardrobe against its top wall: two 0.75 m side
   // walls (15 cells, 0.1 m thick) 1.6 m apart whose free ends are aligned at row 27, the front
   // being one wide door. Further right two more walls from the top wall end 0.5 m apart in
@@ -257,7 +257,7 @@ TEST_CASE("a thin wall ending at a corner is continued into the free space beyon
   CHECK(cv::countNonZero(FindWalls(occ, 0.0, cells).openings) == 0);
 }
 
-TEST_CASE("a thin wall's free end is capped across, to the next wall; a door's jambs are not") {
+TEST_CASE("a thin wall's free end is capped across, to the next wall, a door's jambs are not") {
   // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 m partition down from the top wall (column 60,
   // free end at row 40): the wall on its left is 2.4 m away, the one on its right 3.3 m.
   const Room room({{60, 10, 2, 31}});
@@ -285,7 +285,7 @@ TEST_CASE("a thin wall's free end is capped across, to the next wall; a door's j
   CHECK(cv::countNonZero(FindWalls(occ, 0.0, off, free).openings) == 0);
 }
 
-TEST_CASE("an opening across a corridor is open; a partition's opening constricts the room") {
+TEST_CASE("an opening across a corridor is open, a partition's opening constricts the room") {
   // MeasureOpenings on hand-made lines (1 cell = 5 cm). A corridor 1.6 m wide crossed by an
   // opening from wall to wall: the space beside the line is as wide as the line is open.
   cv::Mat corridor = cv::Mat::zeros(100, 140, CV_8U);

@@ -515,7 +515,7 @@ TEST_CASE("the default layout merge: an L-shaped room stays whole") {
 }
 
 TEST_CASE(
-    "the layout pieces are the rule borders and more; a model that merges nothing keeps "
+    "the layout pieces are the rule borders and more, a model that merges nothing keeps "
     "them all") {
   cv::Mat truth;
   const OccupancyGrid grid = SyntheticFloor(&truth);

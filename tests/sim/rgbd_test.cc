@@ -165,7 +165,7 @@ TEST_CASE("points decoded from depth land on the landmarks the features observe"
   CHECK(no_depth * 50 < checked);
 }
 
-TEST_CASE("same seed, same bytes; another seed, other bytes") {
+TEST_CASE("same seed, same bytes, another seed, other bytes") {
   const World w = MakeWorld();
   DenseOptions small;
   small.width = 160;
