@@ -46,7 +46,7 @@ def main():
         d = os.path.join(out, name)
         sh(zonemap, "sim", "floorplan", os.path.join(plans, f), "--gt",
            os.path.join(plans, name + "_gt.png"), "--tasks", "1", "--dense", "32x24",
-           "--max-features", "60", "--quiet", "--out", d)
+           "--max-features", "60", "--features", "oracle", "--quiet", "--out", d)
         db, grid = os.path.join(d, "map.db"), os.path.join(d, "map.yaml")
         auto, capped = os.path.join(d, "auto.geojson"), os.path.join(d, "auto_cap.geojson")
         sh(zonemap, "zones", "segment", grid, "--out", auto)
