@@ -19,6 +19,7 @@ struct SimOpts {
   std::string dense = "640x480";
   std::string depth_noise;  // A,B,C
   std::string image = "640x480";
+  std::string decor = "repeated";
   std::string features = "orb";  // the oracle only by name (issue 26)
   double hfov_deg = 90.0;
   bool quiet = false;
@@ -89,6 +90,11 @@ void AddScenarioOptions(CLI::App* cmd, SimOpts* o) {
                   "orb: exposure time for motion blur, seconds (0: no blur)")
       ->capture_default_str();
   cmd->add_option("--decor-seed", s.dense.decor_seed, "orb: the building's décor")->capture_default_str();
+  cmd->add_option("--decor", o->decor,
+                  "orb: repeated (posters and signs from small catalogues: places look alike, as "
+                  "in a hospital) or unique (every poster and sign its own design)")
+      ->check(CLI::IsMember({"repeated", "unique"}))
+      ->capture_default_str();
   cmd->add_flag("--quiet", o->quiet, "no progress bar");
 }
 
@@ -125,6 +131,7 @@ std::string Finalize(SimOpts* o, const std::string& source) {
   }
   if (s.threads < 1 || s.threads > 64) return "--threads must be in [1, 64]";
   s.features = o->features == "orb" ? sim::FeatureSource::kOrb : sim::FeatureSource::kOracle;
+  s.dense.repeated_decor = o->decor == "repeated";
   if (!(s.lighting.gain_spread >= 0.0 && s.lighting.gain_spread < 0.9)) {
     return "--lighting-spread must be in [0, 0.9)";
   }

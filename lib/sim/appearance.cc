@@ -129,7 +129,7 @@ Rgb SurfaceLook::Wall(const WallSurface& w, float h) const {
   if (ph % 3 == 0 && px >= 0.0f && px < 0.7f && h >= 1.25f && h < 2.05f) {
     const float py = 2.05f - h;  // 0..0.8 down the poster
     if (px < 0.03f || px > 0.67f || py < 0.03f || py > 0.77f) return {40, 40, 45};  // frame
-    const std::uint64_t design = (ph >> 8) % kPosterDesigns;
+    const std::uint64_t design = repeated_ ? (ph >> 8) % kPosterDesigns : ph >> 8;
     // A 5 x 7 grid of blocks, each one ink from the design; a title bar on top.
     if (py < 0.16f) return kPosterInk[design % std::size(kPosterInk)];
     const std::int64_t gx = Cell((px - 0.03f) * (5.0f / 0.64f));
@@ -144,7 +144,7 @@ Rgb SurfaceLook::Wall(const WallSurface& w, float h) const {
   if (sh % 2 == 0 && sx >= 0.0f && sx < 1.0f && h >= 2.1f && h < 2.35f) {
     const float sy = 2.35f - h;
     if (sx < 0.02f || sx > 0.98f || sy < 0.02f || sy > 0.23f) return {30, 60, 120};
-    const std::uint64_t design = (sh >> 8) % kSignDesigns;
+    const std::uint64_t design = repeated_ ? (sh >> 8) % kSignDesigns : sh >> 8;
     // Ten glyphs of 3 x 4 strokes: a glyph cell is ink or paper.
     const std::int64_t gx = Cell((sx - 0.05f) * (30.0f / 0.9f));
     const std::int64_t gy = Cell((sy - 0.05f) * (4.0f / 0.13f));

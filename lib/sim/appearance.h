@@ -68,7 +68,10 @@ struct WallSurface {
 class SurfaceLook {
  public:
   // decor_seed: the building's décor; the same seed gives the same building look.
-  explicit SurfaceLook(std::uint64_t decor_seed) : seed_(decor_seed) {}
+  // repeated_decor: posters and signs from the small catalogues (the hospital's aliasing); false
+  // gives every poster and sign slot a design of its own, to measure what aliasing costs.
+  explicit SurfaceLook(std::uint64_t decor_seed, bool repeated_decor = true)
+      : seed_(decor_seed), repeated_(repeated_decor) {}
 
   // Colours before distance shading, lighting and sensor noise (0..255 per channel).
   [[nodiscard]] Rgb Wall(const WallSurface& wall, float height_m) const;
@@ -80,6 +83,7 @@ class SurfaceLook {
   [[nodiscard]] float ValueNoise(float x, float y, std::uint64_t salt) const;
 
   std::uint64_t seed_;
+  bool repeated_;
 };
 
 }  // namespace zm::sim

@@ -104,7 +104,7 @@ void RenderRgbd(const Building& building, int floor, const Pose3& t_map_body,
                 const DenseOptions& dense, std::uint64_t seed, RgbdImage* out,
                 const FrameLight& light) {
   const bool textured = dense.style == SurfaceStyle::kTextured;
-  const SurfaceLook look(dense.decor_seed);
+  const SurfaceLook look(dense.decor_seed, dense.repeated_decor);
   const double range_m = dense.range_m;
   const auto sigma_a = static_cast<float>(dense.depth_sigma_m);
   const auto sigma_b = static_cast<float>(dense.depth_sigma_per_m);

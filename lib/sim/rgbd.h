@@ -65,6 +65,9 @@ struct DenseOptions {
   double footprint_scale = 1.0;
   SurfaceStyle style = SurfaceStyle::kFlat;
   std::uint64_t decor_seed = 1;  // kTextured: the building's décor (same seed, same look)
+  // kTextured: posters and signs from small catalogues, so places look alike (aliasing); false
+  // makes every one unique (`zonemap sim --decor unique`, the robustness table's control).
+  bool repeated_decor = true;
 };
 
 // Checks ranges; errors name the option ("--dense", "--cloud-step", ...).

@@ -689,6 +689,7 @@ Result<ScenarioReport> WriteScenario(const Building& b, const ScenarioOptions& o
                        {"offset_spread", o.lighting.offset_spread},
                        {"flicker", o.lighting.flicker},
                        {"exposure_s", o.lighting.exposure_s}};
+      j["decor"] = {{"seed", o.dense.decor_seed}, {"repeated", o.dense.repeated_decor}};
       j["vocabulary"] = {{"words", report.vocabulary_words}, {"memory_bytes", report.vocabulary_bytes}};
     }
     j["mapping"] = {{"keyframe_distance_m", o.keyframe_distance_m},

@@ -166,8 +166,13 @@ TEST_CASE("textured images: ORB finds texture, a nearby view under other light v
   CHECK(verified * 4 >= static_cast<int>(w.poses.size()) * 3);  // at least 3 views in 4
 }
 
-TEST_CASE("the décor repeats: a small catalogue of posters over many walls") {
-  const SurfaceLook look(1);
+// The posters' looks on 40 walls of 10 slots each: how many slots have one, how many designs.
+struct PosterCount {
+  int with_poster = 0;
+  std::size_t distinct = 0;
+};
+
+PosterCount CountPosters(const SurfaceLook& look) {
   std::set<std::vector<std::uint8_t>> posters;
   int with_poster = 0;
   for (int face = 0; face < 40; ++face) {
@@ -191,9 +196,21 @@ TEST_CASE("the décor repeats: a small catalogue of posters over many walls") {
       posters.insert(sig);
     }
   }
-  MESSAGE(with_poster << " posters, " << posters.size() << " distinct");
-  CHECK(with_poster > 60);
-  CHECK(posters.size() <= kPosterDesigns);
+  return {with_poster, posters.size()};
+}
+
+TEST_CASE("the décor repeats: a small catalogue of posters over many walls") {
+  const PosterCount n = CountPosters(SurfaceLook(1));
+  MESSAGE(n.with_poster << " posters, " << n.distinct << " distinct");
+  CHECK(n.with_poster > 60);
+  CHECK(n.distinct <= kPosterDesigns);
+}
+
+TEST_CASE("unique décor: the same walls, every poster a design of its own") {
+  const PosterCount repeated = CountPosters(SurfaceLook(1, true));
+  const PosterCount unique = CountPosters(SurfaceLook(1, false));
+  CHECK(unique.with_poster == repeated.with_poster);  // the same slots hold a poster
+  CHECK(unique.distinct * 10 >= static_cast<std::size_t>(unique.with_poster) * 9);
 }
 
 }  // namespace
