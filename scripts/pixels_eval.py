@@ -10,7 +10,9 @@ per resident keyframe, each from runs made side by side in one invocation.
      no blur           exposure 0
      blur x3           exposure 30 ms
      unique décor      every poster and sign a design of its own (no aliasing)
-   Columns: frames localized of ticks, closures rejected, ATE, tick p50 / p99, features p50.
+   and the repeated and unique décor again with the closure gate off (what it does against
+   aliasing). Columns: frames localized of ticks, closures rejected, ATE, tick p50 / p99,
+   features p50.
 2. Likelihood slope: the baseline replayed by unbounded, basic and semantic; per policy the
    resident keyframes (median), the likelihood stage (p50 ms), its cost per resident keyframe
    (median over ticks of likelihood / resident, us) and the postings the index walked (p50); and
@@ -38,6 +40,8 @@ VARIANTS = [
     ("blur30", "blur x3 (exposure 30 ms)", ["--exposure", "0.03"]),
     ("unique", "unique décor (no aliasing)", ["--decor", "unique"]),
 ]
+# What the closure gate does against aliasing: the repeated and the unique décor again, gate off.
+GATE_OFF = [("baseline", "closure gate off, repeated décor"), ("unique", "closure gate off, unique décor")]
 
 
 def sh(*cmd):
@@ -57,12 +61,25 @@ def generate(args, out, extra):
 
 def keyframes(scenario):
     with open(os.path.join(scenario, "scenario.json")) as f:
-        return int(json.load(f)["keyframes"])
+        return int(json.load(f)["counts"]["keyframes"])
 
 
-def run(args, scenario, policy, memory_thr, out):
+def gate_off_profile(out_dir):
+    """The host profile with closure_gate_m = 0 (the gate off), written beside the runs."""
+    src = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "profiles", "host.toml")
+    lines = open(src).read().splitlines()
+    i = lines.index("[localization]")
+    lines.insert(i + 1, "closure_gate_m = 0.0  # pixels_eval: the closure gate off")
+    path = os.path.join(out_dir, "host_gate_off.toml")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return path
+
+
+def run(args, scenario, policy, memory_thr, out, profile=None):
     sh(args.zonemap, "run", "--scenario", scenario, "--policy", policy, "--memory-thr",
-       str(memory_thr), "--time-compression", "0", "--device", "ledger", "--out", out)
+       str(memory_thr), "--time-compression", "0", "--device", "ledger", "--out", out,
+       *(["--profile", profile] if profile else []))
     with open(os.path.join(out, "summary.json")) as f:
         summary = json.load(f)
     ticks = []
@@ -82,11 +99,14 @@ def robustness(args, memory_thr_of):
     print("| variant | frames localized / ticks | closures rejected | ATE (m) | tick p50 / p99 (ms) |"
           " features per frame (p50) |")
     print("|---|---:|---:|---:|---:|---:|")
-    for key, name, extra in VARIANTS:
+    gate_off = gate_off_profile(args.out)
+    rows = [(key, name, extra, None) for key, name, extra in VARIANTS]
+    rows += [(key, name, dict((k, e) for k, _, e in VARIANTS)[key], gate_off) for key, name in GATE_OFF]
+    for key, name, extra, profile in rows:
         scen = os.path.join(args.out, "scenarios", key)
         generate(args, scen, extra)
         s, ticks = run(args, scen, "semantic", memory_thr_of(scen),
-                       os.path.join(args.out, "runs", os.path.basename(scen)))
+                       os.path.join(args.out, "runs", key + ("_gate_off" if profile else "")), profile)
         feats = [t.get("features", 0) for t in ticks]
         print(f"| {name} | {s['frames_localized']} / {s['ticks']} | {s['closures_rejected']} | "
               f"{s['ate_rmse_m']:.3f} | {s['tick_ms']['p50']:.1f} / {s['tick_ms']['p99']:.1f} | "
