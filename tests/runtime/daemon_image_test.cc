@@ -18,6 +18,7 @@
 #include "runtime/daemon.h"
 #include "runtime/sqlite_heap.h"
 #include "support/counting_allocator.h"
+#include "support/step_allocations.h"
 
 namespace zm {
 namespace {
@@ -338,26 +339,17 @@ TEST_CASE("warm image steps allocate nothing: JPEG and PNG frames, and refused i
   ImageSession s(map, Images320(), in);
   const int warm = 30;
   for (int i = 0; i < warm; ++i) REQUIRE(s.daemon->Step().value());
-  std::uint64_t steps = 0;
-  {
-    test::AllocationCounter news;
-    test::MallocCounter mallocs;
-    for (;;) {
-      auto more = s.daemon->Step();
-      if (!more.ok() || !more.value()) break;
-      ++steps;
-    }
-    CHECK(news.allocations() == 0);
+  const test::StepAllocations warm_steps = test::CountStepAllocations([&] { return s.daemon->Step(); });
+  CHECK(warm_steps.steps == in.size() - warm);
+  CHECK(warm_steps.news == 0);
 #if defined(__SANITIZE_ADDRESS__)
-    // ASan owns malloc, so the C libraries' malloc calls inside the scratch scope reach it:
-    // FAST's BufferArea (one per pyramid level, orb_extractor_test) and libpng's (its structs,
-    // zlib's inflate state) per PNG frame. Their bytes are freed in the frame.
-    MESSAGE("mallocs in the warm window under ASan: ", mallocs.mallocs());
+  // ASan owns malloc, so the C libraries' malloc calls inside the scratch scope reach it:
+  // FAST's BufferArea (one per pyramid level, orb_extractor_test) and libpng's (its structs,
+  // zlib's inflate state) per PNG frame. Their bytes are freed in the frame.
+  MESSAGE("mallocs in the warm window under ASan: ", warm_steps.mallocs);
 #else
-    CHECK(mallocs.mallocs() == 0);
+  CHECK(warm_steps.mallocs == 0);
 #endif
-  }
-  CHECK(steps == in.size() - warm);
   CHECK(s.daemon->image_refusals()[ImageRefusal::kUnreadable] > 5);
   CHECK(s.daemon->image_refusals()[ImageRefusal::kNoDepth] > 5);
   CHECK(s.daemon->loop().totals().images_refused == 0);

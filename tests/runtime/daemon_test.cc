@@ -24,6 +24,7 @@
 #include "rooms_map.h"
 #include "runtime/sqlite_heap.h"
 #include "support/counting_allocator.h"
+#include "support/step_allocations.h"
 
 namespace zm {
 namespace {
@@ -523,19 +524,10 @@ TEST_CASE("every warm Step allocates nothing, for every policy, over a live feed
              s.daemon->loop().totals().keyframes_unloaded;
     };
     const std::uint64_t churn_before = churn();
-    std::uint64_t steps = 0;
-    {
-      test::AllocationCounter counter;
-      test::MallocCounter mallocs;
-      for (;;) {
-        auto more = s.daemon->Step();
-        if (!more.ok() || !more.value()) break;
-        ++steps;
-      }
-      CHECK(counter.allocations() == 0);
-      CHECK(mallocs.mallocs() == 0);
-    }
-    CHECK(steps == in.size() - warm_lines);
+    const test::StepAllocations warm = test::CountStepAllocations([&] { return s.daemon->Step(); });
+    CHECK(warm.news == 0);
+    CHECK(warm.mallocs == 0);
+    CHECK(warm.steps == in.size() - warm_lines);
     CHECK(s.daemon->loop().totals().ticks - ticks_before == 260);
     // The zone policies load and evict along the sweep (basic retrieves along graph links, which
     // this map has none of; unbounded never changes).

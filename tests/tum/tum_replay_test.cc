@@ -191,6 +191,23 @@ struct Run {
   }
 };
 
+// zonemapd --tum over `rec` (odometry from its groundtruth or none), replayed to the end.
+struct TumRun {
+  std::unique_ptr<TumReplay> replay;
+  std::unique_ptr<Run> run;
+
+  TumRun(const Recording& rec, bool odometry) {
+    auto r = TumReplay::Open(rec.seq, rec.Options(odometry), rec.camera);
+    REQUIRE_MESSAGE(r.ok(), r.status().ToString());
+    replay = std::move(r).value();
+    DaemonInput in;
+    in.kind = DaemonInput::Kind::kCameraFiles;
+    in.camera_files = replay.get();
+    run = std::make_unique<Run>(rec, in);
+    run->ToEnd();
+  }
+};
+
 TEST_CASE(
     "tum replay: every colour frame by stamp, gaps included, odometry of the nearest stamp as the "
     "body pose") {
@@ -282,13 +299,8 @@ TEST_CASE(
   Recording rec(spec);
   for (const bool odometry : {true, false}) {
     CAPTURE(odometry);
-    auto replay = TumReplay::Open(rec.seq, rec.Options(odometry), rec.camera);
-    REQUIRE(replay.ok());
-    DaemonInput in;
-    in.kind = DaemonInput::Kind::kCameraFiles;
-    in.camera_files = replay.value().get();
-    Run run(rec, in);
-    run.ToEnd();
+    const TumRun tum(rec, odometry);
+    Run& run = *tum.run;
     CHECK(Contains(Lines(run.pose_path).at(0), " input tum images 320x240"));
     const std::vector<PoseLine> poses = run.Poses();
     REQUIRE(poses.size() == 12);
@@ -328,13 +340,8 @@ TEST_CASE("zonemapd --tum: gaps and bad images run on odometry, counted and name
         rec.seq + "/rgb/" + test::TumStamp(1305031100.0 + 10 * spec.frame_dt_s) + ".png";
     std::filesystem::resize_file(rgb, std::filesystem::file_size(rgb) / 2);
   }
-  auto replay = TumReplay::Open(rec.seq, rec.Options(true), rec.camera);
-  REQUIRE(replay.ok());
-  DaemonInput in;
-  in.kind = DaemonInput::Kind::kCameraFiles;
-  in.camera_files = replay.value().get();
-  Run run(rec, in);
-  run.ToEnd();
+  const TumRun tum(rec, true);
+  Run& run = *tum.run;
   const std::vector<PoseLine> poses = run.Poses();
   REQUIRE(poses.size() == 12);  // every frame answered
   for (const int i : {1, 3, 5, 7, 10}) {
