@@ -48,7 +48,7 @@ struct BenchMatrixOptions {
   // scale, the time compression, the co-tenant requests, the zram charge (SetDeviceRun).
   DeviceRunRequest run;
   std::uint32_t prompt_tokens = 0, answer_tokens = 0;  // 0 = the profile's
-  std::string lock_arena;  // "" = the profile's
+  std::string lock_arena;                              // "" = the profile's
 };
 
 // The cells, scenarios generated first (with this very program, `zonemap sim`) where missing.

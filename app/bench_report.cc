@@ -113,13 +113,12 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
   const auto closures = [&S](const nlohmann::json& cell, const char* pointer) {
     return S(cell, Stat(cell, pointer).is_null() ? "/loop_closures" : pointer, 0);
   };
-  Table t1{
-      {"scenario", "K_max", "policy", "co-tenant", "map process", "update rate (Hz)",
-       "frames dropped", "frames arrived", "loop closures accepted", "frames localized",
-       "avg TimeTotal (ms)",
-       "incl. start-up tick (ms)", "without idle-time loads (ms)", "with idle-time loads (ms)",
-       "p99 tick (ms)", "ATE RMSE (m)", "RPE trans RMSE (m)", "RPE rot RMSE (deg)"},
-      {}};
+  Table t1{{"scenario", "K_max", "policy", "co-tenant", "map process", "update rate (Hz)",
+            "frames dropped", "frames arrived", "loop closures accepted", "frames localized",
+            "avg TimeTotal (ms)", "incl. start-up tick (ms)", "without idle-time loads (ms)",
+            "with idle-time loads (ms)", "p99 tick (ms)", "ATE RMSE (m)", "RPE trans RMSE (m)",
+            "RPE rot RMSE (deg)"},
+           {}};
   Table t2{{"scenario", "K_max", "model (stand-in)", "policy", "outcome", "requests completed",
             "of", "restarts", "TPS median", "TPS aggregate", "latency p50 (ms)",
             "latency mean (ms)", "latency p95 (ms)", "major faults"},
@@ -153,8 +152,8 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
          S(r, "/frames_arrived", 0), closures(r, "/closures_accepted"),
          closures(r, "/frames_localized"), S(r, "/time_total_ms/steady", 2),
          S(r, "/time_total_ms/with_startup", 2), S(r, "/time_total_ms/without_idle_loads", 2),
-         S(r, "/time_total_ms/with_idle_loads", 2), S(r, "/tick_ms/p99", 2),
-         S(r, "/ate_rmse_m", 3), S(r, "/rpe_trans_rmse_m", 3), S(r, "/rpe_rot_rmse_deg", 2)});
+         S(r, "/time_total_ms/with_idle_loads", 2), S(r, "/tick_ms/p99", 2), S(r, "/ate_rmse_m", 3),
+         S(r, "/rpe_trans_rmse_m", 3), S(r, "/rpe_rot_rmse_deg", 2)});
     if (model != "none") {
       t2.rows.push_back(
           {sc, k, model, pol, Tally(r, {"/cotenant/symbol", "/cotenant/outcome"}),
@@ -221,12 +220,11 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
   // Tick latency per policy (issue 14): steady-state ticks (after the start-up tick), each
   // against unbounded's in the same scenario and co-tenant setting (no loads at all: the
   // floor; a ratio of means); the start-up load apart.
-  Table t5{
-      {"scenario", "K_max", "policy", "co-tenant", "ticks", "tick p50 (ms)", "tick p99 (ms)",
-       "tick max (ms)", "p99 / unbounded", "max / unbounded", "start-up tick (ms)", "start-up kf",
-       "start-up MB", "idle load (ms)", "late ticks", "loop closures accepted",
-       "frames localized", "ATE RMSE (m)"},
-      {}};
+  Table t5{{"scenario", "K_max", "policy", "co-tenant", "ticks", "tick p50 (ms)", "tick p99 (ms)",
+            "tick max (ms)", "p99 / unbounded", "max / unbounded", "start-up tick (ms)",
+            "start-up kf", "start-up MB", "idle load (ms)", "late ticks", "loop closures accepted",
+            "frames localized", "ATE RMSE (m)"},
+           {}};
   for (const auto& r : results) {
     const std::string sc = r["scenario_name"], model = r["model"];
     const nlohmann::json* floor = nullptr;
@@ -238,13 +236,12 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
       return floor == nullptr ? std::string("–") : ratio(Mean(r, ptr), Mean(*floor, ptr));
     };
     t5.rows.push_back({sc, std::to_string(r["k_max"].get<std::uint64_t>()), Label(r), model,
-                       S(r, "/tick_ms/count", 0), S(r, "/tick_ms/p50", 2),
-                       S(r, "/tick_ms/p99", 2), S(r, "/tick_ms/max", 1), vs("/tick_ms/p99"),
-                       vs("/tick_ms/max"), S(r, "/startup/tick_ms", 1),
-                       S(r, "/startup/keyframes_loaded", 0), S(r, "/startup/bytes_read", 1, 1e-6),
-                       S(r, "/loads/idle_load_ms_total", 0), S(r, "/loads/late_ticks", 0),
-                       closures(r, "/closures_accepted"), closures(r, "/frames_localized"),
-                       S(r, "/ate_rmse_m", 4)});
+                       S(r, "/tick_ms/count", 0), S(r, "/tick_ms/p50", 2), S(r, "/tick_ms/p99", 2),
+                       S(r, "/tick_ms/max", 1), vs("/tick_ms/p99"), vs("/tick_ms/max"),
+                       S(r, "/startup/tick_ms", 1), S(r, "/startup/keyframes_loaded", 0),
+                       S(r, "/startup/bytes_read", 1, 1e-6), S(r, "/loads/idle_load_ms_total", 0),
+                       S(r, "/loads/late_ticks", 0), closures(r, "/closures_accepted"),
+                       closures(r, "/frames_localized"), S(r, "/ate_rmse_m", 4)});
   }
   // Every table states the device (and "simulated" for the ledger), its scale, the clock and
   // the o.repeats.

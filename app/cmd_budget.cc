@@ -25,11 +25,11 @@
 #include <string>
 
 #include "commands.h"
-#include "param_options.h"
-#include "localization/map_vocabulary.h"
 #include "harness/cotenant.h"
 #include "harness/device_scale.h"
 #include "harness/experiment_profile.h"
+#include "localization/map_vocabulary.h"
+#include "param_options.h"
 
 namespace zm::app {
 namespace {
@@ -135,18 +135,20 @@ void AddBudgetCommand(CLI::App& app, CommandContext& ctx) {
       ->excludes(cotenant);
   cmd->add_option("--device-scale", o->device_scale, "the device at this fraction of its size (0 < S <= 1)");
   auto* keyframes = cmd->add_option("--keyframes", o->map_facts.keyframes, "keyframes in the map");
-  auto* largest = cmd->add_option("--largest-keyframe-bytes", o->map_facts.largest_keyframe_bytes,
-                                  "the map's largest resident keyframe (the slot, unless map.slot_bytes is set)");
+  auto* largest = cmd->add_option(
+      "--largest-keyframe-bytes", o->map_facts.largest_keyframe_bytes,
+      "the map's largest resident keyframe (the slot, unless map.slot_bytes is set)");
   auto* pairs = cmd->add_flag("--stdin", o->stdin_pairs,
                               "read 'KEYFRAMES LARGEST_KEYFRAME_BYTES' lines from stdin; one JSON line each");
   pairs->excludes(keyframes)->excludes(largest);
-  auto* map_opt = cmd->add_option("--map", o->map,
-                                  "the map's own facts: its keyframes, its largest, its vocabulary");
+  auto* map_opt = cmd->add_option(
+      "--map", o->map, "the map's own facts: its keyframes, its largest, its vocabulary");
   map_opt->excludes(keyframes)->excludes(largest)->excludes(pairs);
   auto* frames_opt = cmd->add_option("--frames", o->frames,
                                      "with --map: the frames a run reads (their images' size)");
-  auto* images_opt = cmd->add_option(
-      "--images", o->images, "with --map: camera frames of this size, WxH (the front-end's scratch)");
+  auto* images_opt =
+      cmd->add_option("--images", o->images,
+                      "with --map: camera frames of this size, WxH (the front-end's scratch)");
   frames_opt->needs(map_opt)->excludes(images_opt);
   images_opt->needs(map_opt);
   cmd->add_flag("--json", o->json, "print JSON");
@@ -168,8 +170,8 @@ void AddBudgetCommand(CLI::App& app, CommandContext& ctx) {
       return;
     }
     if (!o->stdin_pairs && o->map.empty() && (keyframes->count() == 0 || largest->count() == 0)) {
-      return ctx.Fail("budget",
-                      "--keyframes and --largest-keyframe-bytes are required (or --stdin, or --map)");
+      return ctx.Fail(
+          "budget", "--keyframes and --largest-keyframe-bytes are required (or --stdin, or --map)");
     }
     auto profile = LoadExperimentProfile(o->profile);
     if (!profile.ok()) return ctx.Fail("budget", profile.status());
@@ -225,14 +227,14 @@ void AddBudgetCommand(CLI::App& app, CommandContext& ctx) {
     std::printf("budget: map share %s, %s of it for keyframes%s (%s)\n",
                 b->map_share_bytes != 0 ? FormatBytes(b->map_share_bytes).c_str() : "unlimited",
                 b->keyframe_bytes != 0 ? FormatBytes(b->keyframe_bytes).c_str() : "all",
-                b->index_bytes != 0 ? " and their postings in the index" : "",
-                core.source.c_str());
+                b->index_bytes != 0 ? " and their postings in the index" : "", core.source.c_str());
     if (b->vocabulary_bytes != 0 || b->frame_scratch_bytes != 0) {
-      std::printf("budget: localization %s: vocabulary %s, inverted index %s (%u slots), frame "
-                  "scratch %s\n",
-                  FormatBytes(b->vocabulary_bytes + b->index_bytes + b->frame_scratch_bytes).c_str(),
-                  FormatBytes(b->vocabulary_bytes).c_str(), FormatBytes(b->index_bytes).c_str(),
-                  b->arena_slots, FormatBytes(b->frame_scratch_bytes).c_str());
+      std::printf(
+          "budget: localization %s: vocabulary %s, inverted index %s (%u slots), frame "
+          "scratch %s\n",
+          FormatBytes(b->vocabulary_bytes + b->index_bytes + b->frame_scratch_bytes).c_str(),
+          FormatBytes(b->vocabulary_bytes).c_str(), FormatBytes(b->index_bytes).c_str(),
+          b->arena_slots, FormatBytes(b->frame_scratch_bytes).c_str());
     }
   });
 }

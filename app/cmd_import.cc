@@ -9,8 +9,8 @@
 #include <string>
 
 #include "commands.h"
-#include "report_json.h"
 #include "import/rtabmap_import.h"
+#include "report_json.h"
 
 namespace zm::app {
 namespace {
@@ -55,16 +55,18 @@ nlohmann::json ToJson(const RtabmapImportReport& r, const std::string& out) {
                                       ? nlohmann::json{{"nodes", r.last_wm_nodes},
                                                        {"info_time_enter", r.last_info_time_enter}}
                                       : nlohmann::json(nullptr)},
-          {"features_source", r.orb_keyframes > 0 || r.orb_nodes_without_images > 0 ? "orb" : "rtabmap"},
+          {"features_source",
+           r.orb_keyframes > 0 || r.orb_nodes_without_images > 0 ? "orb" : "rtabmap"},
           {"orb_keyframes", r.orb_keyframes},
           {"orb_nodes_without_images", r.orb_nodes_without_images},
           {"extract_ms", r.extract_ms},
-          {"vocabulary", r.vocabulary_trained
-                             ? nlohmann::json{{"words", r.vocabulary.words},
-                                              {"nodes", r.vocabulary.nodes},
-                                              {"memory_bytes", r.vocabulary.memory_bytes},
-                                              {"training_descriptors", r.vocabulary.training_descriptors}}
-                             : nlohmann::json(nullptr)},
+          {"vocabulary",
+           r.vocabulary_trained
+               ? nlohmann::json{{"words", r.vocabulary.words},
+                                {"nodes", r.vocabulary.nodes},
+                                {"memory_bytes", r.vocabulary.memory_bytes},
+                                {"training_descriptors", r.vocabulary.training_descriptors}}
+               : nlohmann::json(nullptr)},
           {"ms", r.ms}};
 }
 

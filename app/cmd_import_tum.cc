@@ -10,8 +10,8 @@
 #include <string>
 
 #include "commands.h"
-#include "report_json.h"
 #include "import/tum_import.h"
+#include "report_json.h"
 
 namespace zm::app {
 namespace {

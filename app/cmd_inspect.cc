@@ -7,8 +7,8 @@
 #include <string>
 
 #include "commands.h"
-#include "report_json.h"
 #include "import/map_inspect.h"
+#include "report_json.h"
 
 namespace zm::app {
 namespace {
@@ -58,16 +58,17 @@ nlohmann::json ToJson(const MapInspection& m) {
           {"source", md.source},
           {"page_bytes", md.page_bytes},
           {"camera", has_camera ? CameraJson(md.camera) : nlohmann::json(nullptr)},
-          {"totals", {{"keyframes", m.keyframes.size()},
-                      {"links", md.link_count},
-                      {"zones", m.zones.size()},
-                      {"features", m.features},
-                      {"points3d", m.points3d},
-                      {"payload_bytes", m.payload_bytes},
-                      {"resident_bytes", m.resident_bytes},
-                      {"largest_resident_bytes", md.largest_payload_bytes},
-                      {"keyframes_with_images", m.keyframes_with_images},
-                      {"keyframes_without_features", m.keyframes_without_features}}},
+          {"totals",
+           {{"keyframes", m.keyframes.size()},
+            {"links", md.link_count},
+            {"zones", m.zones.size()},
+            {"features", m.features},
+            {"points3d", m.points3d},
+            {"payload_bytes", m.payload_bytes},
+            {"resident_bytes", m.resident_bytes},
+            {"largest_resident_bytes", md.largest_payload_bytes},
+            {"keyframes_with_images", m.keyframes_with_images},
+            {"keyframes_without_features", m.keyframes_without_features}}},
           {"vocabulary", vocabulary},
           {"zones", zones},
           {"keyframes", kfs}};

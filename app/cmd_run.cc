@@ -32,7 +32,8 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
   AddDeviceRunOptions(*cmd, &o->device);
   cmd->add_option("--cotenant-period-s", o->cotenant_period,
                   "wall seconds between co-tenant requests (default: the patrol / requests)");
-  cmd->add_option("--process-cap", o->process_cap, "cap this process (setrlimit), e.g. 6GiB; 0 = none");
+  cmd->add_option("--process-cap", o->process_cap,
+                  "cap this process (setrlimit), e.g. 6GiB; 0 = none");
   cmd->add_option("--max-ticks", o->max_ticks, "stop after this many ticks (0 = all)");
   cmd->add_option("--map-files", o->map_files,
                   "cold (default: the scenario's files dropped from the page cache first, so every "
@@ -93,17 +94,18 @@ void AddRunCommand(CLI::App& app, CommandContext& ctx) {
         r.map.arena_locked ? "locked" : "not locked",
         static_cast<unsigned long long>(replay.frames_arrived),
         static_cast<unsigned long long>(replay.frames_dropped), o->device.time_compression);
-    std::printf("%s: %llu ticks, K_max %llu, peak resident %llu, loop closures accepted %llu "
-                "(frames localized %llu), ATE %.3f m, tick p50 %.2f ms p99 %.2f ms, over-budget "
-                "ticks %llu%s\n",
-                j.policy.c_str(), static_cast<unsigned long long>(j.ticks),
-                static_cast<unsigned long long>(j.k_max),
-                static_cast<unsigned long long>(j.peak_resident_keyframes),
-                static_cast<unsigned long long>(j.closures_accepted),
-                static_cast<unsigned long long>(j.frames_localized),
-                replay.trajectory.ate_rmse_m.value_or(-1.0), j.tick_ms.p50, j.tick_ms.p99,
-                static_cast<unsigned long long>(j.over_budget_ticks),
-                j.interrupted ? " (interrupted)" : "");
+    std::printf(
+        "%s: %llu ticks, K_max %llu, peak resident %llu, loop closures accepted %llu "
+        "(frames localized %llu), ATE %.3f m, tick p50 %.2f ms p99 %.2f ms, over-budget "
+        "ticks %llu%s\n",
+        j.policy.c_str(), static_cast<unsigned long long>(j.ticks),
+        static_cast<unsigned long long>(j.k_max),
+        static_cast<unsigned long long>(j.peak_resident_keyframes),
+        static_cast<unsigned long long>(j.closures_accepted),
+        static_cast<unsigned long long>(j.frames_localized),
+        replay.trajectory.ate_rmse_m.value_or(-1.0), j.tick_ms.p50, j.tick_ms.p99,
+        static_cast<unsigned long long>(j.over_budget_ticks),
+        j.interrupted ? " (interrupted)" : "");
     std::printf("stages p50 / p99 ms:");
     for (std::size_t i = 0; i < j.stages.size(); ++i) {
       std::printf(" %s %.2f / %.2f", LoopStageName(static_cast<LoopStage>(i)), j.stages[i].p50_ms,

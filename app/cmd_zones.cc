@@ -115,7 +115,8 @@ void RunAnnotate(const AnnotateCliOpts& o, CommandContext& ctx) {
 void AddZonesAnnotateCommand(CLI::App& app, CommandContext& ctx) {
   auto opts = std::make_shared<AnnotateCliOpts>();
   CLI::App* cmd = AddZonesSubcommand(
-      app, "annotate", "Assign every keyframe of DB to the zones of ZONES and store the memberships");
+      app, "annotate",
+      "Assign every keyframe of DB to the zones of ZONES and store the memberships");
   cmd->add_option("DB", opts->db, "map database (modified in place: zones replaced)")->required();
   cmd->add_option("ZONES", opts->zones,
                   "zone file: GeoJSON FeatureCollection or {\"zones\": {name: [keyframe ids]}}")

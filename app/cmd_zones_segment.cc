@@ -219,7 +219,8 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
 void AddZonesSegmentCommand(CLI::App& app, CommandContext& ctx) {
   auto opts = std::make_shared<SegmentOpts>();
   CLI::App* cmd = AddZonesSubcommand(
-      app, "segment", "Automatic zones: room segmentation of an occupancy grid, or keyframe clusters");
+      app, "segment",
+      "Automatic zones: room segmentation of an occupancy grid, or keyframe clusters");
   cmd->add_option("map", opts->map,
                   "occupancy grid: ROS map YAML, PNG floor plan (white free, black occupied), or "
                   "RTAB-Map database (Admin.opt_map); omit to zone the --db keyframes alone");

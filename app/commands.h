@@ -27,7 +27,8 @@ struct CommandContext {
 // `zonemap zones annotate|segment` can be filled from several files in any order.
 CLI::App* GetOrAddSubcommand(CLI::App& app, const std::string& name, const std::string& description);
 // `zonemap zones NAME`: one of the zones group's subcommands (the group described once, here).
-CLI::App* AddZonesSubcommand(CLI::App& app, const std::string& name, const std::string& description);
+CLI::App* AddZonesSubcommand(CLI::App& app, const std::string& name,
+                             const std::string& description);
 
 // How a run goes on the device, as the command line says it: the options `run` and `bench` share
 // (bench passes them to every run of its matrix), declared once by AddDeviceRunOptions.
@@ -36,8 +37,8 @@ struct DeviceRunOptions {
   double device_scale = 1.0;      // --device-scale S
   double time_compression = 1.0;  // --time-compression X (old name --pace)
   std::uint32_t cotenant_requests = 30;
-  std::string lock_arena;          // --lock-arena on|off ("" = the profile's map.lock_arena)
-  std::string zram_charge = "on";  // --zram-charge on|off
+  std::string lock_arena;                // --lock-arena on|off ("" = the profile's map.lock_arena)
+  std::string zram_charge = "on";        // --zram-charge on|off
   CLI::Option* device_option = nullptr;  // --device itself: whether it was given
 };
 void AddDeviceRunOptions(CLI::App& cmd, DeviceRunOptions* options);

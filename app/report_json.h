@@ -10,8 +10,8 @@ namespace zm::app {
 
 // A camera's intrinsics: {"fx", "fy", "cx", "cy", "width", "height"}.
 inline nlohmann::json CameraJson(const CameraIntrinsics& c) {
-  return {{"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy}, {"width", c.width},
-          {"height", c.height}};
+  return {{"fx", c.fx}, {"fy", c.fy},       {"cx", c.cx},
+          {"cy", c.cy}, {"width", c.width}, {"height", c.height}};
 }
 
 }  // namespace zm::app

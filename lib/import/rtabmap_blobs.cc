@@ -21,7 +21,8 @@ std::size_t ElementBytes(std::int32_t type) {
 
 }  // namespace
 
-Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob, const std::string& what) {
+Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob,
+                                            const std::string& what) {
   if (blob.size() < 12) {
     return Corrupt(what + ": " + std::to_string(blob.size()) +
                    " bytes, shorter than the 12-byte rows/cols/type trailer");
@@ -31,8 +32,9 @@ Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob, con
   std::memcpy(&m.cols, blob.data() + blob.size() - 8, 4);
   std::memcpy(&m.type, blob.data() + blob.size() - 4, 4);
   if (m.rows < 0 || m.cols < 0 || m.type < 0 || m.type >= 8 * 512) {
-    return Corrupt(what + ": trailer claims " + std::to_string(m.rows) + "x" + std::to_string(m.cols) +
-                   " of OpenCV type " + std::to_string(m.type) + " (invalid)");
+    return Corrupt(what + ": trailer claims " + std::to_string(m.rows) + "x" +
+                   std::to_string(m.cols) + " of OpenCV type " + std::to_string(m.type) +
+                   " (invalid)");
   }
   const std::uint64_t want = std::uint64_t(m.rows) * std::uint64_t(m.cols) * ElementBytes(m.type);
   constexpr std::uint64_t kLimit = 1ull << 30;
@@ -45,25 +47,27 @@ Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob, con
   // fuzz/rtabmap_blob_fuzz.cc).
   if (want > std::uint64_t{1032} * (blob.size() - 12)) {
     return Corrupt(what + ": trailer claims " + std::to_string(want) + " bytes from " +
-                   std::to_string(blob.size() - 12) + " bytes of zlib data (more than zlib's 1032:1)");
+                   std::to_string(blob.size() - 12) +
+                   " bytes of zlib data (more than zlib's 1032:1)");
   }
   m.data.resize(static_cast<std::size_t>(want));
   uLongf got = static_cast<uLongf>(want);
   // zlib wants a non-null destination even for an empty matrix.
   Bytef empty = 0;
-  const int zrc = uncompress(want > 0 ? reinterpret_cast<Bytef*>(m.data.data()) : &empty, &got,
-                             reinterpret_cast<const Bytef*>(blob.data()),
-                             static_cast<uLong>(blob.size() - 12));
-  const std::string claim = "trailer claims " + std::to_string(m.rows) + "x" + std::to_string(m.cols) +
-                            " of OpenCV type " + std::to_string(m.type) + " = " +
-                            std::to_string(want) + " bytes";
+  const int zrc =
+      uncompress(want > 0 ? reinterpret_cast<Bytef*>(m.data.data()) : &empty, &got,
+                 reinterpret_cast<const Bytef*>(blob.data()), static_cast<uLong>(blob.size() - 12));
+  const std::string claim = "trailer claims " + std::to_string(m.rows) + "x" +
+                            std::to_string(m.cols) + " of OpenCV type " + std::to_string(m.type) +
+                            " = " + std::to_string(want) + " bytes";
   if (zrc == Z_BUF_ERROR) return Corrupt(what + ": " + claim + ", but the data inflates to more");
   if (zrc != Z_OK) {
     return Corrupt(what + ": zlib data of " + std::to_string(blob.size() - 12) +
                    " bytes is corrupt (zlib error " + std::to_string(zrc) + ")");
   }
   if (got != want) {
-    return Corrupt(what + ": " + claim + ", but the data inflates to " + std::to_string(got) + " bytes");
+    return Corrupt(what + ": " + claim + ", but the data inflates to " + std::to_string(got) +
+                   " bytes");
   }
   return m;
 }
@@ -96,11 +100,12 @@ Result<CameraIntrinsics> ParseRtabmapCalibration(std::span<const std::byte> blob
   if (h[4] < 0 || h[5] < 0 || bad_count(k) || bad_count(d) || bad_count(r) || bad_count(p) ||
       bad_count(t) || (k != 0 && k != 9) || (t != 0 && t != 12)) {
     return Corrupt("calibration header (" + std::to_string(h[4]) + "x" + std::to_string(h[5]) +
-                   ", |K|=" + std::to_string(k) + " |D|=" + std::to_string(d) + " |R|=" +
-                   std::to_string(r) + " |P|=" + std::to_string(p) + " |T|=" + std::to_string(t) +
-                   ") is not a CameraModel of RTAB-Map >= 0.18");
+                   ", |K|=" + std::to_string(k) + " |D|=" + std::to_string(d) +
+                   " |R|=" + std::to_string(r) + " |P|=" + std::to_string(p) +
+                   " |T|=" + std::to_string(t) + ") is not a CameraModel of RTAB-Map >= 0.18");
   }
-  const std::size_t need = kHeader + 8 * static_cast<std::size_t>(k + d + r + p) + 4 * static_cast<std::size_t>(t);
+  const std::size_t need =
+      kHeader + 8 * static_cast<std::size_t>(k + d + r + p) + 4 * static_cast<std::size_t>(t);
   if (blob.size() < need) {
     return Corrupt("calibration of " + std::to_string(blob.size()) + " bytes, its header needs " +
                    std::to_string(need));

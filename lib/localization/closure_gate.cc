@@ -1,10 +1,9 @@
 #include "localization/closure_gate.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-
-#include <Eigen/Geometry>
 
 namespace zm {
 namespace {
@@ -27,7 +26,8 @@ Status ValidateClosureGateOptions(const ClosureGateOptions& o) {
     return InvalidArgument("closure gate rotation_deg (closure_gate_deg) must be in (0, 180]");
   if (!(o.rotation_per_m_deg >= 0.0) || !(o.rotation_per_m_deg <= 180.0))
     return InvalidArgument("closure gate rotation_per_m_deg must be in [0, 180]");
-  if (o.agree < 1 || o.agree > 1000) return InvalidArgument("closure gate agree must be in [1, 1000]");
+  if (o.agree < 1 || o.agree > 1000)
+    return InvalidArgument("closure gate agree must be in [1, 1000]");
   return Status::Ok();
 }
 
@@ -40,7 +40,8 @@ void ClosureGate::Advance(const Pose3& odom) {
 }
 
 double ClosureGate::gate_rotation_rad() const {
-  return std::min(180.0, o_.rotation_deg + o_.rotation_per_m_deg * path_m_) * std::numbers::pi / 180.0;
+  return std::min(180.0, o_.rotation_deg + o_.rotation_per_m_deg * path_m_) * std::numbers::pi /
+         180.0;
 }
 
 bool ClosureGate::Check(const Pose3& t_map_body, const Pose3& predicted) {
@@ -53,8 +54,9 @@ bool ClosureGate::Check(const Pose3& t_map_body, const Pose3& predicted) {
   const Pose3 correction = t_map_body * odom_.inverse();
   if (alt_votes_ > 0 && frame_ != alt_frame_) {
     const Pose3 alt_body = alt_correction_ * odom_;
-    const bool agrees = (alt_body.translation() - t_map_body.translation()).norm() <= o_.base_m &&
-                        RotationError(alt_body, t_map_body) <= o_.rotation_deg * std::numbers::pi / 180.0;
+    const bool agrees =
+        (alt_body.translation() - t_map_body.translation()).norm() <= o_.base_m &&
+        RotationError(alt_body, t_map_body) <= o_.rotation_deg * std::numbers::pi / 180.0;
     alt_votes_ = agrees ? alt_votes_ + 1 : 1;
   } else if (alt_votes_ == 0) {
     alt_votes_ = 1;

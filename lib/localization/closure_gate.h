@@ -25,17 +25,17 @@
 
 #include <cstdint>
 
-#include "geometry/pose.h"
 #include "common/status.h"
+#include "geometry/pose.h"
 
 namespace zm {
 
 struct ClosureGateOptions {
-  double base_m = 0.5;         // 0: the check is off (every verified closure is accepted)
-  double per_m = 0.1;          // metres of allowed disagreement per metre travelled
-  double rotation_deg = 15.0;  // the angle between the two orientations (any axis)
+  double base_m = 0.5;              // 0: the check is off (every verified closure is accepted)
+  double per_m = 0.1;               // metres of allowed disagreement per metre travelled
+  double rotation_deg = 15.0;       // the angle between the two orientations (any axis)
   double rotation_per_m_deg = 1.0;  // degrees per metre travelled
-  std::uint32_t agree = 3;     // rejected closures in a row that agree: re-localize
+  std::uint32_t agree = 3;          // rejected closures in a row that agree: re-localize
 };
 
 [[nodiscard]] Status ValidateClosureGateOptions(const ClosureGateOptions& o);
@@ -68,7 +68,7 @@ class ClosureGate {
   bool relocalized_ = false;
   Pose3 odom_ = Pose3::Identity();  // this frame's
   double path_m_ = 0.0;
-  std::uint64_t frame_ = 0;         // Advance() calls
+  std::uint64_t frame_ = 0;  // Advance() calls
   // The rejected closures' own hypothesis: the correction T_map_odom they imply, how many in a
   // row agree with it, and the frame of the last one (one vote per frame).
   Pose3 alt_correction_ = Pose3::Identity();

@@ -200,7 +200,8 @@ std::size_t InvertedIndex::BytesFor(const InvertedIndexOptions& o) {
   const std::size_t slots = o.max_keyframes;
   return sizeof(InvertedIndex) + BlockBound(o) * sizeof(Block) + o.word_count * sizeof(WordList) +
          (slots << StrideShift(o.max_words_per_keyframe)) * sizeof(DirectEntry) +
-         slots * (sizeof(std::uint32_t) + sizeof(KeyframeId) + sizeof(float) + sizeof(std::uint32_t));
+         slots *
+             (sizeof(std::uint32_t) + sizeof(KeyframeId) + sizeof(float) + sizeof(std::uint32_t));
 }
 
 std::size_t InvertedIndex::memory_bytes() const {

@@ -101,8 +101,8 @@ namespace {
 
 // Per slot: the keyframe indexed there, the tick it was last seen, its index into the resident
 // span, its place in indexed_slots_, its likelihood.
-constexpr std::size_t kVocabularyBytesPerSlot = sizeof(std::int64_t) + sizeof(std::uint64_t) +
-                                                2 * sizeof(std::uint32_t) + sizeof(float);
+constexpr std::size_t kVocabularyBytesPerSlot =
+    sizeof(std::int64_t) + sizeof(std::uint64_t) + 2 * sizeof(std::uint32_t) + sizeof(float);
 // A bag of `words`: its entries and Transform's word scratch (BowVector).
 std::size_t BagBytes(std::size_t words) {
   return words * (sizeof(BowEntry) + sizeof(std::uint32_t));
@@ -122,8 +122,8 @@ std::size_t VocabularyIndexBytes(std::uint32_t word_count, std::uint32_t max_slo
 std::size_t Localizer::index_memory_bytes() const {
   if (index_ == nullptr) return 0;
   // The capacities UseVocabulary reserved, each table by its own.
-  return index_->memory_bytes() +
-         slot_id_.capacity() * sizeof(std::int64_t) + slot_seen_.capacity() * sizeof(std::uint64_t) +
+  return index_->memory_bytes() + slot_id_.capacity() * sizeof(std::int64_t) +
+         slot_seen_.capacity() * sizeof(std::uint64_t) +
          slot_resident_.capacity() * sizeof(std::uint32_t) +
          indexed_slots_.capacity() * sizeof(std::uint32_t) + scores_f_.capacity() * sizeof(float) +
          BagBytes(bag_.capacity()) + top_.capacity() * sizeof(IndexCandidate);

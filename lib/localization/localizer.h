@@ -124,7 +124,7 @@ struct LocalizeResult {
   std::uint32_t closures_rejected = 0;  // candidates examined and not accepted this tick
   std::uint32_t pnp_errors = 0;         // PnP input errors or all-degenerate samples (rejections)
   std::uint32_t inconsistent = 0;       // verified, but refused by the closure gate (rejections)
-  bool relocalized = false;             // accepted because rejected closures agreed (closure_gate.h)
+  bool relocalized = false;  // accepted because rejected closures agreed (closure_gate.h)
   bool bad_frame = false;               // keypoints.size() != 2 * descriptors.size()
   // With a vocabulary: the best resident keyframe's likelihood, the index's work, and where the
   // time went (ms): syncing the index with the resident set (keyframes entering or leaving:
@@ -147,8 +147,8 @@ struct LocalizerStats {
   std::uint64_t closures_rejected = 0;
   std::uint64_t candidates_examined = 0;
   std::uint64_t pnp_errors = 0;
-  std::uint64_t inconsistent = 0;   // verified closures the closure gate refused
-  std::uint64_t relocalized = 0;    // closures accepted by agreement after refusals
+  std::uint64_t inconsistent = 0;  // verified closures the closure gate refused
+  std::uint64_t relocalized = 0;   // closures accepted by agreement after refusals
   std::uint64_t bad_frames = 0;
 };
 

@@ -43,7 +43,7 @@ namespace zm {
 // A dense keyframe's payload (kJpegColourRvlDepth, the features' 3-D points from the depth):
 // what the simulator and the importers write.
 struct DenseKeyframeImages {
-  std::span<const std::uint8_t> rgb;  // width * height * 3, row-major
+  std::span<const std::uint8_t> rgb;    // width * height * 3, row-major
   const DepthImage16* depth = nullptr;  // width * height, millimetres
   std::uint32_t width = 0;
   std::uint32_t height = 0;

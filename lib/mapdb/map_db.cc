@@ -285,7 +285,8 @@ Result<std::vector<ZoneRecord>> MapDb::Zones() const {
                      std::to_string(bytes) + " bytes is not a whole number of (x, y) float64 pairs");
     }
     z.polygon.resize(static_cast<std::size_t>(bytes / 16));
-    if (bytes > 0) std::memcpy(z.polygon.data(), sqlite3_column_blob(s, 6), static_cast<std::size_t>(bytes));
+    if (bytes > 0)
+      std::memcpy(z.polygon.data(), sqlite3_column_blob(s, 6), static_cast<std::size_t>(bytes));
     if (z.id.value != static_cast<std::int32_t>(out.size())) {
       return Corrupt(impl_->path + ": zone ids are not dense: found zone " +
                      std::to_string(z.id.value) + " at position " + std::to_string(out.size()));
@@ -300,12 +301,12 @@ Result<std::vector<ZoneRecord>> MapDb::Zones() const {
 Result<std::vector<ZoneMember>> MapDb::ZoneMembers() const {
   impl_->CountMetadataRead();
   std::vector<ZoneMember> out;
-  ZM_RETURN_IF_ERROR(ForEachRow(impl_->db.get(), impl_->all_members.get(), "reading table zone_member",
-                                [&](sqlite3_stmt* s) {
-                                  out.push_back(ZoneMember{ZoneId{sqlite3_column_int(s, 0)},
-                                                           KeyframeId{sqlite3_column_int64(s, 1)}});
-                                  return Status::Ok();
-                                }));
+  ZM_RETURN_IF_ERROR(ForEachRow(
+      impl_->db.get(), impl_->all_members.get(), "reading table zone_member", [&](sqlite3_stmt* s) {
+        out.push_back(
+            ZoneMember{ZoneId{sqlite3_column_int(s, 0)}, KeyframeId{sqlite3_column_int64(s, 1)}});
+        return Status::Ok();
+      }));
   return out;
 }
 
@@ -368,15 +369,16 @@ Result<RecordedWorkingMemory> MapDb::LastWorkingMemory() const {
                       PrepareOn(db, path, "last_wm",
                                 "SELECT l.keyframe_id, k.id FROM last_wm AS l LEFT JOIN keyframe "
                                 "AS k ON k.id = l.keyframe_id ORDER BY l.keyframe_id"));
-  ZM_RETURN_IF_ERROR(ForEachRow(db, ids.get(), path + ": reading table last_wm", [&](sqlite3_stmt* s) {
-    const KeyframeId id{sqlite3_column_int64(s, 0)};
-    if (sqlite3_column_type(s, 1) == SQLITE_NULL) {
-      return Corrupt(path + ": table last_wm names keyframe " + std::to_string(id.value) +
-                     ", which is not in the map");
-    }
-    out.ids.push_back(id);
-    return Status::Ok();
-  }));
+  ZM_RETURN_IF_ERROR(
+      ForEachRow(db, ids.get(), path + ": reading table last_wm", [&](sqlite3_stmt* s) {
+        const KeyframeId id{sqlite3_column_int64(s, 0)};
+        if (sqlite3_column_type(s, 1) == SQLITE_NULL) {
+          return Corrupt(path + ": table last_wm names keyframe " + std::to_string(id.value) +
+                         ", which is not in the map");
+        }
+        out.ids.push_back(id);
+        return Status::Ok();
+      }));
   return out;
 }
 

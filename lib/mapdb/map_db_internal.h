@@ -132,8 +132,8 @@ namespace zm {
 // file (this header is private to lib/mapdb, so nothing else sees them).
 using mapdb_detail::CheckSchema;
 using mapdb_detail::kCopyChunkBytes;
-using mapdb_detail::kInformationBlobBytes;
 using mapdb_detail::Kf;
+using mapdb_detail::kInformationBlobBytes;
 using mapdb_detail::kPoseBlobBytes;
 using mapdb_detail::kSchemaSql;
 using mapdb_detail::kVocabularyTableSql;

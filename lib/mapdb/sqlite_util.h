@@ -62,7 +62,8 @@ class StmtReset {
 // Steps `s` over every row, calling `row(s)` (returning Status) on each, and resets it when done.
 // The first error of a row, or SQLite's (named by `context`: "reading table zone"), ends it.
 template <typename RowFn>
-[[nodiscard]] Status ForEachRow(sqlite3* db, sqlite3_stmt* s, std::string_view context, RowFn&& row) {
+[[nodiscard]] Status ForEachRow(sqlite3* db, sqlite3_stmt* s, std::string_view context,
+                                RowFn&& row) {
   StmtReset reset(s);
   int rc;
   while ((rc = sqlite3_step(s)) == SQLITE_ROW) {

@@ -6,8 +6,8 @@
 
 #include "arena/arena.h"
 #include "arena/frame_scratch.h"
-#include "localization/localizer.h"
 #include "localization/frame_scratch_size.h"
+#include "localization/localizer.h"
 #include "memory/policy_kind.h"
 
 namespace zm {
@@ -61,14 +61,16 @@ namespace {
 // What the inverted index over `slots` arena slots reserves; 0 without a vocabulary.
 std::uint64_t IndexBytes(const LocalizationInputs& l, std::uint64_t slots) {
   if (l.vocabulary_words == 0 || slots == 0) return 0;
-  return VocabularyIndexBytes(l.vocabulary_words, static_cast<std::uint32_t>(slots), l.word_features);
+  return VocabularyIndexBytes(l.vocabulary_words, static_cast<std::uint32_t>(slots),
+                              l.word_features);
 }
 
 // The index over the arena's slots must be one the localizer can build (32-bit postings).
 Status CheckIndex(const LocalizationInputs& l, std::uint32_t slots) {
   if (l.vocabulary_words == 0) return Status::Ok();
-  return ValidateInvertedIndexOptions(
-      {.word_count = l.vocabulary_words, .max_keyframes = slots, .max_words_per_keyframe = l.word_features});
+  return ValidateInvertedIndexOptions({.word_count = l.vocabulary_words,
+                                       .max_keyframes = slots,
+                                       .max_words_per_keyframe = l.word_features});
 }
 
 // The largest k <= limit whose slots and index fit `room` (0 when not even one does). The cost
@@ -131,12 +133,14 @@ Result<Budget> DeriveBudget(const BudgetInputs& in) {
   std::uint64_t k = in.keyframe_count;
   if (in.map.memory_thr_keyframes != 0) k = std::min(k, in.map.memory_thr_keyframes);
   if (b.map_share_bytes != 0) {
-    const std::uint64_t besides = in.map.overhead_bytes + b.vocabulary_bytes + b.frame_scratch_bytes;
+    const std::uint64_t besides =
+        in.map.overhead_bytes + b.vocabulary_bytes + b.frame_scratch_bytes;
     if (besides >= b.map_share_bytes) {
       return OutOfRange("map.overhead_bytes (" + FormatBytes(in.map.overhead_bytes) +
-                        ") + vocabulary (" + FormatBytes(b.vocabulary_bytes) + ") + frame scratch (" +
-                        FormatBytes(b.frame_scratch_bytes) + ") leave nothing of the map share (" +
-                        FormatBytes(b.map_share_bytes) + ") for keyframes");
+                        ") + vocabulary (" + FormatBytes(b.vocabulary_bytes) +
+                        ") + frame scratch (" + FormatBytes(b.frame_scratch_bytes) +
+                        ") leave nothing of the map share (" + FormatBytes(b.map_share_bytes) +
+                        ") for keyframes");
     }
     b.keyframe_bytes = b.map_share_bytes - besides;
     const std::uint64_t fit = LargestFit(b.keyframe_bytes, b.slot_bytes, k, loc);

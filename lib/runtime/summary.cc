@@ -2,9 +2,9 @@
 // docs/runtime.md, "summary.json").
 #include "runtime/summary.h"
 
-#include <string_view>
 #include <optional>
 #include <string>
+#include <string_view>
 
 namespace zm {
 namespace {

@@ -47,9 +47,9 @@ Result<std::unique_ptr<TickLoop>> TickLoop::Create(const LoopConfig& config, Map
   ZM_ASSIGN_OR_RETURN(std::optional<Vocabulary> vocabulary, LoadMapVocabulary(map, "the map"));
   const FrameSource::Images images = frames.images();
   // The one derivation of K_max, the arena and localization's memory (budget.h).
-  ZM_ASSIGN_OR_RETURN(const Budget budget,
-                      DeriveBudget(LoopBudgetInputs(config, meta,
-                                                    vocabulary ? &*vocabulary : nullptr, images)));
+  ZM_ASSIGN_OR_RETURN(
+      const Budget budget,
+      DeriveBudget(LoopBudgetInputs(config, meta, vocabulary ? &*vocabulary : nullptr, images)));
 
   // The bounded policies get an arena of exactly K_max slots: exceeding the budget is then
   // physically impossible. basic and unbounded model RTAB-Map's heap, which grows: their arena

@@ -27,9 +27,11 @@ Result<ScenarioInfo> LoadScenario(const std::string& dir) {
   const std::string path = dir + "/scenario.json";
   ZM_ASSIGN_OR_RETURN(nlohmann::json j, ReadJson(path));
   try {
-    if (j.value("format", "") != "zonemap scenario") return InvalidArgument(path + " is not a zonemap scenario file");
+    if (j.value("format", "") != "zonemap scenario")
+      return InvalidArgument(path + " is not a zonemap scenario file");
     if (j.value("version", 0) != 1) {
-      return FailedPrecondition(path + " has version " + std::to_string(j.value("version", 0)) + ", expected 1");
+      return FailedPrecondition(path + " has version " + std::to_string(j.value("version", 0)) +
+                                ", expected 1");
     }
     ScenarioInfo s;
     s.dir = dir;
@@ -76,10 +78,12 @@ Result<ScenarioInfo> LoadScenario(const std::string& dir) {
 Result<Route> LoadRoute(const std::string& path) {
   ZM_ASSIGN_OR_RETURN(nlohmann::json j, ReadJson(path));
   try {
-    if (j.value("format", "") != "zonemap route") return InvalidArgument(path + " is not a zonemap route file");
+    if (j.value("format", "") != "zonemap route")
+      return InvalidArgument(path + " is not a zonemap route file");
     Route r;
     for (const auto& t : j.at("tasks")) {
-      r.tasks.push_back({t.at("goal_zone").get<std::string>(), t.at("start_frame").get<std::uint64_t>(),
+      r.tasks.push_back({t.at("goal_zone").get<std::string>(),
+                         t.at("start_frame").get<std::uint64_t>(),
                          t.at("end_frame").get<std::uint64_t>()});
     }
     for (const auto& z : j.at("zones")) {

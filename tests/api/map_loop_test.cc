@@ -8,10 +8,10 @@
 
 #include <cmath>
 #include <fstream>
-#include <sstream>
 #include <iterator>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include "api/api_test_util.h"
@@ -48,7 +48,8 @@ struct GateLoop {
     REQUIRE_MESSAGE(opened.ok(), opened.status().ToString());
     loop = std::move(opened).value();
     features = RandomFeatures(rng, 10);
-    REQUIRE(loop->Process({.stamp_s = 1.0, .odom = zm::test::XYYaw(3, 5, 0), .features = features}).ok());
+    REQUIRE(loop->Process({.stamp_s = 1.0, .odom = zm::test::XYYaw(3, 5, 0), .features = features})
+                .ok());
   }
   std::mt19937 rng;
   zm::test::ApiScenario scenario;

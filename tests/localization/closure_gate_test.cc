@@ -5,7 +5,6 @@
 #include <doctest/doctest.h>
 
 #include <Eigen/Geometry>
-
 #include <cmath>
 
 #include "geometry/pose.h"
@@ -17,7 +16,8 @@ namespace {
 Pose3 Odom(int frame) { return PoseFromXYYaw(0.5 * frame, 0.0, 0.0); }
 
 TEST_CASE("closure gate: the first closure is taken, then only those odometry can explain") {
-  ClosureGate gate({.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
+  ClosureGate gate(
+      {.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
   gate.Advance(Odom(0));
   CHECK_FALSE(gate.has_fix());
   // No prior: even a pose 30 m away is accepted (a robot placed anywhere).
@@ -37,7 +37,8 @@ TEST_CASE("closure gate: the first closure is taken, then only those odometry ca
 }
 
 TEST_CASE("closure gate: the gate grows with the path since the last closure") {
-  ClosureGate gate({.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
+  ClosureGate gate(
+      {.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
   gate.Advance(Odom(0));
   REQUIRE(gate.Check(Odom(0), Odom(0)));
   gate.Accepted();
@@ -49,8 +50,10 @@ TEST_CASE("closure gate: the gate grows with the path since the last closure") {
   CHECK(gate.gate_m() == doctest::Approx(0.55));  // and back to tight after it
 }
 
-TEST_CASE("closure gate: rejected closures that agree on three frames re-localize, aliasing does not") {
-  ClosureGate gate({.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
+TEST_CASE(
+    "closure gate: rejected closures that agree on three frames re-localize, aliasing does not") {
+  ClosureGate gate(
+      {.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
   gate.Advance(Odom(0));
   REQUIRE(gate.Check(Odom(0), Odom(0)));
   gate.Accepted();
@@ -87,16 +90,18 @@ TEST_CASE("closure gate: orientations compared by the angle between them, not by
   // axis is nearly vertical and a yaw read off it swings by radians for a degree of pitch.
   const auto pose = [](double x, double pitch_deg) {
     Pose3 p = Pose3::Identity();
-    p.linear() = Eigen::AngleAxisd(pitch_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    p.linear() =
+        Eigen::AngleAxisd(pitch_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
     p.translation() = Eigen::Vector3d(x, 0.0, 1.0);
     return p;
   };
-  ClosureGate gate({.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
+  ClosureGate gate(
+      {.base_m = 0.5, .per_m = 0.1, .rotation_deg = 15.0, .rotation_per_m_deg = 1.0, .agree = 3});
   gate.Advance(pose(0.0, 85.0));
   REQUIRE(gate.Check(pose(0.0, 85.0), pose(0.0, 85.0)));
   gate.Accepted();
   gate.Advance(pose(0.1, 85.0));
-  CHECK(gate.Check(pose(0.1, 87.0), pose(0.1, 85.0)));         // 2 degrees of PnP noise
+  CHECK(gate.Check(pose(0.1, 87.0), pose(0.1, 85.0)));               // 2 degrees of PnP noise
   CHECK_FALSE(gate.Check(pose(0.1, 85.0 - 40.0), pose(0.1, 85.0)));  // 40 degrees: not this place
 }
 
@@ -110,7 +115,8 @@ TEST_CASE("closure gate: base_m 0 turns it off, options are checked") {
   CHECK(ValidateClosureGateOptions({}).ok());
   CHECK_FALSE(ValidateClosureGateOptions({.base_m = -1.0}).ok());
   CHECK_FALSE(ValidateClosureGateOptions({.agree = 0}).ok());
-  CHECK(ValidateClosureGateOptions({.rotation_deg = 0.0}).message().find("rotation_deg") != std::string::npos);
+  CHECK(ValidateClosureGateOptions({.rotation_deg = 0.0}).message().find("rotation_deg") !=
+        std::string::npos);
 }
 
 }  // namespace

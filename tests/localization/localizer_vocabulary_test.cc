@@ -146,7 +146,8 @@ TEST_CASE("vocabulary likelihood: it reserves what the memory budget counts for 
   // Ticks over the resident set reserve nothing more.
   const Pose3 truth = PoseFromXYYaw(12.3, 0.0, 0.0);
   (void)loc.Localize(test::MakeFrame(0, 0.0, truth, world.Observe(truth)), truth, all);
-  CHECK(loc.index_memory_bytes() == VocabularyIndexBytes(vocab.word_count(), 1000, config.word_features));
+  CHECK(loc.index_memory_bytes() ==
+        VocabularyIndexBytes(vocab.word_count(), 1000, config.word_features));
 }
 
 TEST_CASE("vocabulary likelihood: a warm tick allocates nothing, through PnP") {

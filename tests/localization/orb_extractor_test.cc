@@ -167,7 +167,8 @@ TEST_CASE("orb extractor: bad inputs give one clear error naming the thing and t
   CHECK(OrbExtractor::Create({}, bad).status().code() == StatusCode::kInvalidArgument);
 }
 
-TEST_CASE("orb extractor: a warm Extract makes no heap allocation, OpenCV's go to the frame scratch") {
+TEST_CASE(
+    "orb extractor: a warm Extract makes no heap allocation, OpenCV's go to the frame scratch") {
   OrbExtractor extractor = MakeExtractor();
   const cv::Mat grey = TexturedGrey(5);
   cv::Mat bgr;

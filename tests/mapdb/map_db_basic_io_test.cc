@@ -196,7 +196,8 @@ TEST_CASE("graph-search point queries fail on a damaged link and allocate nothin
   CHECK(st.status().message().find("link 2->3: transform blob is 1 bytes") != std::string::npos);
 }
 
-TEST_CASE("a map without the link_to index reads links the same, opening it to write adds the index") {
+TEST_CASE(
+    "a map without the link_to index reads links the same, opening it to write adds the index") {
   GraphMap g;
   Sql(g.path, "DROP INDEX link_to");
   {

@@ -84,7 +84,8 @@ TEST_CASE("map database round trip keeps metadata, poses, links and zones") {
   CHECK((*members)[5].keyframe == KeyframeId{5});
 }
 
-TEST_CASE_FIXTURE(LoadFixture, "zone load lands exact payload bytes in slots, one query and one transaction") {
+TEST_CASE_FIXTURE(LoadFixture,
+                  "zone load lands exact payload bytes in slots, one query and one transaction") {
   auto st = db->LoadZone(ZoneId{0}, arena, sink);
   REQUIRE_MESSAGE(st.ok(), st.status().ToString());
   CHECK(st->keyframes == 5);
@@ -209,7 +210,8 @@ TEST_CASE_FIXTURE(LoadFixture, "overlapping zones: resident members are skipped,
   CHECK(db->total_transactions() == 2);
 }
 
-TEST_CASE_FIXTURE(LoadFixture, "per-keyframe loads land exact bytes and count four statements per keyframe") {
+TEST_CASE_FIXTURE(LoadFixture,
+                  "per-keyframe loads land exact bytes and count four statements per keyframe") {
   const std::vector<KeyframeId> ids = {KeyframeId{9}, KeyframeId{3}, KeyframeId{12}, KeyframeId{3}};
   auto st = db->LoadKeyframes(ids, arena, sink);
   REQUIRE_MESSAGE(st.ok(), st.status().ToString());

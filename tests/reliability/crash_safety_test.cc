@@ -271,10 +271,11 @@ TEST_CASE("crash safety: sim hospital killed at random points leaves no map or t
   // The smallest hospital, few features, small depth images and a short patrol: the writing
   // of map.db is what is tested, the rest only has to be short (the oracle's features, named).
   const auto sim = [](const std::string& seed, const std::string& folder) {
-    return std::vector<std::string>{"sim",   "hospital", "--area",         "300", "--seed",       seed,
-                                    "--tasks", "2",      "--dense",        "64x48", "--max-features", "100",
-                                    "--features", "oracle",  // 64x48: no room for ORB
-                                    "--quiet", "--out",  folder};
+    return std::vector<std::string>{
+        "sim",        "hospital", "--area",  "300",   "--seed",         seed,
+        "--tasks",    "2",        "--dense", "64x48", "--max-features", "100",
+        "--features", "oracle",  // 64x48: no room for ORB
+        "--quiet",    "--out",    folder};
   };
   const RunResult full = Run(sim("1", out));
   REQUIRE(full.status == 0);

@@ -4,8 +4,8 @@
 #include <doctest/doctest.h>
 
 #include "arena/frame_scratch.h"
-#include "localization/localizer.h"
 #include "localization/frame_scratch_size.h"
+#include "localization/localizer.h"
 
 namespace zm {
 namespace {

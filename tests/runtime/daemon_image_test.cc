@@ -339,7 +339,8 @@ TEST_CASE("warm image steps allocate nothing: JPEG and PNG frames, and refused i
   ImageSession s(map, Images320(), in);
   const int warm = 30;
   for (int i = 0; i < warm; ++i) REQUIRE(s.daemon->Step().value());
-  const test::StepAllocations warm_steps = test::CountStepAllocations([&] { return s.daemon->Step(); });
+  const test::StepAllocations warm_steps =
+      test::CountStepAllocations([&] { return s.daemon->Step(); });
   CHECK(warm_steps.steps == in.size() - warm);
   CHECK(warm_steps.news == 0);
 #if defined(__SANITIZE_ADDRESS__)

@@ -5,9 +5,8 @@
 // Step() of every policy allocation-free over a live feed (operator new and malloc counted).
 #include "runtime/daemon.h"
 
-#include <doctest/doctest.h>
-
 #include <arpa/inet.h>
+#include <doctest/doctest.h>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <sys/socket.h>

@@ -49,10 +49,10 @@ RunSummary Example() {
   s.closures_rejected = 12;
   s.images_refused = 2;
   s.first_image_error = "invalid argument: frame 7: colour image is empty";
-  s.stages[static_cast<std::size_t>(LoopStage::kFeatures)] = {.p50_ms = 3.5, .p99_ms = 6.0,
-                                                               .mean_ms = 3.75};
-  s.stages[static_cast<std::size_t>(LoopStage::kLikelihood)] = {.p50_ms = 0.25, .p99_ms = 1.5,
-                                                                 .mean_ms = 0.5};
+  s.stages[static_cast<std::size_t>(LoopStage::kFeatures)] = {
+      .p50_ms = 3.5, .p99_ms = 6.0, .mean_ms = 3.75};
+  s.stages[static_cast<std::size_t>(LoopStage::kLikelihood)] = {
+      .p50_ms = 0.25, .p99_ms = 1.5, .mean_ms = 0.5};
   s.frame_scratch = FrameScratchStats{.capacity_bytes = 2682880,
                                       .high_water_bytes = 610304,
                                       .allocations = 512000,
@@ -115,7 +115,9 @@ TEST_CASE("summary.json: versioned, and what ToJson writes reads back the same")
 
 TEST_CASE("summary.json: a version-1 file's loop_closures is read as both counts") {
   // Version 1 counted the frames whose closure was accepted (at most one a frame).
-  auto v1 = RunSummaryFromJson({{"schema_version", 1}, {"policy", "semantic"}, {"loop_closures", 35},
+  auto v1 = RunSummaryFromJson({{"schema_version", 1},
+                                {"policy", "semantic"},
+                                {"loop_closures", 35},
                                 {"closures_rejected", 9}});
   REQUIRE(v1.ok());
   CHECK(v1->closures_accepted == 35u);

@@ -50,7 +50,8 @@ class CameraFrames final : public FrameSource {
   }
   [[nodiscard]] std::uint32_t max_features() const override { return 0; }
   [[nodiscard]] Images images() const override {
-    return {.max_colour_bytes = static_cast<std::uint32_t>(jpeg_.size()), .width = kWidth,
+    return {.max_colour_bytes = static_cast<std::uint32_t>(jpeg_.size()),
+            .width = kWidth,
             .height = kHeight};
   }
 
@@ -135,7 +136,8 @@ TEST_CASE("a camera frame whose image cannot be used is counted, and its tick ru
   REQUIRE(l.front_end() != nullptr);
   // The front-end's region is the budget's, to the byte.
   CHECK(l.budget().frame_scratch_bytes > 0);
-  CHECK(l.front_end()->extractor().scratch_stats().capacity_bytes == l.budget().frame_scratch_bytes);
+  CHECK(l.front_end()->extractor().scratch_stats().capacity_bytes ==
+        l.budget().frame_scratch_bytes);
 
   REQUIRE(l.Tick().value());
   const TickRecord& bad = l.last_record();
@@ -144,7 +146,7 @@ TEST_CASE("a camera frame whose image cannot be used is counted, and its tick ru
   CHECK(bad.features == 0);
   CHECK_FALSE(bad.loop_closure);
   CHECK(bad.pose.isApprox(PoseFromXYYaw(1.0, 5.0, 0.0)));  // odometry (no correction yet)
-  CHECK_FALSE(bad.stalled);  // a refused image is not a failed step
+  CHECK_FALSE(bad.stalled);                                // a refused image is not a failed step
   for (int i = 1; i < 4; ++i) {
     REQUIRE(l.Tick().value());
     CHECK_FALSE(l.last_record().image_refused);

@@ -14,8 +14,8 @@
 
 #include "geometry/trajectory.h"
 #include "mapdb/map_db.h"
-#include "sim/building.h"
 #include "runtime/frames_file.h"
+#include "sim/building.h"
 #include "sim/observe.h"
 #include "sim/route.h"
 #include "sim/scenario.h"
