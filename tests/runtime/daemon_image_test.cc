@@ -107,13 +107,7 @@ class ImageSession {
     ::close(diag_fd_);
   }
   int StepToEnd() {
-    int steps = 0;
-    for (;;) {
-      auto more = daemon->Step();
-      REQUIRE_MESSAGE(more.ok(), more.status().ToString());
-      if (!more.value()) return steps;
-      ++steps;
-    }
+    return test::StepToEnd([this] { return daemon->Step(); });
   }
   [[nodiscard]] std::vector<PoseLine> Poses() const {
     std::vector<PoseLine> out;

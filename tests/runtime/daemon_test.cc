@@ -123,13 +123,7 @@ class Session {
     });
   }
   int StepToEnd() {
-    int steps = 0;
-    for (;;) {
-      auto more = daemon->Step();
-      REQUIRE_MESSAGE(more.ok(), more.status().ToString());
-      if (!more.value()) return steps;
-      ++steps;
-    }
+    return test::StepToEnd([this] { return daemon->Step(); });
   }
   // Everything the daemon wrote, once it is done.
   std::vector<std::string> Output() {

@@ -1,12 +1,28 @@
-// Counting what a warm window of a driver's steps allocates (zonemapd's session, the tick loop):
-// the loop makes no heap allocation once warm, and the tests of every driver check it the same way.
+// Stepping a driver (zonemapd's session, the tick loop) to its end, and counting what a warm
+// window of its steps allocates: the loop makes no heap allocation once warm, and the tests of
+// every driver check it the same way.
 #pragma once
+
+#include <doctest/doctest.h>
 
 #include <cstdint>
 
 #include "support/counting_allocator.h"
 
 namespace zm::test {
+
+// Calls `step()` (a Result<bool>: more to do) until it reports the end; an error fails the test.
+// Returns the steps that had more to do.
+template <typename Step>
+int StepToEnd(Step&& step) {
+  int steps = 0;
+  for (;;) {
+    auto more = step();
+    REQUIRE_MESSAGE(more.ok(), more.status().ToString());
+    if (!more.value()) return steps;
+    ++steps;
+  }
+}
 
 // What a warm window of a driver's steps allocated: `step()` (a Result<bool>: more to do) is
 // called until it reports the end or an error; operator new and the malloc family are counted

@@ -21,6 +21,7 @@
 #include "localization/camera.h"
 #include "mapdb/mapdb_test_util.h"
 #include "runtime/daemon.h"
+#include "support/step_allocations.h"
 #include "support/tum_folder_writer.h"
 
 namespace zm {
@@ -173,11 +174,7 @@ struct Run {
   }
   void ToEnd() {
     daemon->Hello();
-    for (;;) {
-      auto more = daemon->Step();
-      REQUIRE_MESSAGE(more.ok(), more.status().ToString());
-      if (!more.value()) break;
-    }
+    test::StepToEnd([this] { return daemon->Step(); });
   }
   [[nodiscard]] std::vector<PoseLine> Poses() const {
     std::vector<PoseLine> out;
