@@ -321,8 +321,7 @@ LocalizeResult Localizer::Localize(const Frame& frame, const Pose3& predicted_ma
       if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
       const float* uv = frame.keypoints.data() + std::size_t{matches_[k].query} * 2;
       if (in_camera) {
-        const Eigen::Vector3d q = t_map_kf_cam * Eigen::Vector3d(static_cast<double>(p[0]), static_cast<double>(p[1]),
-                                                                    static_cast<double>(p[2]));
+        const Eigen::Vector3d q = t_map_kf_cam * Eigen::Vector3f(p[0], p[1], p[2]).cast<double>();
         object_points_.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()),
                                     static_cast<float>(q.z()));
       } else {
