@@ -34,5 +34,12 @@ Pose FromPose3(const zm::Pose3& p) {
   return Pose{t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()};
 }
 
+zm::Result<zm::Profile> ProfileOrDefaults(const std::string& name_or_path) {
+  if (!name_or_path.empty()) return zm::LoadProfile(name_or_path);
+  zm::Profile p;
+  p.source = std::string(kNoProfileSource);
+  return p;
+}
+
 }  // namespace internal
 }  // namespace zonemap

@@ -111,7 +111,7 @@ Result<std::unique_ptr<MapLoop>> MapLoop::Open(const MapLoopOptions& options) {
     return Status(StatusCode::kInvalidArgument, "MapLoopOptions::max_features must be > 0");
   }
   {
-    auto p = zm::LoadProfile(options.profile);
+    auto p = internal::ProfileOrDefaults(options.profile);
     if (!p.ok()) return p.status();
     m.profile = std::move(p).value();
   }

@@ -64,12 +64,7 @@ zm::Status BadOptions(const std::string& m) { return zm::InvalidArgument(m); }
 
 // The profile with the caller's overrides, through the same ApplyOverrides zonemapd uses.
 zm::Result<zm::Profile> ProfileFor(const ManagerOptions& o) {
-  zm::Profile p;
-  if (!o.profile.empty()) {
-    ZM_ASSIGN_OR_RETURN(p, zm::LoadProfile(o.profile));
-  } else {
-    p.source = "(no profile)";
-  }
+  ZM_ASSIGN_OR_RETURN(zm::Profile p, internal::ProfileOrDefaults(o.profile));
   zm::ProfileOverrides ov;
   if (!o.policy.empty()) ov.policy = o.policy;
   // --memory-thr's syntax: a plain integer is a count, a number with a unit is bytes.

@@ -40,9 +40,16 @@ namespace zonemap {
 
 struct MapLoopOptions {
   std::string db_path;           // the map database (read-only)
-  std::string profile = "host";  // device profile: name (searched like zonemapd's) or .toml path
-  std::string policy;            // override of the profile's policy; empty = keep
-  std::string memory_thr;        // override of MemoryThr: "N", "BYTES" ("2GiB") or "N,BYTES"
+  // The device profile: a name (searched like zonemapd's) or a path to a .toml file. Empty (the
+  // default, the same as ManagerOptions::profile) = no profile: every module's defaults and no
+  // device memory, so K_max is memory_thr's count, else the whole map. Why not "host", the
+  // programs' default: a library must open the same wherever it is installed, and a profile
+  // name is searched beside the build's source tree or in $ZM_PROFILES_DIR, which an installed
+  // library's user does not have (docs/api.md); a device's byte budget is asked for by naming
+  // the device.
+  std::string profile;
+  std::string policy;                 // override of the profile's policy; empty = keep
+  std::string memory_thr;             // override of MemoryThr: "N", "BYTES" ("2GiB") or "N,BYTES"
   std::uint32_t max_features = 2048;  // the largest frame Process accepts
   // Replay instead of live input: a frames file recorded by `zonemap sim` (frames.bin); then
   // call Step(), not Process().
@@ -135,7 +142,7 @@ class MapLoop {
   [[nodiscard]] std::uint64_t slot_bytes() const;
   [[nodiscard]] std::uint32_t resident_count() const;
   [[nodiscard]] std::string_view zone_name(ZoneId zone) const;  // empty for an unknown id
-  [[nodiscard]] std::string_view profile_path() const;          // the profile file it read
+  [[nodiscard]] std::string_view profile_path() const;  // the profile file read; "(no profile)"
   [[nodiscard]] LoopStats stats() const;                        // O(quantile buckets)
 
  private:

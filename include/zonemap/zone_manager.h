@@ -89,8 +89,12 @@ struct HostMap {
 
 struct ManagerOptions {
   // A device profile (a name such as "orin-nano-8gb", searched like zonemapd's, or a path to a
-  // .toml file): its [policy], [map], [device], [model] and zone hysteresis are used. Empty =
-  // no profile: every module's defaults, no device memory (a count budget only).
+  // .toml file): its [policy], [map], [device], [model] and zone hysteresis are used. Empty (the
+  // default, the same as MapLoopOptions::profile) = no profile: every module's defaults, no
+  // device memory (a count budget only: memory_thr_keyframes, else every keyframe). Not "host":
+  // a profile name is searched where an installed library's user has none (docs/api.md), and
+  // the host profile's 25 GiB byte share would need every KeyframeInfo::bytes even for a count
+  // budget.
   std::string profile;
   // Overrides (empty / 0 = the profile's): the policy name, and MemoryThr as a keyframe count
   // and/or a byte share. K_max = min(count, (share - overhead) / largest keyframe bytes, map

@@ -168,6 +168,43 @@ TEST_CASE("map loop and zone manager: the same map gives the same zones and resi
   }
 }
 
+TEST_CASE("map loop and zone manager: both default to no profile and resolve it the same way") {
+  // The two public entry points share one default: no profile (every module's defaults, no
+  // device), not a file found on a search path.
+  CHECK(MapLoopOptions{}.profile.empty());
+  CHECK(ManagerOptions{}.profile.empty());
+  zm::test::ApiScenario s;
+  zm::test::BuildApiScenario(&s, 1, "default-profile");
+  MapLoopOptions lo;
+  lo.db_path = s.db;
+  auto loop = MapLoop::Open(lo);
+  REQUIRE_MESSAGE(loop.ok(), loop.status().ToString());
+  HostMap map;
+  map.keyframes = s.keyframes;
+  map.zone_file = s.zones;
+  map.doorway_band_m = 0.0;
+  auto mgr = ZoneManager::Create(map, ManagerOptions{});
+  REQUIRE_MESSAGE(mgr.ok(), mgr.status().ToString());
+  CHECK((*loop)->profile_path() == "(no profile)");
+  // The same profile: the modules' policy, and no device memory, so no byte share and K_max is
+  // the whole map for both.
+  CHECK((*mgr)->policy() == (*loop)->policy());
+  CHECK((*loop)->policy() == "semantic");
+  CHECK((*mgr)->k_max() == (*loop)->k_max());
+  CHECK((*loop)->k_max() == s.keyframes.size());
+  CHECK((*mgr)->bounded() == (*loop)->bounded());
+  // The header's example: a count budget over keyframes without sizes opens with the default
+  // (the host profile's byte share would need every KeyframeInfo::bytes).
+  for (KeyframeInfo& k : map.keyframes) k.bytes = 0;
+  ManagerOptions counted;
+  counted.memory_thr_keyframes = 30;
+  auto by_count = ZoneManager::Create(map, counted);
+  REQUIRE_MESSAGE(by_count.ok(), by_count.status().ToString());
+  CHECK((*by_count)->k_max() == 30);
+  counted.profile = "host";
+  CHECK(ZoneManager::Create(map, counted).status().code() == StatusCode::kInvalidArgument);
+}
+
 TEST_CASE("map loop: a bad frame is refused, counted and not processed") {
   GateLoop g("badframes", 1);
   MapLoop& l = *g.loop;
