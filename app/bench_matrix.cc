@@ -182,9 +182,9 @@ Result<nlohmann::json> RunBenchMatrix(const BenchMatrixOptions& o,
                    {"budget", c.budget},
                    {"model", c.model},
                    {"k_max", first.value("k_max", std::uint64_t{0})},
-                   {"o.repeats", o.repeats},
+                   {"repeats", o.repeats},
                    {"order", "interleaved"},
-                   // The run the figures show: mean tick time nearest the median of the o.repeats.
+                   // The run the figures show: mean tick time nearest the median of the repeats.
                    {"representative_repeat", rep},
                    {"representative_by", "/tick_ms/mean"},
                    {"run_dirs", dirs},

@@ -14,6 +14,7 @@
 
 #include "harness/cotenant.h"
 #include "harness/repeats.h"
+#include "paper_tables.h"
 
 namespace zm::app {
 namespace {
@@ -102,7 +103,7 @@ std::string Tally(const nlohmann::json& cell, std::initializer_list<const char*>
 }  // namespace
 
 void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o) {
-  // Every numeric cell: mean ± 95 % CI over the o.repeats (FormatStat), "(1 run)" for one.
+  // Every numeric cell: mean ± 95 % CI over the repeats (FormatStat), "(1 run)" for one.
   const auto S = [&o](const nlohmann::json& cell, const std::string& ptr, int decimals,
                            double scale = 1.0) {
     return FormatStat(Stat(cell, ptr), decimals, scale, o.repeats);
@@ -186,7 +187,7 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
          S(r, "/db_bytes_read", 1, 1e-6), S(r, "/zone_loads", 0),
          ok != oracle_loads.end() && ok->second > 0 && zl > 0 ? Fmt(zl / ok->second, 2) : "–"});
   }
-  // Ratios of the o.repeats' means, measured side by side in this run (same scenario, budget and
+  // Ratios of the repeats' means, measured side by side in this run (same scenario, budget and
   // co-tenant).
   Table t4{{"scenario", "K_max", "co-tenant", "ratio (of means)", "avg TimeTotal", "kf loaded",
             "DB transactions", "DB bytes read", "ATE"},
@@ -244,7 +245,7 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
                        closures(r, "/frames_localized"), S(r, "/ate_rmse_m", 4)});
   }
   // Every table states the device (and "simulated" for the ledger), its scale, the clock and
-  // the o.repeats.
+  // the repeats.
   std::string device_used = "cgroup";
   for (const auto& cell : results) {
     for (const auto& r : cell["runs"]) {
@@ -271,12 +272,16 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
     nlohmann::json tables = {{"results", results}};
     std::ofstream(o.out + "/tables.json") << tables.dump(2) << '\n';
   }
+  // The paper's Table I and Table II in the paper's form, the paper's numbers beside ours.
+  const std::string paper = PaperTablesMarkdown(results);
+  if (!paper.empty()) std::ofstream(o.out + "/paper_tables.md") << paper << '\n';
   for (const char* f : {"table1", "table2", "device", "memory", "ratios", "latency"}) {
     std::ifstream in(o.out + "/" + f + ".md");
     std::ostringstream text;
     text << in.rdbuf();
     std::printf("%s\n", text.str().c_str());
   }
+  if (!paper.empty()) std::printf("%s\n\n", paper.c_str());
   std::printf("The co-tenant is a stand-in: %s.\n", std::string(kCotenantNote).c_str());
   if (o.plots) {
     const std::string plots = std::string(ZM_SOURCE_DIR_FOR_APP) + "/scripts/plots.py";
@@ -287,8 +292,8 @@ void WriteBenchReport(const nlohmann::json& results, const BenchReportOptions& o
       std::fprintf(stderr, "bench: figures failed (%s)\n", c.c_str());
   }
   std::printf(
-      "bench: wrote %s/{table1,table2,device,memory,ratios,latency}.{md,csv}, results.json, "
-      "figures/\n",
+      "bench: wrote %s/{table1,table2,device,memory,ratios,latency}.{md,csv}, paper_tables.md, "
+      "results.json, figures/\n",
       o.out.c_str());
 }
 

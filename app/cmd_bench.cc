@@ -21,8 +21,15 @@
 // statistics over them (StatsOfSummaries: the one place they are computed); every table cell is
 // mean ± 95 % confidence interval (or "(1 run)").
 //
+// Every table, the paper's Table I and Table II in the paper's form beside the paper's numbers
+// included (paper_tables.md), is written here, in C++: the one producer of the tables.
+// --report-only writes them again from an existing OUT/results.json without running anything
+// (an output of an earlier build, or after the tables changed).
+//
 // The command line only: the matrix runner (bench_matrix.h: the cells and their runs, results.json)
 // and the report writer (bench_report.h: the tables and figures) do the work.
+#include <algorithm>
+#include <fstream>
 #include <memory>
 #include <sstream>
 
@@ -46,6 +53,39 @@ std::vector<std::string> Split(const std::string& s) {
   return out;
 }
 
+// --report-only: the tables of an existing OUT/results.json. What every table states (the
+// repeats, the device's scale, the time compression) is read from its runs' summaries.
+template <typename Opts>
+void WriteReportAgain(const Opts& o, CommandContext& ctx) {
+  const std::string path = o.out + "/results.json";
+  std::ifstream in(path);
+  if (!in) return ctx.Fail("bench", NotFound("--report-only: no " + path));
+  nlohmann::json results = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (!results.is_array() || results.empty()) {
+    return ctx.Fail("bench", InvalidArgument("--report-only: " + path +
+                                             " is not results.json's array of cells"));
+  }
+  std::uint32_t repeats = 1;
+  for (const auto& cell : results) {
+    if (cell.contains("runs") && cell["runs"].is_array())
+      repeats = std::max(repeats, static_cast<std::uint32_t>(cell["runs"].size()));
+  }
+  nlohmann::json run = nlohmann::json::object();  // the first run's summary
+  const nlohmann::json& first = results[0];
+  if (first.is_object() && first.contains("runs") && first["runs"].is_array() &&
+      !first["runs"].empty()) {
+    run = first["runs"][0];
+  }
+  const auto num = [&run](const char* key, double fallback) {
+    return run.contains(key) && run[key].is_number() ? run[key].get<double>() : fallback;
+  };
+  WriteBenchReport(results, {.out = o.out,
+                             .device_scale = num("device_scale", 1.0),
+                             .time_compression = num("time_compression", 1.0),
+                             .repeats = repeats,
+                             .plots = !o.no_plots});
+}
+
 }  // namespace
 
 void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
@@ -56,7 +96,7 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
     DeviceRunOptions device;  // passed to every run
     int repeat = 0;
     std::uint32_t prompt_tokens = 0, answer_tokens = 0;
-    bool quick = false, no_plots = false;
+    bool quick = false, no_plots = false, report_only = false;
   };
   auto o = std::make_shared<Opts>();
   auto* cmd = app.add_subcommand(
@@ -83,7 +123,10 @@ void AddBenchCommand(CLI::App& app, CommandContext& ctx) {
   cmd->add_option("--answer-tokens", o->answer_tokens,
                   "co-tenant answer length (default: the profile's)");
   cmd->add_flag("--no-plots", o->no_plots, "skip the matplotlib figures");
+  cmd->add_flag("--report-only", o->report_only,
+                "run nothing: write the tables (and figures) again from OUT/results.json");
   cmd->callback([o, &ctx] {
+    if (o->report_only) return WriteReportAgain(*o, ctx);
     InstallStopSignals();
     BenchMatrixOptions m;
     if (Status s = SetDeviceRun(o->device, m.run); !s.ok()) return ctx.Fail("bench", s);

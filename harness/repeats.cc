@@ -116,21 +116,33 @@ std::size_t RepresentativeRepeat(std::span<const double> key) {
   return best;
 }
 
+std::string FormatNumber(double v, int decimals, bool group_thousands) {
+  if (std::isnan(v)) return "–";
+  char b[96];
+  std::snprintf(b, sizeof b, "%.*f", decimals, v);
+  std::string s = b;
+  if (!group_thousands || !std::isfinite(v)) return s;
+  const std::size_t digits_from = s[0] == '-' ? 1 : 0;
+  std::size_t int_end = s.find('.');
+  if (int_end == std::string::npos) int_end = s.size();
+  for (std::size_t i = int_end; i > digits_from + 3; i -= 3) s.insert(i - 3, 1, ',');
+  return s;
+}
+
 std::string FormatStat(const nlohmann::json& stat, int decimals, double scale,
-                       std::uint32_t expected_n) {
+                       std::uint32_t expected_n, StatStyle style) {
   if (!stat.is_object() || !stat.contains("n") || !stat["n"].is_number()) return "–";
   const auto n = stat["n"].get<std::uint32_t>();
   if (n == 0) return "–";
-  char b[96];
-  const double mean = stat.value("mean", 0.0) * scale;
+  const bool g = style.group_thousands;
+  std::string s = FormatNumber(stat.value("mean", 0.0) * scale, decimals, g);
   if (n == 1) {
-    std::snprintf(b, sizeof b, "%.*f (1 run)", decimals, mean);
+    if (!(style.n_in_header && expected_n == 1)) s += " (1 run)";
   } else {
-    std::snprintf(b, sizeof b, "%.*f ± %.*f", decimals, mean, decimals,
-                  stat.value("ci95", 0.0) * scale);
+    s += " ± ";
+    s += FormatNumber(stat.value("ci95", 0.0) * scale, decimals, g);
+    if (expected_n > n) s += " (n = " + std::to_string(n) + ")";
   }
-  std::string s = b;
-  if (expected_n > n && n > 1) s += " (n = " + std::to_string(n) + ")";
   return s;
 }
 

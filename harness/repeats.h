@@ -7,11 +7,11 @@
 //
 // Statistics: this is the ONE place they are computed (docs/harness.md, "Repeats"). The bench
 // writes them per cell into results.json ({n, mean, ci95, median, sd, min, max, values} for every
-// numeric key of the runs' summary.json); its tables and scripts/paper_tables.py only format
-// them. mean = arithmetic mean; ci95 = the half-width of the 95 % confidence interval of the
-// mean, Student's t with n - 1 degrees of freedom times the sample standard deviation over
-// sqrt(n) (0 for n = 1: one run has no interval, and says so); median = StreamingStats's
-// nearest-rank quantile (zonemap's one percentile definition).
+// numeric key of the runs' summary.json); its tables (app/bench_report.cc, app/paper_tables.cc)
+// only format them, with FormatStat. mean = arithmetic mean; ci95 = the half-width of the 95 %
+// confidence interval of the mean, Student's t with n - 1 degrees of freedom times the sample
+// standard deviation over sqrt(n) (0 for n = 1: one run has no interval, and says so); median =
+// StreamingStats's nearest-rank quantile (zonemap's one percentile definition).
 #pragma once
 
 #include <cstddef>
@@ -66,10 +66,23 @@ struct RepeatStats {
 // has it.
 [[nodiscard]] std::size_t RepresentativeRepeat(std::span<const double> key);
 
+// How FormatStat writes a cell. The defaults are the bench's own tables (CSV-friendly numbers);
+// the paper-form tables group thousands ("4,255 ± 323", as the paper prints its numbers) and
+// state each column's n in its header, so a column of single runs shows bare values.
+struct StatStyle {
+  bool group_thousands = false;  // "11,419 ± 1,332"
+  bool n_in_header = false;      // a one-run cell under a header that says "1 run": no "(1 run)"
+};
+
 // A statistic as a table cell: "12.35 ± 0.41" (n >= 2), "12.35 (1 run)" (n = 1), "–" (none or
 // not a statistic). `scale` multiplies every number first (units: bytes to MiB...). When fewer
-// runs had the value than `expected_n`, "(n = k)" follows.
+// runs had the value than `expected_n`, "(n = k)" follows (n >= 2) or "(1 run)" stays (n = 1).
+// With style.n_in_header and n = expected_n = 1 the cell is the bare value.
 [[nodiscard]] std::string FormatStat(const nlohmann::json& stat, int decimals, double scale = 1.0,
-                                     std::uint32_t expected_n = 0);
+                                     std::uint32_t expected_n = 0, StatStyle style = {});
+
+// A number as the tables print it: fixed `decimals`, thousands grouped with ',' when asked
+// ("5,064.87"); NaN is "–".
+[[nodiscard]] std::string FormatNumber(double v, int decimals, bool group_thousands);
 
 }  // namespace zm

@@ -9,8 +9,9 @@
 #   1. generate the dense hospital (cached in $out/scenarios/hospital)
 #   2. zonemap bench: Basic only, Semantic only, Basic + VLM, Semantic + VLM at the MemoryThr the
 #      profile derives (--budgets 1: the byte share sets K_max), in the cgroup
-#   3. Table I / Table II in the paper's form beside the paper's numbers (scripts/paper_tables.py),
-#      the four figures (scripts/plots.py, run by bench) in $out/figures
+#   3. Table I / Table II in the paper's form beside the paper's numbers (written and printed by
+#      zonemap bench itself, $out/paper_tables.md, with its own tables), the figures
+#      (scripts/plots.py, run by bench) in $out/figures
 #
 # Knobs (environment): ZM_DEMO_OUT (out/demo), ZM_DEMO_SCALE (device scale, 0.25: see below),
 # ZM_DEMO_COMPRESSION (time compression, 10), ZM_DEMO_AREA (m², 2100: 2,429 keyframes),
@@ -71,5 +72,4 @@ EOF
 "$zonemap" bench --scenarios "dir:$scen" --policies "$policies" --models none,qwen3-vl-2b \
   --budgets 1 --device "$device" --device-scale "$scale" --time-compression "$compression" \
   --repeat "$repeat" --cotenant-requests "$requests" --out "$out" "$@"
-"$py" scripts/paper_tables.py "$out" --md "$out/paper_tables.md"
 echo "demo: wall time $(( $(date +%s) - t0 )) s (build not included; make demo prints it all)"

@@ -1,14 +1,14 @@
 """Reading a `zonemap bench` / `zonemap run` output: run directories, their summaries, ticks and
 co-tenant requests, and which run is which of the paper's four configurations.
 
-Shared by scripts/plots.py (the figures), scripts/paper_tables.py (Table I/II in the paper's
-form) and scripts/sweep.py (where Basic breaks). Standard library only, so the tables print
-where matplotlib is missing.
+Shared by scripts/plots.py (the figures) and scripts/sweep.py (where Basic breaks). Standard
+library only. The tables are not made here: `zonemap bench` writes every one of them, Table I
+and Table II in the paper's form included (paper_tables.md: app/paper_tables.h).
 
 With repeats (`zonemap bench --repeat N`, issue 27 §4) a cell's runs are
 OUT/runs/<scenario>/<cell>/rep<r>/ and OUT/results.json holds, per cell, every repeat's summary
 and the statistics over them ({n, mean, ci95, median, ...} per JSON pointer of summary.json),
-computed once by the bench (harness/repeats.h); the scripts only format them (fmt_stat). A cell
+computed once by the bench (harness/repeats.h); the scripts only read them. A cell
 is one Run: its `s`, ticks and requests are the representative repeat's (results.json's
 `representative_repeat`: the repeat whose mean tick time is nearest the median; rep0 without
 results.json), `stat(pointer)` the cell's statistic. Without results.json (a single run, an
@@ -292,30 +292,6 @@ def find_runs(out):
         if runs:
             result[scenario] = runs
     return result
-
-
-def fmt_num(v, decimals):
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "–"
-    return f"{v:,.{decimals}f}"
-
-
-def fmt_stat(st, decimals, scale=1.0, n_stated=None):
-    """A statistic as a table cell: "12.35 ± 0.41" (n >= 2), "12.35 (1 run)" (n = 1), "–" (none).
-    n_stated: the n a column's header already states; a cell with that n is not annotated
-    ("12.35" for one run), one with fewer gets "(n = k)" / "(1 run)"."""
-    if not st or not st.get("n"):
-        return "–"
-    n = st["n"]
-    mean = st["mean"] * scale
-    text = fmt_num(mean, decimals) if n == 1 else \
-        f"{fmt_num(mean, decimals)} ± {fmt_num(st.get('ci95', 0.0) * scale, decimals)}"
-    if n_stated is None or n < n_stated:
-        if n == 1:
-            text += " (1 run)"
-        elif n_stated is not None:
-            text += f" (n = {n})"
-    return text
 
 
 def pick(runs, policy, with_vlm, model=None):

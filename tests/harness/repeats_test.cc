@@ -110,5 +110,21 @@ TEST_CASE("a statistic as a table cell: n = 1 says so, n = 3 shows the interval"
   CHECK(FormatStat(ToJson(SummarizeRepeats(std::vector<double>{})), 2) == "–");
 }
 
+TEST_CASE("a statistic in the paper's form: thousands grouped, n stated by the header") {
+  const StatStyle paper{.group_thousands = true, .n_in_header = true};
+  const nlohmann::json faults = {{"n", 3}, {"mean", 11419.2}, {"ci95", 1332.4}};
+  CHECK(FormatStat(faults, 0, 1.0, 3, paper) == "11,419 ± 1,332");
+  CHECK(FormatStat(faults, 0, 1.0, 3) == "11419 ± 1332");
+  CHECK(FormatStat(faults, 1, 1.0, 5, paper) == "11,419.2 ± 1,332.4 (n = 3)");
+  const nlohmann::json one = {{"n", 1}, {"mean", 0.5}, {"ci95", 0.0}};
+  CHECK(FormatStat(one, 3, 1.0, 1, paper) == "0.500");          // the header says "1 run"
+  CHECK(FormatStat(one, 3, 1.0, 3, paper) == "0.500 (1 run)");  // one run of three
+  CHECK(FormatStat(one, 3, 1.0, 1) == "0.500 (1 run)");
+  CHECK(FormatNumber(5064.87, 2, true) == "5,064.87");
+  CHECK(FormatNumber(-1234567.0, 0, true) == "-1,234,567");
+  CHECK(FormatNumber(999.0, 0, true) == "999");
+  CHECK(FormatNumber(std::nan(""), 2, true) == "–");
+}
+
 }  // namespace
 }  // namespace zm

@@ -10,7 +10,7 @@ stalls; Semantic + VLM completes.
 With --repeats: the same four configurations as `zonemap bench --repeat 3` writes them
 (runs/tiny/<cell>/rep0..rep2, results.json with each cell's statistics). The statistics are
 literal numbers worked by hand (mean and Student-t 95 % half-width), not computed here: the
-scripts only format what the bench computed (harness/repeats.h).
+tables (`zonemap bench --report-only`) only format what the bench computed (harness/repeats.h).
 
 Usage: make_fixture.py OUT [--repeats]
 """

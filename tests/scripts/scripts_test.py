@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
-"""Behaviour of scripts/paper_tables.py, scripts/sweep.py and scripts/plots.py on a tiny
-synthetic bench output (make_fixture.py): the cells the paper's tables must show, the sweep's
-arithmetic against numbers worked by hand and against the C++ tests' K_max, the five figures
-written; with repeats (make_fixture.py --repeats), the cells and their mean ± CI formatting. Exit 77 (ctest: skipped, with the reason printed) when matplotlib is missing,
-after the table and arithmetic checks have run.
+"""Behaviour of scripts/runs.py, scripts/sweep.py and scripts/plots.py on a tiny synthetic bench
+output (make_fixture.py): the runs and cells read, the sweep's arithmetic against numbers worked
+by hand and against the C++ tests' K_max, the five figures written; with repeats
+(make_fixture.py --repeats), the cells and their representative repeat, and `zonemap bench
+--report-only` writing the paper-form tables from that results.json (the tables are C++'s:
+app/paper_tables.h; tests/app/paper_tables_test.cc checks their content). Exit 77 (ctest:
+skipped, with the reason printed) when matplotlib is missing, after the other checks have run.
 
 Usage: scripts_test.py SOURCE_DIR WORK_DIR
 """
@@ -15,7 +17,6 @@ import sys
 
 SRC, WORK = sys.argv[1], sys.argv[2]
 sys.path.insert(0, os.path.join(SRC, "scripts"))
-import paper_tables  # noqa: E402
 import runs  # noqa: E402
 import sweep  # noqa: E402
 
@@ -40,34 +41,8 @@ check(bv is not None and len(bv.requests()) == 12, "12 requests read, the torn l
 check(runs.pick(found["tiny"], "semantic", False).with_vlm is False, "Semantic only has no VLM")
 check(bv is not None and bv.cotenant_deaths() == [2.0], "the co-tenant's kill on the wall clock")
 
-# Paper-form tables: device stated, ours beside the paper's, outcomes and OOM kills shown.
-text = paper_tables.render(WORK)
-check("memory cgroup" in text and "time compression 10x" in text and "device scale 0.125" in text,
-      "the device kind, scale and time compression are stated")
-check("| metric | Basic only (1 run) | Basic + VLM (1 run) | Semantic only (1 run) | "
-      "Semantic + VLM (1 run) |" in text,
-      "Table I has the paper's four columns in its order")
-check("| update rate (Hz) ↑ | 0.95 (0.96) | 0.65 (0.65) |" in text, "update rate: ours (paper)")
-check("| loop closures ↑ | 40 (53) | 14 (31) | 40 (35) | 40 (33) |" in text,
-      "loop closures accepted: schema 1's loop_closures (basic) and 2's closures_accepted")
-check("| frames localized (a closure accepted on the frame) | 40 | 14 | 40 | 40 |" in text,
-      "frames localized beside them, from either schema")
-check("| metric | Basic only (1 run) | Basic + VLM (1 run) |" in text,
-      "one run: the header says so, the cells show the value")
-check("One run per configuration." in text, "one run stated above the tables")
-check("| device OOM kills | 0.0 | 1.0 | 0.0 | 0.0 |" in text, "OOM kills per configuration")
-check("| map process outcome | ○ completed | † killed |" in text, "Basic + VLM's map killed")
-check("| frames dropped of arrived | 1 of 60 | 12 of 60 |" in text, "frames dropped shown")
-check("| qwen3-vl-2b | Basic | 1 | △ stalled | 12.0 | 1.50 | – | 10,600 | – | 11,400 | – |" in text,
-      "Table II row: outcome, requests, median/aggregate tokens/s, latency p50/mean/p95")
-check("| qwen3-vl-2b | Semantic | 1 | ○ completed | 12.0 | 4.60 |" in text,
-      "Table II: Semantic's row")
-check("| qwen3-vl-2b: the paper | Basic | 1 | △ | | 32.43 | – | 9,642 |" in text,
-      "Table II: the paper's row beside ours")
-
 # Repeats (zonemap bench --repeat 3): a cell per configuration, its representative repeat, the
-# statistics results.json carries formatted as mean ± 95 % CI; a statistic fewer runs had says
-# its n; one run says "1 run".
+# statistics results.json carries.
 REP = WORK + "-repeats"
 shutil.rmtree(REP, ignore_errors=True)
 subprocess.run([sys.executable, os.path.join(SRC, "tests/scripts/make_fixture.py"), REP,
@@ -78,22 +53,35 @@ rb = runs.pick(rfound["tiny"], "basic", True)
 check(rb is not None and rb.n == 3 and len(rb.repeats) == 3 and rb.path.endswith("rep1"),
       "repeats: the representative repeat (results.json's) is the one shown")
 check(rb is not None and rb.stat("/update_rate_hz")["n"] == 3, "repeats: the cell's statistic")
-rtext = paper_tables.render(REP)
-check("| metric | Basic only (n = 3) | Basic + VLM (n = 3) |" in rtext, "repeats: n in the header")
-check("| update rate (Hz) ↑ | 0.95 ± 0.12 (0.96) |" in rtext, "repeats: mean ± CI (paper)")
-check("3 runs per configuration, interleaved" in rtext, "repeats stated above the tables")
-check("(weights pinned)" in rtext, "the co-tenant's weights (cotenant.weights) stated")
-check("| 4.00 ± 12.71 (n = 2) |" in rtext, "a statistic two of three runs had says n = 2")
-check(runs.fmt_stat(RATE3 := {"n": 3, "mean": 0.95, "ci95": 0.124207}, 2) == "0.95 ± 0.12",
-      "fmt_stat: n = 3")
-check(runs.fmt_stat({"n": 1, "mean": 0.5, "ci95": 0.0}, 3) == "0.500 (1 run)",
-      "fmt_stat: n = 1 says so")
-check(runs.fmt_stat({"n": 1, "mean": 0.5}, 3, 1.0, 1) == "0.500",
-      "fmt_stat: n = 1 under a header that says 1 run")
-check(runs.fmt_stat({"n": 1, "mean": 0.5}, 3, 1.0, 3) == "0.500 (1 run)",
-      "fmt_stat: one run of three")
-check(runs.fmt_stat(None, 2) == "–" and runs.fmt_stat({"n": 0}, 2) == "–", "fmt_stat: none")
-check(runs.fmt_stat(RATE3, 1, 1000.0) == "950.0 ± 124.2", "fmt_stat: scaled")
+
+# The paper-form tables of that results.json, by the one producer: `zonemap bench --report-only`
+# ($ZONEMAP set by tests/scripts/CMakeLists.txt). The cells are the statistics results.json
+# carries (make_fixture.py works them by hand), formatted by the C++ writer.
+zonemap = os.environ.get("ZONEMAP")
+if zonemap:
+    r = subprocess.run([zonemap, "bench", "--report-only", "--no-plots", "--out", REP],
+                       capture_output=True, text=True)
+    check(r.returncode == 0, f"zonemap bench --report-only ran ({r.stderr.strip()[-200:]})")
+    path = os.path.join(REP, "paper_tables.md")
+    rtext = open(path).read() if os.path.exists(path) else ""
+    check("| metric | Basic only (n = 3) | Basic + VLM (n = 3) |" in rtext,
+          "paper_tables.md: n in the header")
+    check("| update rate (Hz) ↑ | 0.95 ± 0.12 (0.96) |" in rtext,
+          "paper_tables.md: mean ± CI (the paper's)")
+    check("| loop closures ↑ | – (53) |" in rtext,
+          "paper_tables.md: a statistic results.json lacks is –, the paper's beside it")
+    check("3 runs per configuration, interleaved" in rtext, "paper_tables.md: repeats stated")
+    check("(weights pinned)" in rtext, "paper_tables.md: the co-tenant's weights stated")
+    check("| 4.00 ± 12.71 (n = 2) |" in rtext,
+          "paper_tables.md: a statistic two of three runs had says n = 2")
+    check("| map process outcome | ○ completed | † killed |" in rtext,
+          "paper_tables.md: outcomes tallied over the runs, with their symbols")
+    check("| qwen3-vl-2b: the paper | Basic | 1 | △ | | 32.43 | – | 9,642 |" in rtext,
+          "paper_tables.md: the paper's Table II row beside ours")
+    check(r.stdout.count("| update rate (Hz) ↑ | 0.95 ± 0.12 (0.96) |") == 1,
+          "the paper-form tables are printed too")
+else:
+    print("SKIPPED: $ZONEMAP unset, zonemap bench --report-only not run")
 
 # Sweep arithmetic, worked by hand for orin-nano-8gb (8 GiB, 1.75 GiB OS, 1.9 GB weights,
 # 0.5 GiB headroom, 256 MiB overhead). The budget is the program's (`zonemap budget --stdin`,
