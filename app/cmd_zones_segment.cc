@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -171,11 +172,17 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
                                   std::to_string(grid->cols()) + "x" +
                                   std::to_string(grid->rows()) + " (at most 1 pixel apart)");
       }
-      auto score = ScoreSegmentation(seg->labels, *gt);
+      const cv::Mat free_cells = grid->cells == kCellFree;
+      auto score = ScoreSegmentation(seg->labels, *gt, free_cells);
       if (!score.ok()) return ctx.Fail(kCmd, score.status());
-      report["score"] = {{"precision", score->precision}, {"recall", score->recall},
-                         {"mean_iou", score->mean_iou},   {"mean_iou_full", score->mean_iou_full},
-                         {"gt_rooms", score->gt_rooms},   {"segments", score->predicted_segments}};
+      report["score"] = {{"precision", score->precision},
+                         {"recall", score->recall},
+                         {"mean_iou", score->mean_iou},
+                         {"mean_iou_full", score->mean_iou_full},
+                         {"mean_iou_shown", score->mean_iou_shown},
+                         {"gt_rooms", score->gt_rooms},
+                         {"gt_rooms_shown", score->gt_rooms_shown},
+                         {"segments", score->predicted_segments}};
     }
     if (o.max_zone_keyframes > 0) {
       if (o.db.empty()) return ctx.Fail(kCmd, "--max-zone-keyframes needs --db MAP.db");
@@ -206,10 +213,11 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
   if (report.contains("score")) {
     const auto& s = report["score"];
     std::printf(
-        "score: precision %.1f %% recall %.1f %% mean IoU %.1f %% (all cells %.1f %%) "
-        "(%d GT rooms, %d segments, segmentation %.0f ms)\n",
+        "score: precision %.1f %% recall %.1f %% mean IoU %.1f %% (all cells %.1f %%, over the "
+        "%d GT rooms the map shows %.1f %%) (%d GT rooms, %d segments, segmentation %.0f ms)\n",
         100.0 * s["precision"].get<double>(), 100.0 * s["recall"].get<double>(),
         100.0 * s["mean_iou"].get<double>(), 100.0 * s["mean_iou_full"].get<double>(),
+        s["gt_rooms_shown"].get<int>(), 100.0 * s["mean_iou_shown"].get<double>(),
         s["gt_rooms"].get<int>(), s["segments"].get<int>(), report["segment_ms"].get<double>());
   }
 }

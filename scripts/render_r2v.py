@@ -25,7 +25,10 @@ quartile of its door openings is 0.75 m (a single interior door; the wider openi
 balcony sliders and double doors), the only physical assumption made. It was fixed before any
 segmentation was scored on these plans.
 
-Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR
+Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...]]
+--robot-off renders robot/ only, with the named augmentations left out (glass, leaves, clutter,
+unexplored, range, noise, specks; issue 28's ablation). Every random number is still drawn, so
+the other augmentations are exactly those of the full render.
 (robot_world and robot_scan are also scripts/render_sim.py's.)
 """
 import collections
@@ -139,7 +142,10 @@ def line_mask(shape, segments, width):
     return np.array(img) > 0
 
 
-def robot_world(items, free, occupied, rooms, n, rng):
+AUGMENTATIONS = ("glass", "leaves", "clutter", "unexplored", "range", "noise", "specks")
+
+
+def robot_world(items, free, occupied, rooms, n, rng, off=()):
     """The plan as a robot's laser meets it (robot/): (free, occupied) with glass and missing
     wall pieces, door leaves at random angles and clutter. The ground truth is not changed."""
     free, occupied = free.copy(), occupied.copy()
@@ -173,6 +179,8 @@ def robot_world(items, free, occupied, rooms, n, rng):
     for dr in range(-3, 4):
         for dc in range(-3, 4):
             near_outside |= np.roll(np.roll(outside, dr, 0), dc, 1)
+    if "glass" in off:
+        glass &= False
     occupied &= ~glass
     free |= glass & ~near_outside  # the laser passes an interior pane; an exterior one: nothing
     # Door leaves: most doors stand open at 10-100 degrees from their frame.
@@ -207,6 +215,10 @@ def robot_world(items, free, occupied, rooms, n, rng):
             else:
                 clutter[r:r1, c:c1] = True
     clutter &= free & (rooms > 0)
+    if "leaves" in off:
+        leaf &= False
+    if "clutter" in off:
+        clutter &= False
     occupied |= leaf | clutter
     free &= ~(leaf | clutter)
     return free, occupied
@@ -231,12 +243,13 @@ def laser_rays(free, viewpoints, range_m):
         yield r, c, np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
 
 
-def robot_scan(free, occupied, viewpoints, rng):
+def robot_scan(free, occupied, viewpoints, rng, off=()):
     """A robot's laser map (robot/): a quarter of the viewpoints dropped (rooms left
     unexplored), the rest moved up to 0.3 m, range 4-8 m, each wall hit a cell in front of or
     behind its face, specks of people in the free space."""
     h, w = free.shape
-    keep = [v for v in viewpoints if rng.random() >= 0.25] or viewpoints[:1]
+    keep = [v for v in viewpoints if rng.random() >= 0.25 or "unexplored" in off] or \
+        viewpoints[:1]
     moved = []
     for vx, vy in keep:
         dx, dy = rng.uniform(-0.3, 0.3, 2) / RES
@@ -246,6 +259,8 @@ def robot_scan(free, occupied, viewpoints, rng):
         else:
             moved.append((vx, vy))
     range_m = rng.uniform(4.0, 8.0)
+    if "range" in off:
+        range_m = RANGE_M
     seen_free = np.zeros_like(free)
     seen_occ = np.zeros_like(free)
     for r, c, first in laser_rays(free, moved, range_m):
@@ -255,6 +270,8 @@ def robot_scan(free, occupied, viewpoints, rng):
         hit = hit[keep_hit]
         # Wall-face noise: the return a cell (two half-cell steps) short, on, or past the face.
         jitter = rng.choice([-2, 0, 2], size=hit.size, p=[0.25, 0.5, 0.25])
+        if "noise" in off:
+            jitter[:] = 0
         end = first.copy()
         end[hit] = np.maximum(1, first[hit] + jitter)
         before = np.arange(samples)[None, :] < np.minimum(end, first)[:, None]
@@ -263,6 +280,8 @@ def robot_scan(free, occupied, viewpoints, rng):
         seen_occ[r[hit, j], c[hit, j]] = True
     seen_free &= ~seen_occ
     specks = seen_free & (rng.random(free.shape) < 0.001)
+    if "specks" in off:
+        specks &= False
     return seen_free & ~specks, seen_occ | specks
 
 
@@ -296,6 +315,14 @@ def write(out_dir, name, free, occupied, rooms, n):
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     args = sys.argv[1:]
+    off = None
+    if "--robot-off" in args:
+        i = args.index("--robot-off")
+        off = tuple(k for k in args[i + 1].split(",") if k)
+        del args[i:i + 2]
+        bad = [k for k in off if k not in AUGMENTATIONS]
+        if bad:
+            sys.exit(f"--robot-off: unknown {bad}; known: {', '.join(AUGMENTATIONS)}")
     src = args[0] if len(args) == 2 else os.path.join(here, "..", "tests", "data",
                                                       "segmentation", "r2v")
     out = args[-1] if args else sys.exit(__doc__)
@@ -304,13 +331,14 @@ def main():
             continue
         name = "r2v_" + fname[:-4]
         free, occupied, rooms, n, views = render(parse(os.path.join(src, fname)))
-        write(os.path.join(out, "plan"), name, free, occupied, rooms, n)
-        seen_free, seen_occ = scan(free, occupied, views)
-        write(os.path.join(out, "scan"), name, seen_free, seen_occ, rooms, n)
+        if off is None:
+            write(os.path.join(out, "plan"), name, free, occupied, rooms, n)
+            seen_free, seen_occ = scan(free, occupied, views)
+            write(os.path.join(out, "scan"), name, seen_free, seen_occ, rooms, n)
         rng = np.random.default_rng(zlib.crc32(name.encode()))
         world_free, world_occ = robot_world(parse(os.path.join(src, fname)), free, occupied,
-                                            rooms, n, rng)
-        robot_free, robot_occ = robot_scan(world_free, world_occ, views, rng)
+                                            rooms, n, rng, off or ())
+        robot_free, robot_occ = robot_scan(world_free, world_occ, views, rng, off or ())
         write(os.path.join(out, "robot"), name, robot_free, robot_occ, rooms, n)
         print(f"{name}: {free.shape[1]}x{free.shape[0]} cells, {n} enclosed regions, "
               f"{len(views)} scan viewpoints")

@@ -2,8 +2,11 @@
 """Scores `zonemap zones segment` on sets of maps with ground truth (<name>_map.png and
 <name>_gt.png per DIR: ../shared/data/floorplans, scripts/render_r2v.py's and render_sim.py's
 output) and prints one markdown row per DIR (mean precision, recall and mean IoU over its maps,
-the mean and largest segmentation time), or with --per-map one row per map. --merge-model runs
-another layout merge model than the compiled-in one (docs/segmentation.md, issue 28).
+the mean and largest segmentation time), or with --per-map one row per map. "IoU shown" is the
+mean IoU over the GT rooms the map shows (from 200 free cells; a room the robot never entered is
+left out, where mean IoU counts it 0: docs/segmentation.md, issue 28, second round).
+--merge-model runs another layout merge model than the compiled-in one (docs/segmentation.md,
+issue 28).
 
 Usage: scripts/score_sets.py ZONEMAP DIR [DIR ...] [--per-map] [--merge-model MODEL.json]
 """
@@ -20,7 +23,7 @@ def score(zonemap, map_png, gt_png, extra):
     j = json.loads(out)
     s = j["score"]
     return 100 * s["precision"], 100 * s["recall"], 100 * s["mean_iou"], j["segment_ms"], \
-        s["gt_rooms"], j["zones"]
+        s["gt_rooms"], j["zones"], 100 * s["mean_iou_shown"], s["gt_rooms_shown"]
 
 
 def main():
@@ -32,26 +35,28 @@ def main():
     a = ap.parse_args()
     extra = ["--merge-model", a.merge_model] if a.merge_model else []
     if a.per_map:
-        print("| map | GT rooms | zones | precision % | recall % | mean IoU % | segmentation ms |")
-        print("|---|---:|---:|---:|---:|---:|---:|")
+        print("| map | GT rooms (shown) | zones | precision % | recall % | mean IoU % | "
+              "IoU shown % | segmentation ms |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|")
     else:
-        print("| set | maps | precision % | recall % | mean IoU % | mean / max ms |")
-        print("|---|---:|---:|---:|---:|---:|")
+        print("| set | maps | precision % | recall % | mean IoU % | IoU shown % | mean / max ms |")
+        print("|---|---:|---:|---:|---:|---:|---:|")
     for d in a.dirs:
         rows = []
         for f in sorted(os.listdir(d)):
             if not f.endswith("_map.png"):
                 continue
             name = f[: -len("_map.png")]
-            p, r, i, ms, g, z = score(a.zonemap, os.path.join(d, f),
-                                      os.path.join(d, name + "_gt.png"), extra)
-            rows.append((p, r, i, ms))
+            p, r, i, ms, g, z, i_s, g_s = score(a.zonemap, os.path.join(d, f),
+                                                os.path.join(d, name + "_gt.png"), extra)
+            rows.append((p, r, i, i_s, ms))
             if a.per_map:
-                print(f"| {name} | {g} | {z} | {p:.1f} | {r:.1f} | {i:.1f} | {ms:.0f} |",
-                      flush=True)
-        m = [sum(x[k] for x in rows) / len(rows) for k in range(4)]
+                print(f"| {name} | {g} ({g_s}) | {z} | {p:.1f} | {r:.1f} | {i:.1f} | {i_s:.1f} | "
+                      f"{ms:.0f} |", flush=True)
+        m = [sum(x[k] for x in rows) / len(rows) for k in range(5)]
         print(f"| {'**mean**' if a.per_map else d} | {len(rows)} | {m[0]:.1f} | {m[1]:.1f} | "
-              f"{m[2]:.1f} | {m[3]:.0f} / {max(x[3] for x in rows):.0f} |", flush=True)
+              f"{m[2]:.1f} | {m[3]:.1f} | {m[4]:.0f} / {max(x[4] for x in rows):.0f} |",
+              flush=True)
 
 
 if __name__ == "__main__":

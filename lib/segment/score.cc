@@ -51,12 +51,17 @@ Result<cv::Mat> LoadGroundTruthLabels(const std::string& path, int min_room_cell
   return labels;
 }
 
-Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::Mat& ground_truth) {
+Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::Mat& ground_truth,
+                                            const cv::Mat& free_cells, int min_shown_cells) {
   if (predicted.type() != CV_32SC1 || ground_truth.type() != CV_32SC1) {
     return InvalidArgument("scoring needs two CV_32SC1 label images");
   }
+  if (!free_cells.empty() && free_cells.type() != CV_8UC1) {
+    return InvalidArgument("scoring's free-cell mask must be CV_8UC1");
+  }
   const int rows = std::min(predicted.rows, ground_truth.rows);
   const int cols = std::min(predicted.cols, ground_truth.cols);
+  std::map<int, std::int64_t> gt_free;                  // GT room -> cells the map holds as free
   std::map<std::pair<int, int>, std::int64_t> overlap;  // (pred, gt) -> cells
   std::map<int, std::int64_t> pred_area, gt_area;       // restricted to cells in both
   std::map<int, std::int64_t> gt_full, pred_full;       // every cell
@@ -66,7 +71,12 @@ Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::
     const int* p = predicted.ptr<int>(r);
     const int* g = ground_truth.ptr<int>(r);
     for (int c = 0; c < cols; ++c) {
-      if (g[c] > 0) gt_present[g[c]] = true, ++gt_full[g[c]];
+      if (g[c] > 0) {
+        gt_present[g[c]] = true, ++gt_full[g[c]];
+        const bool is_free = free_cells.empty() || (r < free_cells.rows && c < free_cells.cols &&
+                                                    free_cells.at<std::uint8_t>(r, c) != 0);
+        if (is_free) ++gt_free[g[c]];
+      }
       if (p[c] > 0) pred_present[p[c]] = true, ++pred_full[p[c]];
       if (p[c] <= 0 || g[c] <= 0) continue;
       ++overlap[{p[c], g[c]}];
@@ -98,6 +108,14 @@ Result<SegmentationScore> ScoreSegmentation(const cv::Mat& predicted, const cv::
   double iou_sum = 0.0;
   for (const auto& [g, iou] : best_iou) iou_sum += iou;
   score.mean_iou = score.gt_rooms > 0 ? iou_sum / score.gt_rooms : 0.0;
+  double shown_sum = 0.0;
+  for (const auto& [g, n] : gt_free) {
+    if (free_cells.empty() || n >= min_shown_cells) {
+      ++score.gt_rooms_shown;
+      if (auto it = best_iou.find(g); it != best_iou.end()) shown_sum += it->second;
+    }
+  }
+  score.mean_iou_shown = score.gt_rooms_shown > 0 ? shown_sum / score.gt_rooms_shown : 0.0;
   double full_sum = 0.0;
   for (const auto& [g, iou] : best_iou_full) full_sum += iou;
   score.mean_iou_full = score.gt_rooms > 0 ? full_sum / score.gt_rooms : 0.0;

@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """The segmentation's data scripts (issue 28) on one R2V plan and one small simulated hospital:
 render_r2v.py's three variants share one ground truth and the robot/ variant is reproducible and
-holds what a robot's grid holds (clutter, fewer walls seen); render_sim.py's grid and ground truth
+holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves augmentations out;
+render_sim.py's grid and ground truth
 agree in size, its corridor segments are one room; train_layout_merge.py fits a model that
 zonemap runs. Behaviour, not figures.
 
@@ -60,6 +61,26 @@ room = gts["plan"].any(axis=2)
 check(((maps["robot"] == 0) & room).sum() > ((maps["scan"] == 0) & room).sum(),
       "robot/ has clutter and door leaves in the rooms")
 check(set(np.unique(maps["robot"])) <= {0, 128, 255}, "robot/ is a trinary grid")
+
+# The ablation (--robot-off): only robot/ is written; with every augmentation off it is the
+# laser's map of the plan without clutter (no more occupied cells in the rooms than scan/ holds),
+# and with clutter off fewer cells in the rooms are occupied than in the full robot/ render.
+for off in ("clutter", "glass,leaves,clutter,unexplored,range,noise,specks"):
+    subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                    os.path.join(work, off), "--robot-off", off], check=True,
+                   capture_output=True)
+check(not os.path.exists(os.path.join(work, "clutter", "plan")), "--robot-off writes robot/ only")
+no_clutter = load(os.path.join(work, "clutter", "robot", name + "_map.png"))
+bare = load(os.path.join(work, "glass,leaves,clutter,unexplored,range,noise,specks", "robot",
+                         name + "_map.png"))
+check(((no_clutter == 0) & room).sum() < ((maps["robot"] == 0) & room).sum(),
+      "--robot-off clutter: fewer occupied cells in the rooms")
+check(((bare == 0) & room).sum() <= ((maps["scan"] == 0) & room).sum(),
+      "--robot-off with everything off: no clutter, leaves or specks in the rooms")
+bad = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                      os.path.join(work, "bad"), "--robot-off", "paint"], capture_output=True,
+                     text=True)
+check(bad.returncode != 0 and "paint" in bad.stderr, "--robot-off names an unknown augmentation")
 
 # One small simulated hospital mapped by its robot.
 sim = os.path.join(work, "sim")

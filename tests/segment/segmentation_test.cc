@@ -619,6 +619,42 @@ TEST_CASE("regression floor: map15 with the default options (the layout merge)")
   CHECK(score->predicted_segments <= 50);
 }
 
+TEST_CASE("a GT room the map never shows is left out of mean_iou_shown, not of mean_iou") {
+  // Three GT rooms side by side, 20 x 20 cells each; the map shows the first two as free, of the
+  // third only 150 cells (under the 200 that make a room). The segmentation has the first two
+  // exactly and nothing of the third.
+  cv::Mat truth = cv::Mat::zeros(20, 60, CV_32S);
+  truth(cv::Rect(0, 0, 20, 20)).setTo(1);
+  truth(cv::Rect(20, 0, 20, 20)).setTo(2);
+  truth(cv::Rect(40, 0, 20, 20)).setTo(3);
+  cv::Mat predicted = cv::Mat::zeros(20, 60, CV_32S);
+  predicted(cv::Rect(0, 0, 20, 20)).setTo(7);
+  predicted(cv::Rect(20, 0, 20, 20)).setTo(8);
+  cv::Mat free_cells = cv::Mat::zeros(20, 60, CV_8U);
+  free_cells(cv::Rect(0, 0, 40, 20)).setTo(255);
+  free_cells(cv::Rect(40, 0, 15, 10)).setTo(255);
+  auto score = ScoreSegmentation(predicted, truth, free_cells);
+  REQUIRE(score.ok());
+  CHECK(score->gt_rooms == 3);
+  CHECK(score->gt_rooms_shown == 2);
+  CHECK(score->mean_iou == doctest::Approx(2.0 / 3.0));
+  CHECK(score->mean_iou_shown == doctest::Approx(1.0));
+  CHECK(score->precision == doctest::Approx(1.0));
+  CHECK(score->recall == doctest::Approx(1.0));
+  // Once the map shows 200 cells of the third room, missing it costs again.
+  free_cells(cv::Rect(40, 0, 20, 10)).setTo(255);
+  score = ScoreSegmentation(predicted, truth, free_cells);
+  REQUIRE(score.ok());
+  CHECK(score->gt_rooms_shown == 3);
+  CHECK(score->mean_iou_shown == doctest::Approx(2.0 / 3.0));
+  // Without a map every GT room counts: the two means agree.
+  score = ScoreSegmentation(predicted, truth);
+  REQUIRE(score.ok());
+  CHECK(score->gt_rooms_shown == 3);
+  CHECK(score->mean_iou_shown == doctest::Approx(score->mean_iou));
+  CHECK_FALSE(ScoreSegmentation(predicted, truth, cv::Mat::zeros(20, 60, CV_32F)).ok());
+}
+
 TEST_CASE("bad inputs give one clear error naming the file") {
   const auto dir = TempDir("bad");
   auto missing = LoadOccupancyGrid((dir / "nope.png").string());
