@@ -17,6 +17,7 @@
 #include <thread>
 #include <utility>
 
+#include "harness/control_file.h"
 #include "harness/process_sample.h"
 #include "runtime/budget.h"
 
@@ -25,33 +26,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string Errno(int err) { return std::strerror(err); }
+Result<std::string> ReadFile(const std::string& path) { return ReadControlFile(path, "cgroup"); }
 
-Result<std::string> ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return IoError("cgroup: cannot read " + path + ": " + Errno(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// Writes `value` with one write(2), as the cgroup interface expects; the error names the file,
-// the value and, for byte limits, the limit in readable units.
+// The error names the file, the value and, for byte limits, the limit in readable units.
 Status WriteFile(const std::string& path, const std::string& value, std::string_view what = {}) {
-  const int fd = open(path.c_str(), O_WRONLY | O_CLOEXEC);
-  if (fd < 0) {
-    return IoError("cgroup: cannot open " + path + " to write " + value +
-                   (what.empty() ? "" : " (" + std::string(what) + ")") + ": " + Errno(errno));
-  }
-  const ssize_t n = write(fd, value.data(), value.size());
-  const int err = errno;
-  close(fd);
-  if (n != static_cast<ssize_t>(value.size())) {
-    return IoError("cgroup: writing " + value +
-                   (what.empty() ? "" : " (" + std::string(what) + ")") + " to " + path +
-                   " failed: " + Errno(n < 0 ? err : EIO));
-  }
-  return Status::Ok();
+  return WriteControlFile(path, value, "cgroup", what);
 }
 
 // Reads one unsigned number ("max" = no limit = UINT64_MAX).
@@ -65,11 +44,6 @@ Result<std::uint64_t> ReadNumber(const std::string& path) {
     return Corrupt("cgroup: " + path + " holds '" + text + "', not a number");
   }
   return v;
-}
-
-bool Exists(const std::string& path) {
-  struct stat st {};
-  return ::stat(path.c_str(), &st) == 0;
 }
 
 // `key value` lines (memory.events, memory.oom_control): true and *out = the value of `key`.
@@ -229,17 +203,16 @@ Result<std::vector<pid_t>> ReadProcs(const std::string& dir) {
 
 // Kills everything in `dir`, waits until it is empty, removes it.
 Status KillAndRemove(const std::string& dir) {
-  using Clock = std::chrono::steady_clock;
-  const auto deadline = Clock::now() + std::chrono::seconds(10);
-  const bool v2_kill = Exists(dir + "/cgroup.kill");
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  const bool v2_kill = PathExists(dir + "/cgroup.kill");
   for (;;) {
     auto pids = ReadProcs(dir);
     if (!pids.ok()) {
-      if (!Exists(dir)) return Status::Ok();  // already gone
+      if (!PathExists(dir)) return Status::Ok();  // already gone
       return pids.status();
     }
     if (pids->empty()) break;
-    if (Clock::now() > deadline) {
+    if (std::chrono::steady_clock::now() > deadline) {
       return IoError("cgroup: " + std::to_string(pids->size()) + " process(es) still in " + dir +
                      " 10 s after SIGKILL (first: " + std::to_string(pids->front()) + ")");
     }
@@ -256,7 +229,7 @@ Status KillAndRemove(const std::string& dir) {
   for (int attempt = 0;; ++attempt) {
     if (::rmdir(dir.c_str()) == 0 || errno == ENOENT) return Status::Ok();
     if (errno != EBUSY || attempt >= 200) {
-      return IoError("cgroup: cannot remove " + dir + ": " + Errno(errno));
+      return IoError("cgroup: cannot remove " + dir + ": " + ErrnoText(errno));
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
@@ -281,7 +254,7 @@ Status CheckRoomFor(const std::string& parent, CgroupVersion version, std::uint6
   std::string dir = parent;
   while (dir.size() >= mountpoint.size() && !dir.empty()) {
     const std::string path = dir + "/" + file;
-    if (Exists(path)) {
+    if (PathExists(path)) {
       auto v = ReadNumber(path);
       if (v.ok() && *v < limit) {
         return FailedPrecondition("cgroup: the device limit " + FormatBytes(limit) +
@@ -427,7 +400,7 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
   } else {
     parent.dir = options.parent_dir;
     parent.version =
-        Exists(parent.dir + "/cgroup.controllers") ? CgroupVersion::kV2 : CgroupVersion::kV1;
+        PathExists(parent.dir + "/cgroup.controllers") ? CgroupVersion::kV2 : CgroupVersion::kV1;
   }
   {
     // For the ancestor walk: stop at the hierarchy's mount point.
@@ -466,7 +439,7 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
   cg.version_ = parent.version;
   const std::string dir = parent.dir + "/" + ChildName(options.prefix);
   if (::mkdir(dir.c_str(), 0755) != 0) {
-    return IoError("cgroup: cannot create " + dir + ": " + Errno(errno));
+    return IoError("cgroup: cannot create " + dir + ": " + ErrnoText(errno));
   }
   cg.dir_ = dir;  // from here on the destructor removes it
 
@@ -478,7 +451,7 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
     // memsw = memory + swap, never below the memory limit (so it is written second). Equal to
     // the memory limit means no swap at all. Absent when the kernel does not account swap (then
     // swap cannot be limited: swap_limited = false).
-    if (Exists(dir + "/memory.memsw.limit_in_bytes")) {
+    if (PathExists(dir + "/memory.memsw.limit_in_bytes")) {
       ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.memsw.limit_in_bytes",
                                    std::to_string(options.limit_bytes + options.swap_bytes),
                                    options.swap_bytes == 0 ? what : what + " + " + swap_what));
@@ -486,7 +459,7 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
       cg.swap_limit_bytes_ = options.swap_bytes;
       cg.swap_fd_ = OpenRead(dir + "/memory.memsw.usage_in_bytes");
     }
-    if (options.swappiness >= 0 && Exists(dir + "/memory.swappiness")) {
+    if (options.swappiness >= 0 && PathExists(dir + "/memory.swappiness")) {
       ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.swappiness", std::to_string(options.swappiness),
                                    "the device's swappiness"));
     }
@@ -499,7 +472,7 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
     if (cg.swap_limited_) cg.memsw_failcnt_fd_ = OpenRead(dir + "/memory.memsw.failcnt");
   } else {
     ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.max", value, what));
-    if (Exists(dir + "/memory.swap.max")) {
+    if (PathExists(dir + "/memory.swap.max")) {
       ZM_RETURN_IF_ERROR(WriteFile(dir + "/memory.swap.max", std::to_string(options.swap_bytes),
                                    options.swap_bytes == 0 ? "no swap" : swap_what));
       cg.swap_limited_ = true;
@@ -513,11 +486,11 @@ Result<Cgroup> Cgroup::Create(const CgroupOptions& options) {
     cg.events_fd_ = OpenRead(dir + "/memory.events");
   }
   if (cg.usage_fd_ < 0 || cg.events_fd_ < 0) {
-    return IoError("cgroup: cannot open the counters of " + dir + ": " + Errno(errno));
+    return IoError("cgroup: cannot open the counters of " + dir + ": " + ErrnoText(errno));
   }
   cg.procs_fd_ = open((dir + "/cgroup.procs").c_str(), O_WRONLY | O_CLOEXEC);
   if (cg.procs_fd_ < 0) {
-    return IoError("cgroup: cannot open " + dir + "/cgroup.procs: " + Errno(errno));
+    return IoError("cgroup: cannot open " + dir + "/cgroup.procs: " + ErrnoText(errno));
   }
   return cg;
 }

@@ -18,6 +18,7 @@
 #include <thread>
 #include <utility>
 
+#include "harness/control_file.h"
 #include "harness/process_sample.h"
 #include "runtime/budget.h"
 
@@ -28,34 +29,6 @@ namespace fs = std::filesystem;
 
 // nvzramconfig's `swapon -p 5`: above a disk swap, as JetPack sets it.
 constexpr int kZramSwapPriority = 5;
-
-std::string Errno(int err) { return std::strerror(err); }
-
-Result<std::string> ReadText(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return IoError("cannot read " + path + ": " + Errno(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// One write(2), as sysfs expects; the error names the file and the value.
-Status WriteText(const std::string& path, const std::string& value) {
-  const int fd = open(path.c_str(), O_WRONLY | O_TRUNC | O_CLOEXEC);
-  if (fd < 0) return IoError("cannot open " + path + " to write " + value + ": " + Errno(errno));
-  const ssize_t n = write(fd, value.data(), value.size());
-  const int err = errno;
-  close(fd);
-  if (n != static_cast<ssize_t>(value.size())) {
-    return IoError("writing " + value + " to " + path + " failed: " + Errno(n < 0 ? err : EIO));
-  }
-  return Status::Ok();
-}
-
-bool Exists(const std::string& path) {
-  struct stat st {};
-  return ::stat(path.c_str(), &st) == 0;
-}
 
 std::string Trim(std::string s) {
   while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
@@ -85,7 +58,7 @@ SwapSystem WithDefaults(SwapSystem sys) {
 }
 
 bool IsSwapActive(const SwapSystem& sys, const std::string& path) {
-  auto text = ReadText(sys.proc_swaps);
+  auto text = ReadControlFile(sys.proc_swaps);
   return text.ok() && ProcSwapsContains(*text, path);
 }
 
@@ -95,17 +68,18 @@ Status RemoveZram(const SwapSystem& sys, int id) {
   const std::string name = "zram" + std::to_string(id);
   if (IsSwapActive(sys, dev)) {
     if (const int e = sys.swap_off(dev); e != 0) {
-      return IoError("swap: swapoff " + dev + " failed: " + Errno(e) +
+      return IoError("swap: swapoff " + dev + " failed: " + ErrnoText(e) +
                      " (its pages must fit back in memory)");
     }
   }
-  if (Exists(BlockDir(sys, id))) {
+  if (PathExists(BlockDir(sys, id))) {
     ZM_RETURN_IF_ERROR(
-        WriteText(BlockDir(sys, id) + "/reset", "1").Annotate("swap: reset " + name));
+        WriteControlFile(BlockDir(sys, id) + "/reset", "1").Annotate("swap: reset " + name));
     // The kernel may hold the device busy for a moment after swapoff.
     Status removed;
     for (int attempt = 0; attempt < 100; ++attempt) {
-      removed = WriteText(sys.sysfs_root + "/class/zram-control/hot_remove", std::to_string(id));
+      removed =
+          WriteControlFile(sys.sysfs_root + "/class/zram-control/hot_remove", std::to_string(id));
       if (removed.ok()) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
@@ -278,7 +252,7 @@ DeviceSwap OpenDeviceSwap(const SwapOptions& options) {
     std::fprintf(stderr, "device swap: removed %u stale zram device(s) of earlier runs\n", *stale);
   }
   // A real Jetson: JetPack's zram is already on; the device cgroup's swap limit is the profile's.
-  if (auto text = ReadText(sys.proc_swaps); text.ok()) {
+  if (auto text = ReadControlFile(sys.proc_swaps); text.ok()) {
     const ActiveSwaps active = ParseProcSwaps(*text);
     if (active.count > 0) {
       s.kind_ = SwapKind::kExisting;
@@ -305,7 +279,7 @@ DeviceSwap OpenDeviceSwap(const SwapOptions& options) {
     return std::move(s);
   };
   const std::string hot_add = sys.sysfs_root + "/class/zram-control/hot_add";
-  auto added = ReadText(hot_add);  // reading it makes a device and returns its id
+  auto added = ReadControlFile(hot_add);  // reading it makes a device and returns its id
   int id = -1;
   if (added.ok()) {
     const std::string t = Trim(*added);
@@ -332,7 +306,7 @@ DeviceSwap OpenDeviceSwap(const SwapOptions& options) {
     }
   }
   const std::string block = BlockDir(sys, id);
-  if (auto algs = ReadText(block + "/comp_algorithm"); algs.ok()) {
+  if (auto algs = ReadControlFile(block + "/comp_algorithm"); algs.ok()) {
     // "[lzo-rle] lzo lz4 ...": the bracketed one is current.
     std::istringstream in(*algs);
     std::string tok, current;
@@ -345,11 +319,11 @@ DeviceSwap OpenDeviceSwap(const SwapOptions& options) {
       lz4 = lz4 || tok == "lz4";
     }
     s.comp_algorithm_ = current;
-    if (lz4 && WriteText(block + "/comp_algorithm", "lz4").ok()) s.comp_algorithm_ = "lz4";
+    if (lz4 && WriteControlFile(block + "/comp_algorithm", "lz4").ok()) s.comp_algorithm_ = "lz4";
   }
   const auto page = static_cast<std::uint32_t>(sysconf(_SC_PAGESIZE));
   const std::uint64_t bytes = options.bytes / page * page;
-  if (Status d = WriteText(block + "/disksize", std::to_string(bytes)); !d.ok()) {
+  if (Status d = WriteControlFile(block + "/disksize", std::to_string(bytes)); !d.ok()) {
     return fall_back("zram" + std::to_string(id) + ": " + d.message());
   }
   s.device_path_ = DevPath(sys, id);
@@ -363,18 +337,18 @@ DeviceSwap OpenDeviceSwap(const SwapOptions& options) {
       if (fd < 0 && errno != ENOENT) break;
       if (fd < 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
-    if (fd < 0) return fall_back("cannot open " + s.device_path_ + ": " + Errno(errno));
+    if (fd < 0) return fall_back("cannot open " + s.device_path_ + ": " + ErrnoText(errno));
     const ssize_t n = write(fd, header->data(), header->size());
     const int err = errno;
     const bool synced = fsync(fd) == 0;
     close(fd);
     if (n != static_cast<ssize_t>(header->size()) || !synced) {
       return fall_back("writing the swap header to " + s.device_path_ +
-                       " failed: " + Errno(n < 0 ? err : EIO));
+                       " failed: " + ErrnoText(n < 0 ? err : EIO));
     }
   }
   if (const int e = sys.swap_on(s.device_path_, kZramSwapPriority); e != 0) {
-    return fall_back("swapon " + s.device_path_ + " refused: " + Errno(e));
+    return fall_back("swapon " + s.device_path_ + " refused: " + ErrnoText(e));
   }
   s.swapped_on_ = true;
   s.kind_ = SwapKind::kZram;

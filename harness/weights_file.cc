@@ -23,14 +23,13 @@
 #include <vector>
 
 #include "common/elapsed.h"
+#include "harness/control_file.h"
 #include "runtime/budget.h"
 
 namespace zm {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-std::string Errno(int e) { return std::strerror(e); }
 
 // The file starts with this header; the rest is a xorshift64 stream from a fixed seed, so the
 // content depends only on the size.
@@ -118,11 +117,11 @@ Status WriteContent(int fd, std::uint64_t bytes, const std::string& what) {
       first = false;
     }
     if (!WriteAll(fd, chunk.data(), n)) {
-      return IoError("writing " + what + ": " + Errno(errno));
+      return IoError("writing " + what + ": " + ErrnoText(errno));
     }
     written += n;
   }
-  if (fsync(fd) != 0) return IoError("fsync " + what + ": " + Errno(errno));
+  if (fsync(fd) != 0) return IoError("fsync " + what + ": " + ErrnoText(errno));
   return Status::Ok();
 }
 
@@ -174,9 +173,10 @@ Result<WeightsFileInfo> EnsureWeightsFile(const std::string& dir_in, std::uint64
   // Serialize creators: the second one finds the file complete once it holds the lock.
   const std::string lock_path = info.path + ".lock";
   Fd lock(open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644));
-  if (lock.fd < 0) return IoError("weights cache '" + dir + "' is not writable: " + Errno(errno));
+  if (lock.fd < 0)
+    return IoError("weights cache '" + dir + "' is not writable: " + ErrnoText(errno));
   while (flock(lock.fd, LOCK_EX) != 0) {
-    if (errno != EINTR) return IoError("locking " + lock_path + ": " + Errno(errno));
+    if (errno != EINTR) return IoError("locking " + lock_path + ": " + ErrnoText(errno));
   }
   if (complete()) return info;
 
@@ -193,7 +193,7 @@ Result<WeightsFileInfo> EnsureWeightsFile(const std::string& dir_in, std::uint64
   const auto t0 = Clock::now();
   {
     Fd out(open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
-    if (out.fd < 0) return IoError("creating " + tmp + ": " + Errno(errno));
+    if (out.fd < 0) return IoError("creating " + tmp + ": " + ErrnoText(errno));
     if (Status s = WriteContent(out.fd, bytes, tmp); !s.ok()) {
       unlink(tmp.c_str());
       return s;
@@ -204,7 +204,7 @@ Result<WeightsFileInfo> EnsureWeightsFile(const std::string& dir_in, std::uint64
   if (rename(tmp.c_str(), info.path.c_str()) != 0) {
     const int e = errno;
     unlink(tmp.c_str());
-    return IoError("renaming " + tmp + " to " + info.path + ": " + Errno(e));
+    return IoError("renaming " + tmp + " to " + info.path + ": " + ErrnoText(e));
   }
   if (Fd d(open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)); d.fd >= 0) (void)fsync(d.fd);
   info.created = true;
@@ -256,9 +256,9 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path,
                                          const WeightsMapOptions& options) {
   const auto t0 = Clock::now();
   Fd fd(open(path.c_str(), O_RDONLY | O_CLOEXEC));
-  if (fd.fd < 0) return IoError("cannot open weights file '" + path + "': " + Errno(errno));
+  if (fd.fd < 0) return IoError("cannot open weights file '" + path + "': " + ErrnoText(errno));
   struct stat st {};
-  if (fstat(fd.fd, &st) != 0) return IoError("stat " + path + ": " + Errno(errno));
+  if (fstat(fd.fd, &st) != 0) return IoError("stat " + path + ": " + ErrnoText(errno));
   const auto bytes = static_cast<std::uint64_t>(st.st_size);
   WeightsHeader h{};
   if (!S_ISREG(st.st_mode) || bytes < kWeightsPageBytes || bytes % kWeightsPageBytes != 0 ||
@@ -279,7 +279,7 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path,
     void* p = mmap(nullptr, size, PROT_READ, flags, fd.fd, 0);
     if (p == MAP_FAILED) {
       return ResourceExhausted("mapping the " + FormatBytes(bytes) + " weights file '" + path +
-                               "' failed: " + Errno(errno));
+                               "' failed: " + ErrnoText(errno));
     }
     w.addr_ = p;
     w.bytes_ = size;
@@ -289,7 +289,7 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path,
     void* p = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (p == MAP_FAILED) {
       return ResourceExhausted("allocating " + FormatBytes(bytes) +
-                               " for the weights failed: " + Errno(errno));
+                               " for the weights failed: " + ErrnoText(errno));
     }
     w.addr_ = p;
     w.bytes_ = size;
@@ -299,7 +299,7 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path,
           pread(fd.fd, static_cast<char*>(p) + done, size - done, static_cast<off_t>(done));
       if (r < 0 && errno == EINTR) continue;
       if (r <= 0)
-        return IoError("reading weights file '" + path + "': " + Errno(r < 0 ? errno : EIO));
+        return IoError("reading weights file '" + path + "': " + ErrnoText(r < 0 ? errno : EIO));
       done += static_cast<std::size_t>(r);
     }
     (void)mprotect(p, size, PROT_READ);
@@ -320,7 +320,7 @@ Result<MappedWeights> MappedWeights::Map(const std::string& path,
           return v == RLIM_INFINITY ? std::string("unlimited")
                                     : FormatBytes(static_cast<std::uint64_t>(v));
         };
-        w.mlock_error_ = "mlock of " + FormatBytes(bytes) + " failed: " + Errno(err) +
+        w.mlock_error_ = "mlock of " + FormatBytes(bytes) + " failed: " + ErrnoText(err) +
                          " (RLIMIT_MEMLOCK " + limit(now.rlim_cur) + ", hard " +
                          limit(now.rlim_max) + ")";
       }
