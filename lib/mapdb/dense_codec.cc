@@ -21,6 +21,7 @@
 #include <limits>
 #include <string>
 
+#include "mapdb/map_db_internal.h"  // Kf
 #include "mapdb/rvl.h"
 
 namespace zm {
@@ -29,8 +30,6 @@ namespace {
 constexpr std::size_t kAlign = 64;  // >= libjpeg-turbo's ALIGN_SIZE (32), a cache line
 
 constexpr std::size_t RoundUp(std::size_t v, std::size_t a) { return (v + a - 1) / a * a; }
-
-std::string Kf(std::int64_t id) { return "keyframe " + std::to_string(id); }
 
 // libjpeg's error manager plus where to jump and the formatted message.
 struct JpegError {
@@ -142,7 +141,8 @@ void* AllocSmall(j_common_ptr c, int pool_id, std::size_t bytes) {
 // (its jmemmgr.c does the same): they may read and write up to the padded row end.
 JSAMPARRAY AllocSarray(j_common_ptr c, int pool_id, JDIMENSION samples_per_row, JDIMENSION rows) {
   const std::size_t row_bytes = RoundUp(samples_per_row, 64) * sizeof(JSAMPLE);
-  auto* result = static_cast<JSAMPARRAY>(AllocSmall(c, pool_id, std::size_t{rows} * sizeof(JSAMPROW)));
+  auto* result =
+      static_cast<JSAMPARRAY>(AllocSmall(c, pool_id, std::size_t{rows} * sizeof(JSAMPROW)));
   const std::size_t total = std::size_t{rows} * row_bytes;
   auto* space = static_cast<JSAMPROW>(AllocSmall(c, pool_id, std::max<std::size_t>(total, 1)));
   for (JDIMENSION r = 0; r < rows; ++r) result[r] = space + std::size_t{r} * row_bytes;
@@ -150,7 +150,8 @@ JSAMPARRAY AllocSarray(j_common_ptr c, int pool_id, JDIMENSION samples_per_row, 
 }
 
 JBLOCKARRAY AllocBarray(j_common_ptr c, int pool_id, JDIMENSION blocks_per_row, JDIMENSION rows) {
-  auto* result = static_cast<JBLOCKARRAY>(AllocSmall(c, pool_id, std::size_t{rows} * sizeof(JBLOCKROW)));
+  auto* result =
+      static_cast<JBLOCKARRAY>(AllocSmall(c, pool_id, std::size_t{rows} * sizeof(JBLOCKROW)));
   const std::size_t total = std::size_t{rows} * blocks_per_row * sizeof(JBLOCK);
   auto* space = static_cast<JBLOCKROW>(AllocSmall(c, pool_id, std::max<std::size_t>(total, 1)));
   for (JDIMENSION r = 0; r < rows; ++r) result[r] = space + std::size_t{r} * blocks_per_row;
@@ -163,10 +164,12 @@ JBLOCKARRAY AllocBarray(j_common_ptr c, int pool_id, JDIMENSION blocks_per_row, 
   Of(c)->refusal = "progressive or multi-scan JPEG (dense keyframes are baseline JPEG)";
   Raise(c, JERR_NOT_COMPILED);
 }
-jvirt_sarray_ptr RequestVirtSarray(j_common_ptr c, int, boolean, JDIMENSION, JDIMENSION, JDIMENSION) {
+jvirt_sarray_ptr RequestVirtSarray(j_common_ptr c, int, boolean, JDIMENSION, JDIMENSION,
+                                   JDIMENSION) {
   RefuseVirtual(c);
 }
-jvirt_barray_ptr RequestVirtBarray(j_common_ptr c, int, boolean, JDIMENSION, JDIMENSION, JDIMENSION) {
+jvirt_barray_ptr RequestVirtBarray(j_common_ptr c, int, boolean, JDIMENSION, JDIMENSION,
+                                   JDIMENSION) {
   RefuseVirtual(c);
 }
 void RealizeVirtArrays(j_common_ptr) {}  // none were requested
@@ -241,8 +244,8 @@ struct EncodeState {
   bool created = false;
 };
 
-int EncodeJpegRaw(EncodeState* s, const std::uint8_t* rgb, std::uint32_t width, std::uint32_t height,
-                  int quality) {
+int EncodeJpegRaw(EncodeState* s, const std::uint8_t* rgb, std::uint32_t width,
+                  std::uint32_t height, int quality) {
   j_compress_ptr c = &s->cinfo;
   c->err = &s->err.pub;
   InstallErrorHandler(&s->err);
@@ -406,8 +409,8 @@ Status DenseDecoder::DecodeJpegRgb(std::span<const std::byte> jpeg, std::uint32_
   }
   if (jpeg.empty()) return Corrupt("empty JPEG stream");
   im.refusal = nullptr;
-  const int rc = DecodeJpegRaw(&im, reinterpret_cast<const unsigned char*>(jpeg.data()), jpeg.size(),
-                               width, height, out.data());
+  const int rc = DecodeJpegRaw(&im, reinterpret_cast<const unsigned char*>(jpeg.data()),
+                               jpeg.size(), width, height, out.data());
   switch (rc) {
     case kRawOk:
       return Status::Ok();
@@ -417,13 +420,15 @@ Status DenseDecoder::DecodeJpegRgb(std::span<const std::byte> jpeg, std::uint32_
                      std::to_string(im.got_components) + " components, expected " +
                      std::to_string(width) + "x" + std::to_string(height) + " RGB");
     case kRawStalled:
-      return Corrupt("JPEG of " + std::to_string(jpeg.size()) + " bytes stopped before its last row");
+      return Corrupt("JPEG of " + std::to_string(jpeg.size()) +
+                     " bytes stopped before its last row");
     default:
       break;
   }
   if (im.refusal != nullptr && std::strcmp(im.refusal, "image pool") != 0 &&
       std::strcmp(im.refusal, "permanent pool") != 0) {
-    return Unsupported(std::string("JPEG of ") + std::to_string(jpeg.size()) + " bytes: " + im.refusal);
+    return Unsupported(std::string("JPEG of ") + std::to_string(jpeg.size()) +
+                       " bytes: " + im.refusal);
   }
   if (im.refusal != nullptr) {
     const Pool& p = std::strcmp(im.refusal, "image pool") == 0 ? im.image : im.permanent;
@@ -435,7 +440,8 @@ Status DenseDecoder::DecodeJpegRgb(std::span<const std::byte> jpeg, std::uint32_
   return Corrupt("JPEG of " + std::to_string(jpeg.size()) + " bytes: " + im.err.message);
 }
 
-Result<std::uint32_t> DenseDecoder::DecodeInSlot(std::span<std::byte> slot, std::size_t blob_bytes) {
+Result<std::uint32_t> DenseDecoder::DecodeInSlot(std::span<std::byte> slot,
+                                                 std::size_t blob_bytes) {
   Impl& im = *impl_;
   if (blob_bytes > slot.size()) {
     return InvalidArgument("payload of " + std::to_string(blob_bytes) + " bytes in a slot of " +
@@ -445,12 +451,13 @@ Result<std::uint32_t> DenseDecoder::DecodeInSlot(std::span<std::byte> slot, std:
   if (!view.ok()) return view.status();
   const KeyframeView& v = *view;
   if (v.dense_format != DenseFormat::kJpegColourRvlDepth) return v.total_bytes;
-  const auto kf = [&] { return Kf(v.id.value); };  // only on an error: no string when it works
+  const auto kf = [&] { return Kf(v.id); };  // only on an error: no string when it works
   if (v.resident_bytes > slot.size()) {
     return OutOfRange(kf() + ": decoded keyframe needs " + std::to_string(v.resident_bytes) +
-                      " bytes (blob of " + std::to_string(v.total_bytes) + " + colour, depth, points, cloud " +
-                      std::to_string(v.dense_width) + "x" + std::to_string(v.dense_height) +
-                      "), larger than the arena slot of " + std::to_string(slot.size()) + " bytes");
+                      " bytes (blob of " + std::to_string(v.total_bytes) +
+                      " + colour, depth, points, cloud " + std::to_string(v.dense_width) + "x" +
+                      std::to_string(v.dense_height) + "), larger than the arena slot of " +
+                      std::to_string(slot.size()) + " bytes");
   }
   const bool from_depth = (v.flags & kPayloadPointsFromDepth) != 0;
   if (from_depth && v.feature_count > 0 && !im.has_camera) {
@@ -459,20 +466,24 @@ Result<std::uint32_t> DenseDecoder::DecodeInSlot(std::span<std::byte> slot, std:
   }
   const std::uint32_t w = v.dense_width, h = v.dense_height;
   const std::size_t pixels = std::size_t{w} * h;
-  const DecodedLayout d = DecodedLayoutFor(v.total_bytes, v.feature_count, w, h, v.cloud_step, from_depth);
+  const DecodedLayout d =
+      DecodedLayoutFor(v.total_bytes, v.feature_count, w, h, v.cloud_step, from_depth);
   std::byte* base = slot.data();
   auto* colour = reinterpret_cast<std::uint8_t*>(base + d.colour);
   auto* depth = reinterpret_cast<std::uint16_t*>(base + d.depth);
 
-  Status s = DecodeJpegRgb(v.dense.first(v.dense_split), w, h, std::span<std::uint8_t>(colour, pixels * 3));
+  Status s = DecodeJpegRgb(v.dense.first(v.dense_split), w, h,
+                           std::span<std::uint8_t>(colour, pixels * 3));
   if (!s.ok()) return s.Annotate(kf() + ": colour");
-  s = DecodeRvlDepthInto(v.dense.subspan(v.dense_split), w, h, std::span<std::uint16_t>(depth, pixels));
+  s = DecodeRvlDepthInto(v.dense.subspan(v.dense_split), w, h,
+                         std::span<std::uint16_t>(depth, pixels));
   if (!s.ok()) return s.Annotate(kf() + ": depth");
 
   if (from_depth) {
     auto* points = reinterpret_cast<float*>(base + d.points);
     for (std::uint32_t i = 0; i < v.feature_count; ++i) {
-      PointFromDepth(im.camera, depth, w, h, v.keypoints[2 * i], v.keypoints[2 * i + 1], points + 3 * i);
+      PointFromDepth(im.camera, depth, w, h, v.keypoints[2 * i], v.keypoints[2 * i + 1],
+                     points + 3 * i);
     }
   }
   if (d.cloud_points > 0) {
@@ -497,7 +508,8 @@ Result<std::uint32_t> DenseDecoder::DecodeInSlot(std::span<std::byte> slot, std:
         const std::uint32_t x = c * step;
         const std::size_t p = std::size_t{y} * w + x;
         const std::uint8_t* rgb = colour + 3 * p;
-        const std::uint32_t packed = (std::uint32_t{rgb[0]} << 16) | (std::uint32_t{rgb[1]} << 8) | rgb[2];
+        const std::uint32_t packed =
+            (std::uint32_t{rgb[0]} << 16) | (std::uint32_t{rgb[1]} << 8) | rgb[2];
         std::memcpy(cloud + 3, &packed, sizeof packed);
         if (depth[p] == 0) {
           cloud[0] = cloud[1] = cloud[2] = nan;

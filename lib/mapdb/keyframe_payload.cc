@@ -11,14 +11,13 @@
 #include <limits>
 #include <string>
 
+#include "mapdb/map_db_internal.h"  // Kf
 #include "simd/crc32c.h"
 
 namespace zm {
 namespace {
 
 constexpr std::size_t Align16(std::size_t v) { return (v + 15) & ~std::size_t{15}; }
-
-std::string Kf(KeyframeId id) { return "keyframe " + std::to_string(id.value); }
 
 }  // namespace
 
@@ -45,7 +44,8 @@ std::uint32_t PayloadBodyChecksum(std::uint16_t version, std::span<const std::by
   return version == kPayloadVersionZlibCrc ? Crc32(body, previous) : Crc32c(body, previous);
 }
 
-PayloadLayout LayoutFor(std::uint32_t feature_count, std::uint32_t dense_bytes, bool points_on_disk) {
+PayloadLayout LayoutFor(std::uint32_t feature_count, std::uint32_t dense_bytes,
+                        bool points_on_disk) {
   PayloadLayout l;
   const std::size_t n = feature_count;
   l.descriptors = kPayloadHeaderBytes;
@@ -62,7 +62,8 @@ DecodedLayout DecodedLayoutFor(std::size_t total_bytes, std::uint32_t feature_co
   DecodedLayout d;
   const std::size_t pixels = std::size_t{width} * height;
   d.points = Align16(total_bytes);
-  d.colour = Align16(d.points + (points_from_depth ? std::size_t{feature_count} * 3 * sizeof(float) : 0));
+  d.colour =
+      Align16(d.points + (points_from_depth ? std::size_t{feature_count} * 3 * sizeof(float) : 0));
   d.depth = Align16(d.colour + pixels * 3);
   d.cloud = Align16(d.depth + pixels * sizeof(std::uint16_t));
   d.cloud_points = cloud_step == 0 ? 0 : (width / cloud_step) * (height / cloud_step);
@@ -94,7 +95,8 @@ std::string DenseGeometryError(std::uint32_t width, std::uint32_t height, std::u
 Result<std::size_t> EncodePayload(const PayloadParts& parts, std::span<std::byte> out) {
   const std::size_t n = parts.descriptors.size();
   if (n > kMaxFeaturesPerKeyframe) {
-    return InvalidArgument(Kf(parts.id) + ": " + std::to_string(n) + " features exceed the limit of " +
+    return InvalidArgument(Kf(parts.id) + ": " + std::to_string(n) +
+                           " features exceed the limit of " +
                            std::to_string(kMaxFeaturesPerKeyframe));
   }
   if ((parts.flags & ~kPayloadPointsFromDepth) != 0) {
@@ -107,7 +109,8 @@ Result<std::size_t> EncodePayload(const PayloadParts& parts, std::span<std::byte
   const bool from_depth = (parts.flags & kPayloadPointsFromDepth) != 0;
   const bool decodes = parts.dense_format == DenseFormat::kJpegColourRvlDepth;
   if (from_depth && !decodes) {
-    return InvalidArgument(Kf(parts.id) + ": points from depth need the kJpegColourRvlDepth dense format");
+    return InvalidArgument(Kf(parts.id) +
+                           ": points from depth need the kJpegColourRvlDepth dense format");
   }
   const std::size_t want_points = from_depth ? 0 : 3 * n;
   if (parts.points.size() != want_points || parts.keypoints.size() != 2 * n) {
@@ -117,8 +120,8 @@ Result<std::size_t> EncodePayload(const PayloadParts& parts, std::span<std::byte
                            std::to_string(want_points) + " and " + std::to_string(2 * n) + ")");
   }
   if (parts.dense.size() > std::numeric_limits<std::uint32_t>::max() / 2) {
-    return InvalidArgument(Kf(parts.id) + ": dense payload of " + std::to_string(parts.dense.size()) +
-                           " bytes is too large");
+    return InvalidArgument(Kf(parts.id) + ": dense payload of " +
+                           std::to_string(parts.dense.size()) + " bytes is too large");
   }
   if (parts.dense_split > parts.dense.size()) {
     return InvalidArgument(Kf(parts.id) + ": dense_split " + std::to_string(parts.dense_split) +
@@ -126,11 +129,12 @@ Result<std::size_t> EncodePayload(const PayloadParts& parts, std::span<std::byte
   }
   const auto dense_bytes = static_cast<std::uint32_t>(parts.dense.size());
   if (decodes) {
-    const std::string err = DenseGeometryError(parts.dense_width, parts.dense_height, parts.cloud_step,
-                                               parts.dense_split, dense_bytes);
+    const std::string err = DenseGeometryError(parts.dense_width, parts.dense_height,
+                                               parts.cloud_step, parts.dense_split, dense_bytes);
     if (!err.empty()) return InvalidArgument(Kf(parts.id) + ": " + err);
   } else if (parts.dense_width != 0 || parts.dense_height != 0 || parts.cloud_step != 0) {
-    return InvalidArgument(Kf(parts.id) + ": dense geometry given for a format that is not decoded");
+    return InvalidArgument(Kf(parts.id) +
+                           ": dense geometry given for a format that is not decoded");
   }
   const PayloadLayout l = LayoutFor(static_cast<std::uint32_t>(n), dense_bytes, !from_depth);
   const std::size_t resident =
@@ -205,10 +209,9 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
   }
   const KeyframeId id{h.keyframe_id};
   if (h.version != kPayloadVersion && h.version != kPayloadVersionZlibCrc) {
-    return FailedPrecondition(Kf(id) + ": payload version " + std::to_string(h.version) +
-                              ", this build reads versions " +
-                              std::to_string(kPayloadVersionZlibCrc) + " to " +
-                              std::to_string(kPayloadVersion));
+    return FailedPrecondition(
+        Kf(id) + ": payload version " + std::to_string(h.version) + ", this build reads versions " +
+        std::to_string(kPayloadVersionZlibCrc) + " to " + std::to_string(kPayloadVersion));
   }
   if (h.feature_count > kMaxFeaturesPerKeyframe) {
     return Corrupt(Kf(id) + ": header claims " + std::to_string(h.feature_count) +
@@ -232,11 +235,13 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
   if (decoded && !blob_is_slot) {
     return Corrupt(Kf(id) + ": a stored payload claims to be decoded (only a slot may)");
   }
-  const bool decodes = h.dense_format == static_cast<std::uint16_t>(DenseFormat::kJpegColourRvlDepth);
+  const bool decodes =
+      h.dense_format == static_cast<std::uint16_t>(DenseFormat::kJpegColourRvlDepth);
   const bool from_depth = (h.flags & kPayloadPointsFromDepth) != 0;
   if ((from_depth || decoded) && !decodes) {
     return Corrupt(Kf(id) + ": payload flags 0x" + std::to_string(h.flags) +
-                   " need the JPEG + RVL dense format, not format " + std::to_string(h.dense_format));
+                   " need the JPEG + RVL dense format, not format " +
+                   std::to_string(h.dense_format));
   }
   const PayloadLayout l = LayoutFor(h.feature_count, h.dense_bytes, !from_depth);  // 64-bit math
   if (l.total != h.total_bytes) {
@@ -245,14 +250,15 @@ Result<KeyframeView> DecodePayload(std::span<const std::byte> blob, DecodeOption
   }
   DecodedLayout d;
   if (decodes) {
-    const std::string err =
-        DenseGeometryError(h.dense_width, h.dense_height, h.cloud_step, h.dense_split, h.dense_bytes);
+    const std::string err = DenseGeometryError(h.dense_width, h.dense_height, h.cloud_step,
+                                               h.dense_split, h.dense_bytes);
     if (!err.empty()) return Corrupt(Kf(id) + ": " + err);
     d = DecodedLayoutFor(l.total, h.feature_count, h.dense_width, h.dense_height, h.cloud_step,
                          from_depth);
     if (d.end != h.resident_bytes) {
       return Corrupt(Kf(id) + ": header resident size " + std::to_string(h.resident_bytes) +
-                     " bytes disagrees with its decoded sections (" + std::to_string(d.end) + " bytes)");
+                     " bytes disagrees with its decoded sections (" + std::to_string(d.end) +
+                     " bytes)");
     }
   } else if ((h.resident_bytes != 0 && h.resident_bytes != h.total_bytes) || h.dense_width != 0 ||
              h.dense_height != 0 || h.cloud_step != 0) {

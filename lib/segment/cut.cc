@@ -18,7 +18,7 @@
 namespace zm {
 namespace {
 
-std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+using segment_detail::Idx;
 
 cv::Mat Disk(int diameter) {
   const int d = std::max(1, diameter);
@@ -343,9 +343,8 @@ Pieces CutPieces(const OccupancyGrid& grid, const CutOptions& o) {
   int seed_count = 0;
   p.labels = FindSeeds(p.dt_closed, o, res, &seed_count);
   if (o.seedless_room_min_area_m2 > 0.0) {
-    AddSeedlessRooms(p.dt_closed > 0.0,
-                     static_cast<int>(o.seedless_room_min_area_m2 / (res * res)), &p.labels,
-                     &seed_count);
+    AddSeedlessRooms(p.dt_closed > 0.0, static_cast<int>(o.seedless_room_min_area_m2 / (res * res)),
+                     &p.labels, &seed_count);
   }
   Flood(free_roi, p.dt_closed, &p.labels);
   // Free areas no seed reached (too thin for any level) become pieces of their own; the merges

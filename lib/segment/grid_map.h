@@ -13,6 +13,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
 #include <opencv2/core/mat.hpp>
 #include <string>
 
@@ -25,6 +27,12 @@ inline constexpr std::uint8_t kCellUnknown = 128;
 inline constexpr std::uint8_t kCellFree = 255;
 
 inline constexpr double kDefaultGridResolutionM = 0.05;
+
+namespace segment_detail {
+// A label, row or column (never negative where it indexes) as an index into the vectors the
+// stages keep per label: one cast, named once for every stage.
+[[nodiscard]] constexpr std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+}  // namespace segment_detail
 
 struct OccupancyGrid {
   cv::Mat cells;                                  // CV_8UC1, row 0 = top (largest y)

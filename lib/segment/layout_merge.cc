@@ -13,7 +13,7 @@
 namespace zm {
 namespace {
 
-std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+using segment_detail::Idx;
 
 constexpr int kRayMaxWallCells = 7;  // a wall up to 0.35 m thick at 0.05 m/cell
 constexpr int kEndSupportCells = 8;  // 0.4 m beyond each end of a border

@@ -13,7 +13,7 @@
 namespace zm {
 namespace {
 
-std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+using segment_detail::Idx;
 
 // A number as JSON writes it (shortest round trip), for messages.
 std::string Number(double v) { return nlohmann::json(v).dump(); }

@@ -16,7 +16,7 @@
 namespace zm {
 namespace {
 
-std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+using segment_detail::Idx;
 
 // Merged labels 1..count as a forest (path halving): each merge hangs one root under another,
 // and Relabel gives every labelled cell its root.

@@ -14,7 +14,7 @@
 namespace zm {
 namespace {
 
-std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+using segment_detail::Idx;
 
 }  // namespace
 
