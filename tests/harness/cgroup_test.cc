@@ -18,11 +18,13 @@
 
 #include "arena/arena.h"
 #include "harness/process_sample.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
-constexpr std::uint64_t kMiB = 1024 * 1024;
+using test::kMiB;
+using test::Reap;
 
 // A cgroup of `limit` bytes, or nullopt after saying why none can be created here.
 std::optional<Cgroup> CgroupOrSkip(std::uint64_t limit) {
@@ -68,13 +70,6 @@ pid_t ForkInto(const Cgroup& cg) {
   REQUIRE(pid >= 0);
   if (pid == 0 && cg.EnterSelf() != 0) _exit(126);
   return pid;
-}
-
-int Reap(pid_t pid) {
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  return status;
 }
 
 const char* const kV1Mounts =
@@ -195,8 +190,7 @@ TEST_CASE("the device limit lowered and raised within the created one, beyond it
   REQUIRE(cg->SetMemoryLimit(48 * kMiB).ok());
   CHECK(cg->current_limit_bytes() == 48 * kMiB);
   CHECK(cg->limit_bytes() == 64 * kMiB);  // the device as created
-  const char* file =
-      cg->version() == CgroupVersion::kV1 ? "/memory.limit_in_bytes" : "/memory.max";
+  const char* file = cg->version() == CgroupVersion::kV1 ? "/memory.limit_in_bytes" : "/memory.max";
   std::ifstream in(cg->dir() + file);
   std::uint64_t written = 0;
   in >> written;

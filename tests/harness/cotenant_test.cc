@@ -27,13 +27,14 @@
 #include "harness/device_ledger.h"
 #include "runtime/memory_cap.h"
 #include "support/cotenant_test_support.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
-using test::SmallCotenant;
+using test::kMiB;
 
-constexpr std::uint64_t kMiB = 1ULL << 20;
+using test::SmallCotenant;
 
 std::string TempLedgerPath() {
   static std::atomic<int> n{0};

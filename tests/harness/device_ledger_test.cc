@@ -14,11 +14,12 @@
 #include <string>
 
 #include "support/counting_allocator.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
-constexpr std::uint64_t kMiB = 1ULL << 20;
+using test::kMiB;
 
 // A fresh ledger path per test, removed at the end.
 struct TempLedger {

@@ -15,11 +15,13 @@
 #include <fstream>
 
 #include "support/counting_allocator.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
-constexpr std::uint64_t kMiB = 1024 * 1024;
+using test::kMiB;
+using test::Reap;
 
 std::string TestLedgerPath() {
   return std::filesystem::temp_directory_path().string() + "/zm-device-model-test-" +
@@ -38,13 +40,6 @@ std::unique_ptr<DeviceModel> CgroupDeviceOrSkip(std::uint64_t limit) {
     return nullptr;
   }
   return std::move(d).value();
-}
-
-int Reap(pid_t pid) {
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  return status;
 }
 
 TEST_CASE("--device takes cgroup or ledger") {

@@ -6,12 +6,12 @@
 
 #include <filesystem>
 
+#include "support/test_util.h"
+
 namespace zm {
 namespace {
 
-bool Contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
-}
+using test::Contains;
 
 TEST_CASE("every shipped profile loads with its harness sections") {
   int loaded = 0;
@@ -52,7 +52,8 @@ TEST_CASE("[cotenant] keys are checked like the core's") {
 TEST_CASE("[cotenant]'s co-tenant keys: enums by name, the context holds a request") {
   Result<ExperimentProfile> p = ParseExperimentProfile(
       "[cotenant]\nkv_allocation = \"at_load\"\nweights = \"read\"\nprefetch = false\n"
-      "watchdog_s = 2.5\nrestart_delay_s = 0\ncontext_tokens = 1024\nkv_bytes_per_token = \"1KiB\"\n",
+      "watchdog_s = 2.5\nrestart_delay_s = 0\ncontext_tokens = 1024\nkv_bytes_per_token = "
+      "\"1KiB\"\n",
       "co.toml");
   REQUIRE_MESSAGE(p.ok(), p.status().ToString());
   CHECK(p->cotenant.kv_allocation == KvAllocation::kAtLoad);
@@ -63,8 +64,10 @@ TEST_CASE("[cotenant]'s co-tenant keys: enums by name, the context holds a reque
   CHECK(p->cotenant.restart_delay_s == 0.0);
   CHECK(p->cotenant.context_tokens == 1024);
   CHECK(p->cotenant.kv_bytes_per_token == 1024);
-  CHECK(ParseExperimentProfile("", "empty.toml")->cotenant.kv_allocation == KvAllocation::kPerRequest);
-  Result<ExperimentProfile> bad = ParseExperimentProfile("[cotenant]\nkv_allocation = \"lazy\"\n", "bad.toml");
+  CHECK(ParseExperimentProfile("", "empty.toml")->cotenant.kv_allocation ==
+        KvAllocation::kPerRequest);
+  Result<ExperimentProfile> bad =
+      ParseExperimentProfile("[cotenant]\nkv_allocation = \"lazy\"\n", "bad.toml");
   REQUIRE_FALSE(bad.ok());
   CHECK(Contains(bad.status().message(), "'cotenant.kv_allocation'"));
   bad = ParseExperimentProfile("[cotenant]\nweights = \"swap\"\n", "bad.toml");

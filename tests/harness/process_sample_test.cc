@@ -12,11 +12,12 @@
 #include <cstring>
 
 #include "support/counting_allocator.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
-constexpr std::uint64_t kMiB = 1024 * 1024;
+using test::kMiB;
 
 TEST_CASE("stat lines: fields counted from the last parenthesis") {
   // pid (comm) state ppid pgrp session tty tpgid flags minflt cminflt majflt cmajflt utime stime

@@ -20,12 +20,14 @@
 
 #include "harness/cgroup.h"
 #include "harness/process_sample.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
+using test::kMiB;
+
 namespace fs = std::filesystem;
-constexpr std::uint64_t kMiB = 1024 * 1024;
 
 std::string Slurp(const std::string& path) {
   std::ifstream in(path);

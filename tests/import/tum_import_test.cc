@@ -12,10 +12,13 @@
 #include "import/map_inspect.h"
 #include "localization/camera.h"
 #include "mapdb/mapdb_test_util.h"
+#include "support/test_util.h"
 #include "support/tum_folder_writer.h"
 
 namespace zm {
 namespace {
+
+using test::Contains;
 
 using test::TempDir;
 using test::TumFolderSpec;
@@ -30,9 +33,9 @@ TumImportOptions OptionsFor(const TumFolderSpec& s) {
   return o;
 }
 
-bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
-
-TEST_CASE("import-tum: keyframes by motion with ORB features, points from depth, zones, links and a vocabulary") {
+TEST_CASE(
+    "import-tum: keyframes by motion with ORB features, points from depth, zones, links and a "
+    "vocabulary") {
   TempDir dir;
   TumFolderSpec spec;
   spec.frames = 12;
@@ -95,7 +98,9 @@ TEST_CASE("import-tum: keyframes by motion with ORB features, points from depth,
   CHECK(m->vocabulary->training_keyframes == 4);
 }
 
-TEST_CASE("import-tum: gaps, a missing, an unreadable, a truncated and a wrong-size image are refused frames") {
+TEST_CASE(
+    "import-tum: gaps, a missing, an unreadable, a truncated and a wrong-size image are refused "
+    "frames") {
   TempDir dir;
   TumFolderSpec spec;
   spec.frames = 14;
@@ -126,7 +131,8 @@ TEST_CASE("import-tum: gaps, a missing, an unreadable, a truncated and a wrong-s
   CHECK(CameraPoseInMap((*kfs)[1].pose).translation().x() == doctest::Approx(0.4));
 }
 
-TEST_CASE("import-tum: an existing OUT is refused and kept, and no pose for any frame leaves no output") {
+TEST_CASE(
+    "import-tum: an existing OUT is refused and kept, and no pose for any frame leaves no output") {
   TempDir dir;
   TumFolderSpec spec;
   spec.frames = 4;

@@ -11,15 +11,16 @@
 #include <random>
 #include <vector>
 
+#include "localization/qvga_camera.h"
 #include "mapdb/dense_codec.h"
 #include "support/counting_allocator.h"
 
 namespace zm {
 namespace {
 
-constexpr int kW = 320;
-constexpr int kH = 240;
-const CameraIntrinsics kCamera{300.0, 300.0, 160.0, 120.0, kW, kH};
+using test::kCamera;
+using test::kH;
+using test::kW;
 
 cv::Mat TexturedRgb(std::uint32_t seed) {
   std::mt19937 rng(seed);

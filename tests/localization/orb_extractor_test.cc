@@ -13,14 +13,15 @@
 #include <random>
 
 #include "localization/camera.h"
+#include "localization/qvga_camera.h"
 #include "support/counting_allocator.h"
 
 namespace zm {
 namespace {
 
-constexpr int kW = 320;
-constexpr int kH = 240;
-const CameraIntrinsics kCamera{300.0, 300.0, 160.0, 120.0, kW, kH};
+using test::kCamera;
+using test::kH;
+using test::kW;
 
 // Random grey 6x6 blocks, lightly blurred: corners everywhere, deterministic from the seed.
 cv::Mat TexturedGrey(std::uint32_t seed) {
@@ -232,8 +233,9 @@ TEST_CASE(
   CHECK(st.high_water_bytes <= st.capacity_bytes);
 }
 
-TEST_CASE("orb extractor: an undersized frame scratch overflows to the heap, counted, and the "
-          "features are the same") {
+TEST_CASE(
+    "orb extractor: an undersized frame scratch overflows to the heap, counted, and the "
+    "features are the same") {
   OrbOptions small = {};
   small.scratch_bytes = 4096;
   Result<OrbExtractor> tiny = OrbExtractor::Create(small, kCamera);

@@ -78,7 +78,7 @@ class MallocProbe {
   std::uint64_t start_ = 0;
 };
 
-const CameraIntrinsics kCamera{500.0, 500.0, 320.0, 240.0, 640, 480};
+const CameraIntrinsics kVgaCamera{500.0, 500.0, 320.0, 240.0, 640, 480};
 
 struct Scene {
   Pose3 t_cam_map = Pose3::Identity();
@@ -104,8 +104,8 @@ Scene MakeScene(std::uint32_t seed, std::size_t n, double outlier_ratio, double 
     const double u = 640.0 * unit(rng);
     const double v = 480.0 * unit(rng);
     const double depth = 2.0 + 8.0 * unit(rng);
-    const Eigen::Vector3d p_cam(depth * (u - kCamera.cx) / kCamera.fx,
-                                depth * (v - kCamera.cy) / kCamera.fy, depth);
+    const Eigen::Vector3d p_cam(depth * (u - kVgaCamera.cx) / kVgaCamera.fx,
+                                depth * (v - kVgaCamera.cy) / kVgaCamera.fy, depth);
     const Eigen::Vector3d p = t_map_cam * p_cam;
     s.object.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()),
                           static_cast<float>(p.z()));
@@ -148,8 +148,8 @@ struct CvResult {
 
 // The former adapter's calls, verbatim: EPnP RANSAC, then LM on the inliers.
 CvResult SolveWithOpenCv(const Scene& s, int iterations) {
-  const cv::Mat k =
-      (cv::Mat_<double>(3, 3) << kCamera.fx, 0, kCamera.cx, 0, kCamera.fy, kCamera.cy, 0, 0, 1);
+  const cv::Mat k = (cv::Mat_<double>(3, 3) << kVgaCamera.fx, 0, kVgaCamera.cx, 0, kVgaCamera.fy,
+                     kVgaCamera.cy, 0, 0, 1);
   cv::Mat rvec, tvec;
   std::vector<int> inliers;
   CvResult out;
@@ -198,8 +198,8 @@ TEST_CASE("P3P: one of the solutions is the true pose, degenerate triangles give
     for (std::size_t k = 0; k < 3; ++k) {
       world[k] =
           Eigen::Vector3d(double{s.object[k].x}, double{s.object[k].y}, double{s.object[k].z});
-      rays[k] = Eigen::Vector3d((double{s.image[k].x} - kCamera.cx) / kCamera.fx,
-                                (double{s.image[k].y} - kCamera.cy) / kCamera.fy, 1.0);
+      rays[k] = Eigen::Vector3d((double{s.image[k].x} - kVgaCamera.cx) / kVgaCamera.fx,
+                                (double{s.image[k].y} - kVgaCamera.cy) / kVgaCamera.fy, 1.0);
     }
     std::array<P3pPose, 4> poses;
     const int n = SolveP3p(world, rays, &poses);
@@ -229,7 +229,7 @@ TEST_CASE("P3P: one of the solutions is the true pose, degenerate triangles give
 
 TEST_CASE("PnP-RANSAC recovers random poses with 0-50% outliers and agrees with OpenCV") {
   const PnpParams params{.iterations = 300};
-  PnpRansac pnp(kCamera, params, 256);
+  PnpRansac pnp(kVgaCamera, params, 256);
   std::size_t max_disagree = 0;
   for (const double ratio : {0.0, 0.1, 0.3, 0.5}) {
     for (std::uint32_t seed = 1; seed <= 5; ++seed) {
@@ -283,7 +283,7 @@ TEST_CASE("PnP-RANSAC recovers random poses with 0-50% outliers and agrees with 
 }
 
 TEST_CASE("PnP failures are values: mismatched, too few, degenerate, no consensus") {
-  PnpRansac pnp(kCamera, {}, 64);
+  PnpRansac pnp(kVgaCamera, {}, 64);
   const Scene s = MakeScene(3, 50, 0.0);
   const std::span<const cv::Point3f> obj(s.object);
   const std::span<const cv::Point2f> img(s.image);
@@ -311,7 +311,7 @@ TEST_CASE("PnP failures are values: mismatched, too few, degenerate, no consensu
 }
 
 TEST_CASE("PnP is deterministic: the same input gives the same pose and inliers") {
-  PnpRansac pnp(kCamera, {}, 256);
+  PnpRansac pnp(kVgaCamera, {}, 256);
   const Scene s = MakeScene(11, 200, 0.3);
   const Scene other = MakeScene(12, 150, 0.5);
   const PnpSolution a = pnp.Solve(s.object, s.image);
@@ -322,7 +322,7 @@ TEST_CASE("PnP is deterministic: the same input gives the same pose and inliers"
   CHECK(a.iterations == b.iterations);
   CHECK(a.t_cam_map.matrix() == b.t_cam_map.matrix());
   // Without refinement the pose is the best minimal-sample hypothesis: still close.
-  PnpRansac raw(kCamera, {.refine = false}, 256);
+  PnpRansac raw(kVgaCamera, {.refine = false}, 256);
   const PnpSolution c = raw.Solve(s.object, s.image);
   REQUIRE(c.found);
   CHECK(Compare(c.t_cam_map, s.t_cam_map).position_m < 0.1);
@@ -340,7 +340,7 @@ TEST_CASE("the malloc probe sees a malloc") {
 
 TEST_CASE("a warm PnP solve allocates nothing, and a call beyond the reserve grows once") {
   const Scene s = MakeScene(21, 200, 0.3);
-  PnpRansac pnp(kCamera, {}, 16);  // reserve below the call's 200 points
+  PnpRansac pnp(kVgaCamera, {}, 16);  // reserve below the call's 200 points
   {
     test::AllocationCounter grow;
     REQUIRE(pnp.Solve(s.object, s.image).found);
@@ -387,7 +387,7 @@ TEST_CASE("the PnP covariance predicts the spread of the pose over noise draws")
   // camera position in the map, as BodyCovarianceFromCamera carries it to the robot.
   const Scene clean = MakeScene(77, 150, 0.0, 0.0);
   const Pose3 t_map_cam = clean.t_cam_map.inverse();
-  PnpRansac pnp(kCamera, {}, 256);
+  PnpRansac pnp(kVgaCamera, {}, 256);
   std::mt19937 rng(5);
   std::normal_distribution<double> gauss(0.0, 1.0);
   constexpr int kDraws = 400;
@@ -425,7 +425,8 @@ TEST_CASE("the PnP covariance predicts the spread of the pose over noise draws")
   double m2 = 0.0;
   for (const auto& xi : xis) m2 += xi.dot(inv * xi) / kDraws;
   CHECK(m2 == doctest::Approx(6.0).epsilon(0.25));
-  MESSAGE("PnP covariance over " << kDraws << " draws: empirical/predicted variances "
+  MESSAGE("PnP covariance over "
+          << kDraws << " draws: empirical/predicted variances "
           << (empirical.diagonal().cwiseQuotient(predicted.diagonal())).transpose()
           << "; mean squared Mahalanobis " << m2 << " (6 when calibrated)");
   // The body (= camera centre here) position covariance in the map frame.

@@ -19,9 +19,12 @@
 #include "mapdb_test_util.h"
 #include "support/counting_allocator.h"
 #include "support/malloc_probe.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
+
+using test::Contains;
 
 constexpr CameraIntrinsics kCamera{320.0, 320.0, 320.0, 240.0, 640, 480};
 
@@ -55,7 +58,8 @@ DenseParts MakeParts(std::uint32_t width = 64, std::uint32_t height = 48) {
     }
   }
   // Keypoints in the 640x480 keypoint image: on the plane, in the hole, outside.
-  const float uv[][2] = {{320.5f, 240.5f}, {100.2f, 400.7f}, {600.0f, 30.0f}, {5.0f, 5.0f}, {700.0f, 10.0f}};
+  const float uv[][2] = {
+      {320.5f, 240.5f}, {100.2f, 400.7f}, {600.0f, 30.0f}, {5.0f, 5.0f}, {700.0f, 10.0f}};
   for (const auto& k : uv) {
     Descriptor256 d{};
     d[0] = static_cast<std::uint8_t>(p.desc.size());
@@ -70,8 +74,8 @@ DenseParts MakeParts(std::uint32_t width = 64, std::uint32_t height = 48) {
   return p;
 }
 
-std::vector<std::byte> Payload(const DenseParts& p, std::int64_t id, std::span<const std::byte> jpeg,
-                               std::span<const std::byte> rvl) {
+std::vector<std::byte> Payload(const DenseParts& p, std::int64_t id,
+                               std::span<const std::byte> jpeg, std::span<const std::byte> rvl) {
   std::vector<std::byte> dense(jpeg.begin(), jpeg.end());
   dense.insert(dense.end(), rvl.begin(), rvl.end());
   PayloadParts parts;
@@ -104,7 +108,9 @@ class GuardedSlot {
     std::memset(buffer_.data() + offset_, 0xA5, bytes_);
   }
   std::span<std::byte> slot() { return {buffer_.data() + offset_, bytes_}; }
-  void Load(std::span<const std::byte> blob) { std::memcpy(buffer_.data() + offset_, blob.data(), blob.size()); }
+  void Load(std::span<const std::byte> blob) {
+    std::memcpy(buffer_.data() + offset_, blob.data(), blob.size());
+  }
   // The guard bands and every slot byte from `from` on still hold what they were filled with.
   [[nodiscard]] bool UntouchedOutside(std::size_t from) const {
     for (std::size_t i = 0; i < offset_; ++i) {
@@ -132,10 +138,6 @@ std::uint32_t ResidentOf(std::span<const std::byte> blob) {
   return v->resident_bytes;
 }
 
-bool Contains(const Status& s, const std::string& text) {
-  return s.message().find(text) != std::string::npos;
-}
-
 TEST_CASE("JPEG colour round trips through libjpeg-turbo and our memory manager") {
   const DenseParts p = MakeParts(80, 60);
   auto decoder = DenseDecoder::Create(kCamera);
@@ -151,7 +153,8 @@ TEST_CASE("JPEG colour round trips through libjpeg-turbo and our memory manager"
   CHECK(wrong.code() == StatusCode::kCorrupt);
   CHECK(Contains(wrong, "80x60"));
   CHECK(EncodeJpegRgb(p.rgb, 80, 60, 0).status().code() == StatusCode::kInvalidArgument);
-  CHECK(EncodeJpegRgb(std::span(p.rgb).first(10), 80, 60, 90).status().code() == StatusCode::kInvalidArgument);
+  CHECK(EncodeJpegRgb(std::span(p.rgb).first(10), 80, 60, 90).status().code() ==
+        StatusCode::kInvalidArgument);
 }
 
 TEST_CASE("RVL decodes into a caller's buffer and checks the image size") {
@@ -159,7 +162,8 @@ TEST_CASE("RVL decodes into a caller's buffer and checks the image size") {
   std::vector<std::uint16_t> out(p.depth.pixels.size(), 0xBEEF);
   REQUIRE(DecodeRvlDepthInto(p.rvl, p.width, p.height, out).ok());
   CHECK(out == p.depth.pixels);  // lossless, zeros written too
-  CHECK(DecodeRvlDepthInto(p.rvl, 32, 48, std::span(out).first(32 * 48)).code() == StatusCode::kCorrupt);
+  CHECK(DecodeRvlDepthInto(p.rvl, 32, 48, std::span(out).first(32 * 48)).code() ==
+        StatusCode::kCorrupt);
   CHECK(DecodeRvlDepthInto(p.rvl, p.width, p.height, std::span(out).first(10)).code() ==
         StatusCode::kInvalidArgument);
 }
@@ -174,7 +178,8 @@ TEST_CASE("a dense payload decodes into its slot: colour, depth, points from dep
   CHECK(before->points == nullptr);
   CHECK(before->points_frame == PointFrame::kCamera);
   CHECK(before->colour == nullptr);
-  CHECK(blob.size() == PayloadSize(5, static_cast<std::uint32_t>(p.jpeg.size() + p.rvl.size()), false));
+  CHECK(blob.size() ==
+        PayloadSize(5, static_cast<std::uint32_t>(p.jpeg.size() + p.rvl.size()), false));
 
   GuardedSlot slot(resident + 1000);
   slot.Load(blob);
@@ -189,9 +194,10 @@ TEST_CASE("a dense payload decodes into its slot: colour, depth, points from dep
   REQUIRE_MESSAGE(v.ok(), v.status().ToString());
   CHECK(v->decoded());
   CHECK(v->resident_bytes == resident);
-  for (const void* ptr : {static_cast<const void*>(v->descriptors), static_cast<const void*>(v->points),
-                          static_cast<const void*>(v->keypoints), static_cast<const void*>(v->colour),
-                          static_cast<const void*>(v->depth), static_cast<const void*>(v->cloud)}) {
+  for (const void* ptr :
+       {static_cast<const void*>(v->descriptors), static_cast<const void*>(v->points),
+        static_cast<const void*>(v->keypoints), static_cast<const void*>(v->colour),
+        static_cast<const void*>(v->depth), static_cast<const void*>(v->cloud)}) {
     REQUIRE(ptr != nullptr);
     CHECK(reinterpret_cast<std::uintptr_t>(ptr) % 16 == 0);
     // Views into the slot, not copies.
@@ -200,14 +206,16 @@ TEST_CASE("a dense payload decodes into its slot: colour, depth, points from dep
   }
   CHECK(std::memcmp(v->depth, p.depth.pixels.data(), p.depth.pixels.size() * 2) == 0);
   double colour_error = 0.0;
-  for (std::size_t i = 0; i < p.rgb.size(); ++i) colour_error += std::abs(int{v->colour[i]} - int{p.rgb[i]});
+  for (std::size_t i = 0; i < p.rgb.size(); ++i)
+    colour_error += std::abs(int{v->colour[i]} - int{p.rgb[i]});
   CHECK(colour_error / static_cast<double>(p.rgb.size()) < 3.0);
 
   // Points: the depth at the keypoint's pixel, back-projected with the keypoint camera.
   for (std::uint32_t i = 0; i < 5; ++i) {
     const double u = p.kps[2 * i], vv = p.kps[2 * i + 1];
     const float* pt = v->points + 3 * i;
-    const auto px = static_cast<std::uint32_t>(u * 64 / 640), py = static_cast<std::uint32_t>(vv * 48 / 480);
+    const auto px = static_cast<std::uint32_t>(u * 64 / 640),
+               py = static_cast<std::uint32_t>(vv * 48 / 480);
     if (px >= 64 || py >= 48 || p.depth.pixels[py * 64 + px] == 0) {
       CHECK(std::isnan(pt[0]));  // outside the image or in the hole: no 3-D point
       CHECK(std::isnan(pt[2]));
@@ -228,13 +236,14 @@ TEST_CASE("a dense payload decodes into its slot: colour, depth, points from dep
       const std::size_t i = std::size_t{y} * 64 + x;
       std::uint32_t packed;
       std::memcpy(&packed, c + 3, 4);
-      CHECK(packed == ((std::uint32_t{v->colour[3 * i]} << 16) | (std::uint32_t{v->colour[3 * i + 1]} << 8) |
-                       v->colour[3 * i + 2]));
+      CHECK(packed == ((std::uint32_t{v->colour[3 * i]} << 16) |
+                       (std::uint32_t{v->colour[3 * i + 1]} << 8) | v->colour[3 * i + 2]));
       if (p.depth.pixels[i] == 0) {
         CHECK(std::isnan(c[2]));
       } else {
         CHECK(c[2] == doctest::Approx(p.depth.pixels[i] * 0.001));
-        CHECK(c[0] == doctest::Approx((x + 0.5 - 32.0) / 32.0 * p.depth.pixels[i] * 0.001).epsilon(1e-5));
+        CHECK(c[0] ==
+              doctest::Approx((x + 0.5 - 32.0) / 32.0 * p.depth.pixels[i] * 0.001).epsilon(1e-5));
       }
     }
   }
@@ -284,7 +293,8 @@ TEST_CASE("a warm decode allocates nothing: operator new and malloc counted") {
   // libjpeg's working memory for a 640-pixel-wide image sits well inside the default pool.
   CHECK((*decoder)->jpeg_pool_high_water_bytes() > 0);
   CHECK((*decoder)->jpeg_pool_high_water_bytes() < DenseDecoderOptions{}.jpeg_image_pool_bytes / 4);
-  MESSAGE("libjpeg image pool high water for 640x480: ", (*decoder)->jpeg_pool_high_water_bytes(), " bytes");
+  MESSAGE("libjpeg image pool high water for 640x480: ", (*decoder)->jpeg_pool_high_water_bytes(),
+          " bytes");
 }
 
 TEST_CASE("the largest dense image fits libjpeg's default pool") {
@@ -297,7 +307,8 @@ TEST_CASE("the largest dense image fits libjpeg's default pool") {
   std::vector<std::uint8_t> out(rgb.size());
   const Status s = (*decoder)->DecodeJpegRgb(*jpeg, w, h, out);
   CHECK_MESSAGE(s.ok(), s.ToString());
-  MESSAGE("libjpeg image pool high water for ", w, " columns: ", (*decoder)->jpeg_pool_high_water_bytes(), " bytes");
+  MESSAGE("libjpeg image pool high water for ", w,
+          " columns: ", (*decoder)->jpeg_pool_high_water_bytes(), " bytes");
   // A pool too small is an error naming it, not a crash or a heap fallback.
   auto tiny = DenseDecoder::Create(kCamera, {.jpeg_image_pool_bytes = 4096});
   REQUIRE(tiny.ok());
@@ -319,9 +330,9 @@ TEST_CASE("damaged compressed data is refused with the keyframe named, nothing w
     cv::Mat img(48, 64, CV_8UC3, const_cast<std::uint8_t*>(p.rgb.data()));
     REQUIRE(cv::imencode(".jpg", img, progressive_bytes, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
   }
-  const std::vector<std::byte> progressive(reinterpret_cast<const std::byte*>(progressive_bytes.data()),
-                                           reinterpret_cast<const std::byte*>(progressive_bytes.data()) +
-                                               progressive_bytes.size());
+  const std::vector<std::byte> progressive(
+      reinterpret_cast<const std::byte*>(progressive_bytes.data()),
+      reinterpret_cast<const std::byte*>(progressive_bytes.data()) + progressive_bytes.size());
   DepthImage16 other_depth = other_size.depth;
   const std::vector<std::byte> other_rvl = EncodeRvlDepth(other_depth);
 
@@ -332,13 +343,18 @@ TEST_CASE("damaged compressed data is refused with the keyframe named, nothing w
     const char* says;
   };
   const Case cases[] = {
-      {"truncated JPEG", Payload(p, 11, bytes(p.jpeg, p.jpeg.size() / 2), p.rvl), StatusCode::kCorrupt, "colour"},
+      {"truncated JPEG", Payload(p, 11, bytes(p.jpeg, p.jpeg.size() / 2), p.rvl),
+       StatusCode::kCorrupt, "colour"},
       {"not a JPEG", Payload(p, 12, garbage, p.rvl), StatusCode::kCorrupt, "colour"},
-      {"JPEG of another size", Payload(p, 13, other_size.jpeg, p.rvl), StatusCode::kCorrupt, "32x24"},
-      {"progressive JPEG", Payload(p, 14, progressive, p.rvl), StatusCode::kUnsupported, "progressive"},
-      {"truncated RVL", Payload(p, 15, p.jpeg, bytes(p.rvl, p.rvl.size() / 2)), StatusCode::kCorrupt, "depth"},
+      {"JPEG of another size", Payload(p, 13, other_size.jpeg, p.rvl), StatusCode::kCorrupt,
+       "32x24"},
+      {"progressive JPEG", Payload(p, 14, progressive, p.rvl), StatusCode::kUnsupported,
+       "progressive"},
+      {"truncated RVL", Payload(p, 15, p.jpeg, bytes(p.rvl, p.rvl.size() / 2)),
+       StatusCode::kCorrupt, "depth"},
       {"RVL of another size", Payload(p, 16, p.jpeg, other_rvl), StatusCode::kCorrupt, "32x24"},
-      {"RVL header only", Payload(p, 17, p.jpeg, bytes(p.rvl, 8)), StatusCode::kCorrupt, "DEPTHRVL"},
+      {"RVL header only", Payload(p, 17, p.jpeg, bytes(p.rvl, 8)), StatusCode::kCorrupt,
+       "DEPTHRVL"},
   };
   for (const Case& c : cases) {
     INFO(c.name);
@@ -381,7 +397,8 @@ TEST_CASE("a slot smaller than the resident size is refused before anything is d
   REQUIRE(blind.ok());
   GuardedSlot roomy(resident);
   roomy.Load(blob);
-  CHECK((*blind)->DecodeInSlot(roomy.slot(), blob.size()).status().code() == StatusCode::kFailedPrecondition);
+  CHECK((*blind)->DecodeInSlot(roomy.slot(), blob.size()).status().code() ==
+        StatusCode::kFailedPrecondition);
 }
 
 TEST_CASE("payloads that do not decode pass through untouched") {
@@ -417,7 +434,8 @@ DenseMap BuildDenseMap(const std::string& path, std::int64_t damaged_id = 0) {
     REQUIRE(jpeg.ok());
     std::vector<std::byte> j = std::move(jpeg).value();
     if (id == damaged_id) {
-      for (std::size_t i = j.size() / 3; i < j.size(); ++i) j[i] = std::byte{0};  // CRC still matches
+      for (std::size_t i = j.size() / 3; i < j.size(); ++i)
+        j[i] = std::byte{0};  // CRC still matches
     }
     m.blobs.push_back(Payload(q, id, j, q.rvl));
     m.largest_resident = std::max(m.largest_resident, ResidentOf(m.blobs.back()));
@@ -523,8 +541,8 @@ TEST_CASE("through MapDb: a damaged dense blob stops the load naming it and rele
     CHECK(st.status().code() == StatusCode::kCorrupt);
     CHECK_MESSAGE(Contains(st.status(), "keyframe 4"), st.status().ToString());
     CHECK(Contains(st.status(), "colour"));
-    CHECK(sink.loaded().size() == 3);        // 1..3 landed before it
-    CHECK(arena.in_use() == 3);              // keyframe 4's slot was handed back
+    CHECK(sink.loaded().size() == 3);  // 1..3 landed before it
+    CHECK(arena.in_use() == 3);        // keyframe 4's slot was handed back
     for (const auto& e : sink.loaded()) arena.Release(e.slot);
     const std::vector<KeyframeId> ids = {KeyframeId{4}};
     auto per = (*db)->LoadKeyframes(ids, arena, sink);

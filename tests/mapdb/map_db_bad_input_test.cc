@@ -11,9 +11,13 @@
 
 #include "mapdb/map_db.h"
 #include "mapdb/mapdb_test_util.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
+
+using test::Contains;
+using test::Sql;
 
 using test::BuildMap;
 using test::EditPayload;
@@ -21,22 +25,6 @@ using test::MakeArena;
 using test::RecordingSink;
 using test::Snapshot;
 using test::TempDir;
-
-bool Contains(const Status& s, const std::string& text) {
-  return s.message().find(text) != std::string::npos;
-}
-
-// Runs SQL on the file with a plain read-write connection (to damage it on purpose).
-void Sql(const std::string& path, const std::string& sql) {
-  sqlite3* db = nullptr;
-  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
-  char* err = nullptr;
-  const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err);
-  INFO(sql << ": " << (err ? err : ""));
-  sqlite3_free(err);
-  sqlite3_close(db);
-  REQUIRE(rc == SQLITE_OK);
-}
 
 // Fills every slot with a pattern (holding them all), then frees `free_slots` of them, so a
 // load can only use those; returns a copy of the whole arena to compare against afterwards.
@@ -59,8 +47,8 @@ std::vector<std::byte> Prepare(Arena& arena, std::uint32_t free_slots) {
 // one slot a rejected payload was read into (then released) may differ in its first
 // `rejected_bytes` bytes: the rejected blob stayed inside its slot. Without arena poisoning
 // (release builds) those bytes are visible; with it they were overwritten by the release pattern.
-void CheckUntouched(const Arena& arena, const std::vector<std::byte>& before, const RecordingSink& sink,
-                    std::size_t rejected_bytes = 0) {
+void CheckUntouched(const Arena& arena, const std::vector<std::byte>& before,
+                    const RecordingSink& sink, std::size_t rejected_bytes = 0) {
   int changed = 0;
   for (std::uint32_t i = 0; i < arena.capacity(); ++i) {
     bool loaded = false;
@@ -72,7 +60,8 @@ void CheckUntouched(const Arena& arena, const std::vector<std::byte>& before, co
     if (std::memcmp(s.data(), was, s.size()) == 0) continue;
     ++changed;
     CHECK_FALSE(arena.InUse(SlotIndex{i}));
-    CHECK(std::memcmp(s.data() + rejected_bytes, was + rejected_bytes, s.size() - rejected_bytes) == 0);
+    CHECK(std::memcmp(s.data() + rejected_bytes, was + rejected_bytes, s.size() - rejected_bytes) ==
+          0);
   }
   CHECK(changed <= (rejected_bytes > 0 ? 1 : 0));
 }
@@ -161,8 +150,8 @@ TEST_CASE("truncated, corrupt, misplaced and missing payload blobs give clear er
   CHECK(st.status().code() == StatusCode::kCorrupt);
   CHECK(Contains(st.status(), "keyframe 7"));
   CHECK(Contains(st.status(), expect));
-  CHECK(sink.loaded().size() == 2);   // 5 and 6 came before 7
-  CHECK(arena.in_use() == 2);         // 7's slot was released
+  CHECK(sink.loaded().size() == 2);  // 5 and 6 came before 7
+  CHECK(arena.in_use() == 2);        // 7's slot was released
   CheckUntouched(arena, before, sink, bad_bytes);
   // The reader is still usable: the failed load ended its transaction.
   auto ok = (*db)->LoadZone(ZoneId{2}, arena, sink);
@@ -211,7 +200,8 @@ TEST_CASE("a map with a bad schema or metadata is refused at open with one clear
   Fixture f;
   SUBCASE("wrong schema version") {
     Sql(f.path, "PRAGMA user_version=7");
-    ExpectOpenFails(f.path, StatusCode::kFailedPrecondition, "schema version 7; this build reads versions 1 and 2");
+    ExpectOpenFails(f.path, StatusCode::kFailedPrecondition,
+                    "schema version 7; this build reads versions 1 and 2");
   }
   SUBCASE("missing table") {
     Sql(f.path, "DROP TABLE zone_member");
@@ -219,7 +209,8 @@ TEST_CASE("a map with a bad schema or metadata is refused at open with one clear
   }
   SUBCASE("missing column") {
     Sql(f.path, "ALTER TABLE keyframe DROP COLUMN weight");
-    ExpectOpenFails(f.path, StatusCode::kCorrupt, "table keyframe does not have the expected columns");
+    ExpectOpenFails(f.path, StatusCode::kCorrupt,
+                    "table keyframe does not have the expected columns");
   }
   SUBCASE("meta disagrees with the tables") {
     Sql(f.path, "UPDATE meta SET value=10 WHERE key='largest_payload_bytes'");

@@ -12,25 +12,17 @@
 #include "mapdb/map_db.h"
 #include "mapdb/mapdb_test_util.h"
 #include "support/counting_allocator.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
+
+using test::Sql;
 
 using test::BuildMap;
 using test::MakeArena;
 using test::RecordingSink;
 using test::TempDir;
-
-void Sql(const std::string& path, const std::string& sql) {
-  sqlite3* db = nullptr;
-  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
-  char* err = nullptr;
-  const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err);
-  INFO(sql << ": " << (err ? err : ""));
-  sqlite3_free(err);
-  sqlite3_close(db);
-  REQUIRE(rc == SQLITE_OK);
-}
 
 LinkRecord Link(std::int64_t from, std::int64_t to, LinkType type) {
   LinkRecord l;
@@ -55,7 +47,9 @@ struct GraphMap {
                                            Link(2, 3, LinkType::kNeighbor),
                                            Link(5, 2, LinkType::kGlobalClosure)};
     REQUIRE((*w)->InsertLinks(links).ok());
-    REQUIRE((*w)->SetCamera({.fx = 500, .fy = 500, .cx = 320, .cy = 240, .width = 640, .height = 480}).ok());
+    REQUIRE(
+        (*w)->SetCamera({.fx = 500, .fy = 500, .cx = 320, .cy = 240, .width = 640, .height = 480})
+            .ok());
     REQUIRE((*w)->Finish().ok());
   }
 };
@@ -77,7 +71,9 @@ class GraphRecorder final : public GraphNodeSink {
   std::vector<LinkRecord> links;
 };
 
-TEST_CASE("per-keyframe loads read row, payload, links and calibration: 4 statements, 4 transactions each") {
+TEST_CASE(
+    "per-keyframe loads read row, payload, links and calibration: 4 statements, 4 transactions "
+    "each") {
   GraphMap g;
   auto db = MapDb::Open(g.path);
   REQUIRE(db.ok());
@@ -103,7 +99,8 @@ TEST_CASE("per-keyframe loads read row, payload, links and calibration: 4 statem
 
 TEST_CASE("per-keyframe loads really read the links: a damaged link of the node fails its load") {
   GraphMap g;
-  Sql(g.path, "UPDATE link SET information=substr(information, 1, 100) WHERE from_id=5 AND to_id=2");
+  Sql(g.path,
+      "UPDATE link SET information=substr(information, 1, 100) WHERE from_id=5 AND to_id=2");
   auto db = MapDb::Open(g.path);
   REQUIRE(db.ok());
   Arena arena = MakeArena(16, (*db)->metadata().largest_payload_bytes);
@@ -125,7 +122,8 @@ TEST_CASE("per-keyframe loads really read the links: a damaged link of the node 
   CHECK(nf.status().message().find("keyframe 99") != std::string::npos);
 }
 
-TEST_CASE("graph-search point queries: each node's weight and links, 2 statements, 2 transactions") {
+TEST_CASE(
+    "graph-search point queries: each node's weight and links, 2 statements, 2 transactions") {
   GraphMap g;
   auto db = MapDb::Open(g.path);
   REQUIRE(db.ok());
@@ -170,8 +168,8 @@ TEST_CASE("graph-search point queries fail on a damaged link and allocate nothin
   auto db = MapDb::Open(g.path);
   REQUIRE(db.ok());
   GraphRecorder rec;
-  const std::vector<KeyframeId> ids = {KeyframeId{1}, KeyframeId{2}, KeyframeId{3},
-                                       KeyframeId{5}, KeyframeId{11}};
+  const std::vector<KeyframeId> ids = {KeyframeId{1}, KeyframeId{2}, KeyframeId{3}, KeyframeId{5},
+                                       KeyframeId{11}};
   REQUIRE((*db)->ReadGraphNodes(ids, &rec).ok());  // warm-up
   const std::int64_t sqlite_before = sqlite3_memory_used();
   {
@@ -215,8 +213,9 @@ TEST_CASE(
   sqlite3* raw = nullptr;
   REQUIRE(sqlite3_open(g.path.c_str(), &raw) == SQLITE_OK);
   sqlite3_stmt* s = nullptr;
-  REQUIRE(sqlite3_prepare_v2(raw, "SELECT count(*) FROM sqlite_master WHERE type='index' AND name='link_to'",
-                             -1, &s, nullptr) == SQLITE_OK);
+  REQUIRE(sqlite3_prepare_v2(
+              raw, "SELECT count(*) FROM sqlite_master WHERE type='index' AND name='link_to'", -1,
+              &s, nullptr) == SQLITE_OK);
   REQUIRE(sqlite3_step(s) == SQLITE_ROW);
   CHECK(sqlite3_column_int(s, 0) == 1);
   sqlite3_finalize(s);

@@ -11,24 +11,16 @@
 
 #include "mapdb/map_db.h"
 #include "mapdb/mapdb_test_util.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
+using test::Sql;
+
 using test::BuildMap;
 using test::Snapshot;
 using test::TempDir;
-
-void Sql(const std::string& path, const std::string& sql) {
-  sqlite3* db = nullptr;
-  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
-  char* err = nullptr;
-  const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err);
-  INFO(sql << ": " << (err ? err : ""));
-  sqlite3_free(err);
-  sqlite3_close(db);
-  REQUIRE(rc == SQLITE_OK);
-}
 
 std::vector<std::byte> Bytes(std::size_t n, unsigned seed) {
   std::vector<std::byte> out(n);

@@ -8,16 +8,15 @@
 
 #include "mapdb/map_db.h"
 #include "mapdb/mapdb_test_util.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
 
+using test::Contains;
+
 using test::MakePayload;
 using test::TempDir;
-
-bool Contains(const Status& s, const std::string& text) {
-  return s.message().find(text) != std::string::npos;
-}
 
 KeyframeMeta Meta(std::int64_t id) {
   KeyframeMeta m;
@@ -52,7 +51,7 @@ TEST_CASE("writer refuses to overwrite unless asked, and finishes into one file"
 TEST_CASE("the page size follows the payloads: 1/16 of the mean, from 4 KiB to 64 KiB") {
   CHECK(PageBytesForPayload(0) == 4096);
   CHECK(PageBytesForPayload(2000) == 4096);
-  CHECK(PageBytesForPayload(100'000) == 4096);   // the default hospital's ~100 KB keyframes
+  CHECK(PageBytesForPayload(100'000) == 4096);  // the default hospital's ~100 KB keyframes
   CHECK(PageBytesForPayload(16 * 8192) == 8192);
   CHECK(PageBytesForPayload(300'000) == 16384);
   CHECK(PageBytesForPayload(1'600'000) == 65536);  // dense keyframes

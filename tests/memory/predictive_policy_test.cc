@@ -28,7 +28,7 @@ Harness::Factory Predictive(std::uint32_t k_max, bool prefetch = true) {
   };
 }
 
-PredictivePolicy& Policy(Harness& h) { return *static_cast<PredictivePolicy*>(h.policy.get()); }
+PredictivePolicy& Predictive(Harness& h) { return *static_cast<PredictivePolicy*>(h.policy.get()); }
 
 std::vector<std::vector<ZoneId>> Chain(int zones) {
   std::vector<std::vector<ZoneId>> adj(static_cast<std::size_t>(zones));
@@ -63,12 +63,12 @@ TEST_CASE("predictive: without a route it learns transitions from what it has se
   s.adjacency = {{ZoneId{1}}, {ZoneId{2}, ZoneId{3}}, {}, {}};  // 1 is a hub: 0, 2, 3
   Harness h(s, 4, 4, Predictive(4));
   h.Start(At(0, 0));
-  CHECK(Policy(h).last_prefetch() == ZoneId{1});  // the only neighbour
+  CHECK(Predictive(h).last_prefetch() == ZoneId{1});  // the only neighbour
   // Walk 1 -> 3 twice, so from 1 the likeliest next zone is 3, not 2.
   std::uint64_t t = 1;
   for (int z : {1, 3, 1, 3, 1}) h.Tick(At(t++, z));
-  CHECK(Policy(h).Transitions(ZoneId{1}, ZoneId{3}) == 2);
-  CHECK(Policy(h).last_prefetch() == ZoneId{3});
+  CHECK(Predictive(h).Transitions(ZoneId{1}, ZoneId{3}) == 2);
+  CHECK(Predictive(h).last_prefetch() == ZoneId{3});
   CHECK(h.ws.resident_count() <= 4);
 }
 
@@ -143,7 +143,8 @@ TEST_CASE("predictive property: random walks / overlaps / slices never exceed K_
     }
     s.adjacency.resize(static_cast<std::size_t>(zones));
     for (int e = 0; e < zones * 2; ++e) {
-      s.adjacency[rng() % s.adjacency.size()].push_back(ZoneId{static_cast<std::int32_t>(rng() % static_cast<std::uint32_t>(zones))});
+      s.adjacency[rng() % s.adjacency.size()].push_back(
+          ZoneId{static_cast<std::int32_t>(rng() % static_cast<std::uint32_t>(zones))});
     }
     const auto k_max = static_cast<std::uint32_t>(1 + rng() % static_cast<std::uint32_t>(n));
     Harness h(s, k_max, k_max, Predictive(k_max, rng() % 4 != 0));
@@ -154,7 +155,7 @@ TEST_CASE("predictive property: random walks / overlaps / slices never exceed K_
       REQUIRE(t.peak_resident_keyframes <= k_max);
       REQUIRE(t.refused_acquisitions == 0);
       for (KfIndex k = 0; k < h.index.keyframe_count(); ++k) {
-        REQUIRE(h.ws.refcount(k) == Policy(h).residency().held(k));
+        REQUIRE(h.ws.refcount(k) == Predictive(h).residency().held(k));
       }
     }
     CHECK(h.ws.max_resident_seen() <= k_max);

@@ -4,8 +4,6 @@
 // unfinished load, which resumes later without re-reading; evicting a zone mid-load cancels its
 // queued keyframes; an error drops its own batch only; and every zone policy keeps resident <=
 // K_max and its own bookkeeping when loads lag behind its plans.
-#include "memory/working_set.h"
-
 #include <doctest/doctest.h>
 
 #include <random>
@@ -15,6 +13,7 @@
 #include "memory/predictive_policy.h"
 #include "memory/radius_policy.h"
 #include "memory/semantic_policy.h"
+#include "memory/working_set.h"
 
 namespace zm {
 namespace {
@@ -22,8 +21,8 @@ namespace {
 using V = std::vector<std::int64_t>;
 using Clock = std::chrono::steady_clock;
 
-struct Rig {
-  Rig(const test::MapSpec& s, std::uint32_t slots, std::uint32_t k_max)
+struct SlicedRig {
+  SlicedRig(const test::MapSpec& s, std::uint32_t slots, std::uint32_t k_max)
       : index(test::BuildIndex(s)),
         arena(test::MakeArena(slots)),
         source(test::ZoneIds(s), 100),
@@ -70,7 +69,7 @@ LoadSlice Keyframes(std::uint32_t n) {
 }
 
 TEST_CASE("sliced: Apply only queues / a slice keeps its keyframe, byte and time budgets") {
-  Rig r(test::LineMap({10}), 10, 10);
+  SlicedRig r(test::LineMap({10}), 10, 10);
   r.Batch(ZoneId{0}, {1, 2, 3, 4, 5, 6, 7, 8, 9, 10});
   TickTelemetry t = r.Apply();
   CHECK(t.keyframes_loaded == 0);
@@ -124,7 +123,9 @@ class SlowSource final : public KeyframeSource {
  public:
   SlowSource(test::FakeKeyframeSource& inner, std::chrono::milliseconds delay)
       : inner_(inner), delay_(delay) {}
-  Result<LoadStats> LoadZone(ZoneId z, Arena& a, LoadSink& s) override { return inner_.LoadZone(z, a, s); }
+  Result<LoadStats> LoadZone(ZoneId z, Arena& a, LoadSink& s) override {
+    return inner_.LoadZone(z, a, s);
+  }
   Result<LoadStats> LoadKeyframes(std::span<const KeyframeId> ids, Arena& a, LoadSink& s) override {
     return inner_.LoadKeyframes(ids, a, s);
   }
@@ -146,8 +147,9 @@ class SlowSource final : public KeyframeSource {
   std::chrono::milliseconds delay_;
 };
 
-TEST_CASE("sliced: the clock is read between keyframes / a slow keyframe keeps the next from "
-          "starting past the deadline") {
+TEST_CASE(
+    "sliced: the clock is read between keyframes / a slow keyframe keeps the next from "
+    "starting past the deadline") {
   const test::MapSpec spec = test::LineMap({6});
   const MapIndex index = test::BuildIndex(spec);
   Arena arena = test::MakeArena(6);
@@ -185,7 +187,7 @@ TEST_CASE("sliced: an interrupt (a frame waiting) ends the slice between two key
     int allowed = 0;
     bool ShouldStop() override { return ++polls > allowed; }
   };
-  Rig r(test::LineMap({6}), 6, 6);
+  SlicedRig r(test::LineMap({6}), 6, 6);
   r.Batch(ZoneId{0}, {1, 2, 3, 4, 5, 6});
   r.Apply();
   StopAfter stop;
@@ -201,7 +203,7 @@ TEST_CASE("sliced: an interrupt (a frame waiting) ends the slice between two key
 }
 
 TEST_CASE("sliced: a newer zone preempts an unfinished load, which resumes without re-reading") {
-  Rig r(test::LineMap({6, 6}), 12, 12);
+  SlicedRig r(test::LineMap({6, 6}), 12, 12);
   r.Batch(ZoneId{0}, {1, 2, 3, 4, 5, 6});
   r.Apply();
   r.Step(Keyframes(2));
@@ -224,7 +226,7 @@ TEST_CASE("sliced: a newer zone preempts an unfinished load, which resumes witho
 }
 
 TEST_CASE("sliced: evicting a zone mid-load cancels its queue and frees its slots first") {
-  Rig r(test::LineMap({6, 6}), 6, 6);
+  SlicedRig r(test::LineMap({6, 6}), 6, 6);
   r.Batch(ZoneId{0}, {1, 2, 3, 4, 5, 6});
   r.Apply();
   r.Step(Keyframes(2));
@@ -245,7 +247,7 @@ TEST_CASE("sliced: evicting a zone mid-load cancels its queue and frees its slot
 }
 
 TEST_CASE("sliced: an error drops its own batch, the rest of the queue still loads") {
-  Rig r(test::LineMap({5, 5}), 10, 10);
+  SlicedRig r(test::LineMap({5, 5}), 10, 10);
   r.source.fail_on = KeyframeId{3};
   r.Batch(ZoneId{0}, {1, 2, 3, 4, 5});
   r.Batch(ZoneId{1}, {6, 7, 8, 9, 10});
@@ -267,7 +269,7 @@ TEST_CASE("sliced: an error drops its own batch, the rest of the queue still loa
 }
 
 TEST_CASE("sliced: a keyframe batch loads one keyframe a call, in plan order") {
-  Rig r(test::LineMap({4}), 4, 4);
+  SlicedRig r(test::LineMap({4}), 4, 4);
   r.Batch(kNoZone, {4, 1, 3});
   r.Apply();
   const TickTelemetry t = r.Step(Keyframes(2));
@@ -284,7 +286,7 @@ TEST_CASE("sliced: a keyframe shared by two queued zones is read once, by whiche
   test::MapSpec s;
   for (int i = 0; i < 4; ++i) s.positions.emplace_back(i, 0, 0);
   s.zones = {{1, 2, 3}, {2, 3, 4}};
-  Rig r(s, 4, 4);
+  SlicedRig r(s, 4, 4);
   r.Batch(ZoneId{1}, {2, 3});
   r.Apply();
   r.Batch(ZoneId{0}, {1, 2, 3});  // 2 and 3 are queued already: only 1 is new
@@ -314,9 +316,11 @@ TEST_CASE("sliced property: every zone policy / loads behind its plans / never a
         z.erase(std::unique(z.begin(), z.end()), z.end());
       }
       s.adjacency.resize(static_cast<std::size_t>(zones));
-      for (int z = 0; z + 1 < zones; ++z) s.adjacency[static_cast<std::size_t>(z)].push_back(ZoneId{z + 1});
+      for (int z = 0; z + 1 < zones; ++z)
+        s.adjacency[static_cast<std::size_t>(z)].push_back(ZoneId{z + 1});
       std::vector<int> walk;
-      for (int i = 0; i < 80; ++i) walk.push_back(static_cast<int>(rng() % static_cast<std::uint32_t>(zones + 1)) - 1);
+      for (int i = 0; i < 80; ++i)
+        walk.push_back(static_cast<int>(rng() % static_cast<std::uint32_t>(zones + 1)) - 1);
       std::vector<ZoneId> future;
       for (int w : walk) future.push_back(w < 0 ? kNoZone : ZoneId{w});
       const auto k_max = static_cast<std::uint32_t>(1 + rng() % static_cast<std::uint32_t>(n));
@@ -336,8 +340,10 @@ TEST_CASE("sliced property: every zone policy / loads behind its plans / never a
           },
           /*sliced=*/true);
       const auto held_by_policy = [&](KfIndex k) -> std::uint32_t {
-        if (const auto* p = dynamic_cast<const SemanticPolicy*>(h.policy.get())) return p->residency().held(k);
-        if (const auto* p = dynamic_cast<const PredictivePolicy*>(h.policy.get())) return p->residency().held(k);
+        if (const auto* p = dynamic_cast<const SemanticPolicy*>(h.policy.get()))
+          return p->residency().held(k);
+        if (const auto* p = dynamic_cast<const PredictivePolicy*>(h.policy.get()))
+          return p->residency().held(k);
         return h.ws.refcount(k);  // radius: 0/1 flags, checked through the totals below
       };
       const auto check = [&] {
@@ -351,11 +357,13 @@ TEST_CASE("sliced property: every zone policy / loads behind its plans / never a
         }
         REQUIRE(h.ws.resident_count() + h.ws.pending_count() == held);
         REQUIRE(held <= k_max);
-        if (const auto* p = dynamic_cast<const RadiusPolicy*>(h.policy.get())) REQUIRE(p->resident() == held);
+        if (const auto* p = dynamic_cast<const RadiusPolicy*>(h.policy.get()))
+          REQUIRE(p->resident() == held);
       };
       auto pos = [&](int zone) {
         const auto members = h.index.ZoneMembers(ZoneId{std::max(zone, 0)});
-        return members.empty() ? Eigen::Vector3d::Zero() : h.index.position(members[rng() % members.size()]);
+        return members.empty() ? Eigen::Vector3d::Zero()
+                               : h.index.position(members[rng() % members.size()]);
       };
       h.Start(test::At(0, walk[0], pos(walk[0])));
       check();

@@ -24,27 +24,17 @@
 #include "memory/map_index.h"
 #include "memory/plan.h"
 #include "memory/working_set.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
+
+using test::Sql;
 
 using test::BuildMap;
 using test::MakeArena;
 using test::Snapshot;
 using test::TempDir;
-
-// Runs SQL on the file with a plain read-write connection (to damage it on purpose), leaving it
-// in rollback-journal mode so the file alone is the whole database.
-void Sql(const std::string& path, const std::string& sql) {
-  sqlite3* db = nullptr;
-  REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
-  char* err = nullptr;
-  const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err);
-  INFO(sql << ": " << (err ? err : ""));
-  sqlite3_free(err);
-  sqlite3_close(db);
-  REQUIRE(rc == SQLITE_OK);
-}
 
 void WriteBytes(const std::string& path, const std::vector<char>& bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -77,9 +67,12 @@ Outcome OpenAndLoadAll(const std::string& path, MapDbOptions options = {}) {
       auto kfs = map.Keyframes();
       auto members = map.ZoneMembers();
       auto zones = map.Zones();
-      if (!kfs.ok()) out.error = kfs.status();
-      else if (!members.ok()) out.error = members.status();
-      else if (!zones.ok()) out.error = zones.status();
+      if (!kfs.ok())
+        out.error = kfs.status();
+      else if (!members.ok())
+        out.error = members.status();
+      else if (!zones.ok())
+        out.error = zones.status();
       if (out.error.ok()) {
         MapIndexInput in;
         in.keyframes = *kfs;
@@ -90,7 +83,8 @@ Outcome OpenAndLoadAll(const std::string& path, MapDbOptions options = {}) {
           out.error = index.status();
         } else {
           const std::uint32_t n = static_cast<std::uint32_t>(kfs->size()) + 1;
-          Arena arena = MakeArena(2 * n, std::max<std::uint64_t>(map.metadata().largest_payload_bytes, 64));
+          Arena arena =
+              MakeArena(2 * n, std::max<std::uint64_t>(map.metadata().largest_payload_bytes, 64));
           std::vector<SlotIndex> held;
           for (std::uint32_t i = 0; i < arena.capacity(); ++i) held.push_back(*arena.TryAcquire());
           std::vector<SlotIndex> guards;
@@ -158,12 +152,12 @@ TEST_CASE("reliability: a map truncated at any of 12 offsets is refused with a c
   Fixture f;
   const auto good = Snapshot(f.path);
   const std::size_t size = good.size();
-  const std::vector<std::size_t> cuts = {1,        50,       99,       100,      4095,    4096,
-                                         4097,     size / 3, size / 2, size - 4096, size - 100,
-                                         size - 1};
+  const std::vector<std::size_t> cuts = {
+      1, 50, 99, 100, 4095, 4096, 4097, size / 3, size / 2, size - 4096, size - 100, size - 1};
   for (std::size_t cut : cuts) {
     CAPTURE(cut);
-    WriteBytes(f.path, std::vector<char>(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(cut)));
+    WriteBytes(f.path,
+               std::vector<char>(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(cut)));
     const Outcome o = OpenAndLoadAll(f.path);
     CHECK_FALSE(o.error.ok());
     const auto code = o.error.code();
@@ -201,7 +195,8 @@ TEST_CASE("reliability: random pages of a good map overwritten with noise never 
     CAPTURE(page);
     auto bytes = good;
     // Noise over the middle of the page (keeps page 0's 100-byte file header on page 0).
-    for (std::size_t i = page * 4096 + 100; i < page * 4096 + 4000; ++i) bytes[i] = static_cast<char>(rng());
+    for (std::size_t i = page * 4096 + 100; i < page * 4096 + 4000; ++i)
+      bytes[i] = static_cast<char>(rng());
     WriteBytes(f.path, bytes);
     const Outcome o = OpenAndLoadAll(f.path);
     failed += o.error.ok() ? 0 : 1;
@@ -243,8 +238,10 @@ TEST_CASE("reliability: lengths that lie are caught before a byte lands outside 
     // in the keyframe table and the meta table, so Open's cross-check passes and the arena is
     // sized from the lie.
     const auto small = std::to_string(f.built.payloads.at(1).size());
-    Sql(f.path, "UPDATE keyframe SET payload_bytes=" + small + " WHERE id>1;"
-                "UPDATE meta SET value=" + small + " WHERE key='largest_payload_bytes'");
+    Sql(f.path, "UPDATE keyframe SET payload_bytes=" + small +
+                    " WHERE id>1;"
+                    "UPDATE meta SET value=" +
+                    small + " WHERE key='largest_payload_bytes'");
     expect = "slot of";
   }
   SUBCASE("the payload header claims more bytes than the blob holds") {
@@ -285,11 +282,13 @@ TEST_CASE("reliability: duplicate ids are refused with a clear error or are harm
   // OpenAndLoadAll still checks every slot holds its own keyframe and the guards are intact.
   bool must_fail = true;
   SUBCASE("keyframe") {
-    DuplicateRow(f.path, "keyframe", "id INTEGER, stamp REAL, pose BLOB, weight INTEGER, payload_bytes INTEGER",
+    DuplicateRow(f.path, "keyframe",
+                 "id INTEGER, stamp REAL, pose BLOB, weight INTEGER, payload_bytes INTEGER",
                  "id=4");
   }
   SUBCASE("keyframe, with meta agreeing") {
-    DuplicateRow(f.path, "keyframe", "id INTEGER, stamp REAL, pose BLOB, weight INTEGER, payload_bytes INTEGER",
+    DuplicateRow(f.path, "keyframe",
+                 "id INTEGER, stamp REAL, pose BLOB, weight INTEGER, payload_bytes INTEGER",
                  "id=4");
     Sql(f.path, "UPDATE meta SET value=value+1 WHERE key='keyframe_count'");
   }
@@ -298,12 +297,14 @@ TEST_CASE("reliability: duplicate ids are refused with a clear error or are harm
     must_fail = false;
   }
   SUBCASE("zone") {
-    DuplicateRow(f.path, "zone",
-                 "id INTEGER, name TEXT, kind TEXT, floor INTEGER, z_min REAL, z_max REAL, polygon BLOB",
-                 "id=1");
+    DuplicateRow(
+        f.path, "zone",
+        "id INTEGER, name TEXT, kind TEXT, floor INTEGER, z_min REAL, z_max REAL, polygon BLOB",
+        "id=1");
   }
   SUBCASE("zone_member") {
-    DuplicateRow(f.path, "zone_member", "zone_id INTEGER, keyframe_id INTEGER", "zone_id=1 AND keyframe_id=6");
+    DuplicateRow(f.path, "zone_member", "zone_id INTEGER, keyframe_id INTEGER",
+                 "zone_id=1 AND keyframe_id=6");
     must_fail = false;
   }
   const Outcome o = OpenAndLoadAll(f.path);

@@ -19,9 +19,13 @@
 #include "runtime/sqlite_heap.h"
 #include "support/counting_allocator.h"
 #include "support/step_allocations.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
+
+using test::Contains;
+using test::Lines;
 
 using test::RoomsMap;
 
@@ -42,18 +46,6 @@ std::string ReadAll(const std::filesystem::path& p) {
   std::stringstream s;
   s << f.rdbuf();
   return s.str();
-}
-
-std::vector<std::string> Lines(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  std::string l;
-  while (std::getline(in, l)) out.push_back(l);
-  return out;
-}
-
-bool Contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
 }
 
 // A textured BGR image (blocks of random colour, blurred): ORB finds corners in it.

@@ -24,9 +24,12 @@
 #include "runtime/sqlite_heap.h"
 #include "support/counting_allocator.h"
 #include "support/step_allocations.h"
+#include "support/test_util.h"
 
 namespace zm {
 namespace {
+
+using test::Lines;
 
 using test::RoomsMap;
 
@@ -45,14 +48,6 @@ Profile MakeProfile(const std::string& policy, std::uint64_t k_max) {
   p.input.max_route_waypoints = 64;
   p.input.max_distance_from_map_m = 20.0;
   return p;
-}
-
-std::vector<std::string> Lines(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  std::string l;
-  while (std::getline(in, l)) out.push_back(l);
-  return out;
 }
 
 std::vector<std::string> Tokens(const std::string& line) {
@@ -206,8 +201,8 @@ TEST_CASE("hello, then one pose line per frame: parsed back, pose = correction *
       CHECK(p.frames_since_fix == 0);
       // A PnP fix on exact projections: within a centimetre; its 1-sigma is the map's own
       // error ([output] map_sigma_m) plus a PnP part that is nearly nothing here.
-      CHECK((p.pose.translation() - PoseFromXYYaw(1.0 + 0.6 * static_cast<double>(i), 5.0, 0.0)
-                                        .translation())
+      CHECK((p.pose.translation() -
+             PoseFromXYYaw(1.0 + 0.6 * static_cast<double>(i), 5.0, 0.0).translation())
                 .norm() < 0.01);
       CHECK(std::sqrt(p.covariance(0, 0)) >= profile.output.map_sigma_m);
       CHECK(std::sqrt(p.covariance(0, 0)) < profile.output.map_sigma_m + 0.005);
@@ -230,22 +225,21 @@ TEST_CASE("insane input is counted with its reason, never acted on, and never st
   Session s(map, MakeProfile("semantic", 20));
   const std::string hex(64, 'a');
   s.Feed({
-      map.FrameLine(2, 5.0, true),     // processed
-      map.FrameLine(-5, 6.0, true),    // stamp going back
-      map.FrameLine(0, 6.0, true),     // still not after 2
-      map.FrameLine(2, 6.0, true),     // equal
-      "frame 3 1e308 5 0 0 0 0 1 0",   // 10^308 m
-      "frame 3 5 1e308 0 0 0 0 1 0",
-      "frame 3 -1e308 5 0 0 0 0 1 0",
-      "frame 3 5 5 0 0 0 0 2 0",       // |q| = 2
-      "frame 3 5 5 0 0 0 0 0 0",       // |q| = 0
-      "frame 1e300 5 5 0 0 0 0 1 0",   // stamp beyond any clock
+      map.FrameLine(2, 5.0, true),    // processed
+      map.FrameLine(-5, 6.0, true),   // stamp going back
+      map.FrameLine(0, 6.0, true),    // still not after 2
+      map.FrameLine(2, 6.0, true),    // equal
+      "frame 3 1e308 5 0 0 0 0 1 0",  // 10^308 m
+      "frame 3 5 1e308 0 0 0 0 1 0", "frame 3 -1e308 5 0 0 0 0 1 0",
+      "frame 3 5 5 0 0 0 0 2 0",            // |q| = 2
+      "frame 3 5 5 0 0 0 0 0 0",            // |q| = 0
+      "frame 1e300 5 5 0 0 0 0 1 0",        // stamp beyond any clock
       "frame 3 5 5 0 0 0 0 1 9999 " + hex,  // more features than reserved
-      "frame 3 5 5",                   // truncated
-      "hello",                         // not a protocol line
-      "route 2 0 0 0 1e308 0 0",       // a waypoint off the map
+      "frame 3 5 5",                        // truncated
+      "hello",                              // not a protocol line
+      "route 2 0 0 0 1e308 0 0",            // a waypoint off the map
       "budget 0",
-      map.FrameLine(3, 7.0, true),     // processed: nothing above moved the clock or the robot
+      map.FrameLine(3, 7.0, true),  // processed: nothing above moved the clock or the robot
   });
   CHECK(s.StepToEnd() == 16);
   const std::vector<std::string> out = s.Output();
@@ -267,8 +261,9 @@ TEST_CASE("insane input is counted with its reason, never acted on, and never st
   CHECK(r.total == 14);
   // The refused control lines were answered, and changed nothing.
   CHECK(std::count(out.begin(), out.end(), "ack route rejected 2 0") == 1);
-  CHECK(std::count_if(out.begin(), out.end(),
-                      [](const std::string& l) { return l.rfind("ack budget refused 0 20", 0) == 0; }) == 1);
+  CHECK(std::count_if(out.begin(), out.end(), [](const std::string& l) {
+          return l.rfind("ack budget refused 0 20", 0) == 0;
+        }) == 1);
   CHECK(s.daemon->loop().k_max() == 20);
   CHECK(s.daemon->loop().totals().ticks == 2);
   const nlohmann::json sum = s.daemon->Summary(false);
@@ -314,19 +309,20 @@ TEST_CASE("the refusals are on stderr, rate-limited, and in telemetry") {
 TEST_CASE("a route becomes the zone sequence predictive prefetches along") {
   RoomsMap map(6, 8, "route");
   Profile profile = MakeProfile("predictive", 24);  // three rooms fit
-  profile.loads.sliced = false;  // whole zones at once: the test reads residency right after each line
+  profile.loads.sliced =
+      false;  // whole zones at once: the test reads residency right after each line
   Session s(map, profile);
   std::vector<std::string> in;
   // Drive into room 3 (x 35) from room 0, then plan back towards room 2: prefetch follows the
   // plan (room 2), not the way the robot came or went on.
   double t = 0;
   for (double x = 1.0; x <= 35.0; x += 1.0) in.push_back(map.FrameLine(t += 0.5, x, true));
-  in.push_back("route 3 35 5 0 25 5 0 15 5 0");       // rooms 3 -> 2 -> 1
+  in.push_back("route 3 35 5 0 25 5 0 15 5 0");  // rooms 3 -> 2 -> 1
   in.push_back(map.FrameLine(t += 0.5, 35.5, true));
   in.push_back(FormatRouteLine(std::vector<Eigen::Vector3d>(65, Eigen::Vector3d(5, 5, 0))));
-  std::vector<Eigen::Vector3d> zigzag;                   // 64 waypoints, 2 rooms apart each
+  std::vector<Eigen::Vector3d> zigzag;  // 64 waypoints, 2 rooms apart each
   for (int i = 0; i < 64; ++i) zigzag.emplace_back(i % 2 == 0 ? 5.0 : 25.0, 5.0, 0.0);
-  in.push_back(FormatRouteLine(zigzag));                 // 127 zones: more than reserved
+  in.push_back(FormatRouteLine(zigzag));  // 127 zones: more than reserved
   s.Feed(in);
   s.StepToEnd();
   const std::vector<std::string> out = s.Output();
@@ -483,7 +479,8 @@ TEST_CASE("every warm Step allocates nothing, for every policy, over a live feed
   // Dense keyframes (small RGB-D images), so every zone load also runs the dense decoder
   // (libjpeg on its own pools, RVL into the slot), as with a `zonemap sim` map.
   RoomsMap map(8, 10, "alloc", /*dense=*/true);
-  for (const std::string policy : {"semantic", "basic", "radius", "predictive", "oracle", "unbounded"}) {
+  for (const std::string policy :
+       {"semantic", "basic", "radius", "predictive", "oracle", "unbounded"}) {
     CAPTURE(policy);
     DaemonOptions o;
     o.telemetry_path = (map.dir() / "ticks.jsonl").string();

@@ -11,10 +11,12 @@
 #include <new>
 #include <string>
 
+#include "support/test_util.h"
+
 namespace zm {
 namespace {
 
-constexpr std::uint64_t kMiB = 1ULL << 20;
+using test::kMiB;
 
 TEST_CASE("GuardAllocation turns std::bad_alloc into a counted ResourceExhausted") {
   const std::uint64_t before = AllocFailureCount();
@@ -78,9 +80,8 @@ TEST_CASE("in a forked child, a process cap makes a large allocation fail and be
     ChildReport rep;
     const std::uint64_t before = AllocFailureCount();
     // Room for 64 MiB more than the process maps now.
-    const std::uint64_t cap = BuiltWithAddressSanitizer()
-                                  ? 64 * kMiB
-                                  : ProcessAddressSpaceBytes() + 64 * kMiB;
+    const std::uint64_t cap =
+        BuiltWithAddressSanitizer() ? 64 * kMiB : ProcessAddressSpaceBytes() + 64 * kMiB;
     Result<CapReport> r = ApplyProcessCap(cap);
     if (r.ok()) {
       rep.applied = 1;
@@ -123,7 +124,7 @@ TEST_CASE("in a forked child, a process cap makes a large allocation fail and be
   INFO("child note: " << rep.note);
   REQUIRE(rep.applied == 1);
   CHECK(rep.resource == static_cast<int>(BuiltWithAddressSanitizer() ? CapResource::kData
-                                                                      : CapResource::kAddressSpace));
+                                                                     : CapResource::kAddressSpace));
   if (rep.enforced == 0) {
     // e.g. qemu-user: accepted but not enforced, and the report says so.
     CHECK(std::string(rep.note).find("NOT enforced") != std::string::npos);

@@ -10,8 +10,12 @@
 #include <optional>
 #include <string>
 
+#include "support/test_util.h"
+
 namespace zm {
 namespace {
+
+using test::Contains;
 
 const std::string kProfilesDir = ZM_SOURCE_DIR "/profiles";
 
@@ -21,15 +25,12 @@ Status ParseError(const std::string& toml) {
   return p.status();
 }
 
-ProfileOverrides Overrides(std::optional<std::string> policy, std::optional<std::string> memory_thr) {
+ProfileOverrides Overrides(std::optional<std::string> policy,
+                           std::optional<std::string> memory_thr) {
   ProfileOverrides o;
   o.policy = std::move(policy);
   o.memory_thr = std::move(memory_thr);
   return o;
-}
-
-bool Contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
 }
 
 TEST_CASE("every shipped profile loads, by path and by name") {
@@ -61,8 +62,8 @@ TEST_CASE("orin-nano-8gb splits 8 GiB into OS, model, headroom and the map share
   CHECK(p->model.weights_bytes == 1'900'000'000ULL);
   Result<std::uint64_t> share = MapShareBytes(*p);
   REQUIRE(share.ok());
-  CHECK(*share == (8ULL << 30) - p->device.os_reserve_bytes - 1'900'000'000ULL -
-                      p->map.headroom_bytes);
+  CHECK(*share ==
+        (8ULL << 30) - p->device.os_reserve_bytes - 1'900'000'000ULL - p->map.headroom_bytes);
   Result<Profile> super = LoadProfile("orin-nano-8gb-super");
   REQUIRE(super.ok());
   CHECK(super->device.memory_bytes == p->device.memory_bytes);
@@ -106,7 +107,8 @@ TEST_CASE("the core accepts the harness's sections without reading them") {
   // zonemapd reads the same files as the evaluation: [cotenant] belongs to the harness.
   CHECK(ParseProfile("[cotenant]\nprompt_tokens = 9\n", "co.toml").ok());
   // Keys that used to be parsed and then ignored are gone, so they are errors now.
-  CHECK(Contains(ParseError("[policy.basic]\nstm_size = 10\n").message(), "'policy.basic.stm_size'"));
+  CHECK(
+      Contains(ParseError("[policy.basic]\nstm_size = 10\n").message(), "'policy.basic.stm_size'"));
   CHECK(Contains(ParseError("[loop]\nrealtime = true\n").message(), "'loop.realtime'"));
   CHECK(Contains(ParseError("[device]\ncpu_max_ghz = 1.5\n").message(), "'device.cpu_max_ghz'"));
   // Predictive's own per-tick slice gave way to the working set's time slices ([loads]).
@@ -156,9 +158,9 @@ TEST_CASE("wrong types and bad values are errors naming the key") {
   CHECK(Contains(ParseError("policy = 3\n").message(), "'policy'"));
   CHECK(Contains(ParseError("[map\n").message(), "bad.toml:1"));  // syntax error, with line
   // The memory split must add up.
-  CHECK(Contains(ParseError("[device]\nmemory_bytes = \"4GiB\"\nos_reserve_bytes = \"5GiB\"\n")
-                     .message(),
-                 "os_reserve_bytes"));
+  CHECK(Contains(
+      ParseError("[device]\nmemory_bytes = \"4GiB\"\nos_reserve_bytes = \"5GiB\"\n").message(),
+      "os_reserve_bytes"));
   CHECK(Contains(ParseError("[device]\nmemory_bytes = \"4GiB\"\nos_reserve_bytes = \"1GiB\"\n"
                             "[model]\nweights_bytes = \"3.3GB\"\n")
                      .message(),
@@ -216,7 +218,7 @@ TEST_CASE("overrides replace profile values and K_max = min(count, bytes / slot)
   Result<Budget> b = DeriveBudget(p, 1 << 20, 5000);  // 1 MiB keyframes, 5,000 of them
   REQUIRE(b.ok());
   CHECK(b->keyframe_bytes == (1ULL << 30) - p.map.overhead_bytes);  // 768 slots of 1 MiB
-  CHECK(b->k_max == 300);  // the count is the tighter limit
+  CHECK(b->k_max == 300);         // the count is the tighter limit
   CHECK(b->arena_slots == 5000);  // basic models RTAB-Map's growing heap
 
   REQUIRE(ApplyOverrides(Overrides("semantic", "5000"), p).ok());
@@ -226,7 +228,8 @@ TEST_CASE("overrides replace profile values and K_max = min(count, bytes / slot)
   CHECK(b->arena_slots == 768);
 
   CHECK_FALSE(ApplyOverrides(Overrides("greedy", {}), p).ok());
-  CHECK_FALSE(DeriveBudget(p, 0, 5000).ok());  // slot size unknown: profile says 0, no keyframe size
+  CHECK_FALSE(
+      DeriveBudget(p, 0, 5000).ok());  // slot size unknown: profile says 0, no keyframe size
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // seed gives the same bytes; ORB finds texture in them, and a nearby view of the same place,
 // under other lighting, verifies against it by PnP on the depth-derived points, as the
 // localizer will; the décor repeats (aliasing).
+#include "sim/appearance.h"
+
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -16,7 +18,6 @@
 #include "localization/camera.h"
 #include "localization/orb_extractor.h"
 #include "localization/pnp.h"
-#include "sim/appearance.h"
 #include "sim/building.h"
 #include "sim/observe.h"
 #include "sim/rgbd.h"
@@ -25,19 +26,19 @@
 namespace zm::sim {
 namespace {
 
-struct World {
+struct AppearanceWorld {
   Building building;
   CameraModel camera{MakeIntrinsics(640, 480, 90.0), 8.0, 1.0};
   std::vector<Pose3> poses;  // one per zone, each looking along another heading
 };
 
-World MakeWorld() {
+AppearanceWorld MakeAppearanceWorld() {
   HospitalOptions h;
   h.seed = 2;
   h.area_m2 = 600.0;
   auto b = GenerateHospital(h);
   REQUIRE(b.ok());
-  World w;
+  AppearanceWorld w;
   w.building = std::move(b).value();
   for (std::size_t z = 0; z < w.building.zones.size() && w.poses.size() < 12; ++z) {
     const Eigen::Vector2d p = w.building.zones[z].viewpoint;
@@ -52,12 +53,12 @@ DenseOptions Textured() {
   return d;
 }
 
-RgbdImage RenderAt(const World& w, const Pose3& pose, const FrameLight& light = {},
+RgbdImage RenderAt(const AppearanceWorld& w, const Pose3& pose, const FrameLight& light = {},
                    const DenseOptions& dense = Textured(), std::uint64_t seed = 7) {
   static const LandmarkMap kNoLandmarks;
   RgbdImage img;
-  RenderRgbd(w.building, 0, pose, w.camera, kNoLandmarks, {}, dense.width, dense.height, dense, seed,
-             &img, light);
+  RenderRgbd(w.building, 0, pose, w.camera, kNoLandmarks, {}, dense.width, dense.height, dense,
+             seed, &img, light);
   return img;
 }
 
@@ -80,7 +81,7 @@ void MaybeDump(const RgbdImage& img, const std::string& name) {
 }
 
 TEST_CASE("textured images carry nothing of the landmarks") {
-  const World w = MakeWorld();
+  const AppearanceWorld w = MakeAppearanceWorld();
   const DenseOptions dense = Textured();
   const LandmarkMap a = LandmarkMap::Generate(w.building, LandmarkOptions{}, 1);
   const LandmarkMap b = LandmarkMap::Generate(w.building, LandmarkOptions{}, 99);
@@ -96,7 +97,7 @@ TEST_CASE("textured images carry nothing of the landmarks") {
 }
 
 TEST_CASE("textured images: the same seeds give the same bytes, another décor another look") {
-  const World w = MakeWorld();
+  const AppearanceWorld w = MakeAppearanceWorld();
   CHECK(RenderAt(w, w.poses[2]).rgb == RenderAt(w, w.poses[2]).rgb);
   DenseOptions other = Textured();
   other.decor_seed = 2;
@@ -108,7 +109,7 @@ TEST_CASE("textured images: the same seeds give the same bytes, another décor a
 }
 
 TEST_CASE("textured images: ORB finds texture, a nearby view under other light verifies by PnP") {
-  const World w = MakeWorld();
+  const AppearanceWorld w = MakeAppearanceWorld();
   const CameraIntrinsics& k = w.camera.intrinsics;
   Result<OrbExtractor> ex = OrbExtractor::Create(OrbOptions{}, k);
   REQUIRE(ex.ok());
@@ -133,10 +134,10 @@ TEST_CASE("textured images: ORB finds texture, a nearby view under other light v
     REQUIRE(ex->Extract(Bgr(flat_img), {}, &ff).ok());
     flat_features += ff.count;
 
-    const std::size_t n = simd::MatchRatioTest(
-        reinterpret_cast<const std::uint8_t*>(fr.descriptors.data()), fr.count,
-        reinterpret_cast<const std::uint8_t*>(kf.descriptors.data()), kf.count, {0.8f, 64},
-        matches.data());
+    const std::size_t n =
+        simd::MatchRatioTest(reinterpret_cast<const std::uint8_t*>(fr.descriptors.data()), fr.count,
+                             reinterpret_cast<const std::uint8_t*>(kf.descriptors.data()), kf.count,
+                             {0.8f, 64}, matches.data());
     const Pose3 t_map_cam_key = CameraPoseInMap(key_pose);
     std::vector<cv::Point3f> object;
     std::vector<cv::Point2f> image;
@@ -145,8 +146,10 @@ TEST_CASE("textured images: ORB finds texture, a nearby view under other light v
       if (kf.has_point[t] == 0) continue;
       const Eigen::Vector3d pc(kf.points[3 * t], kf.points[3 * t + 1], kf.points[3 * t + 2]);
       const Eigen::Vector3d pm = t_map_cam_key * pc;
-      object.emplace_back(static_cast<float>(pm.x()), static_cast<float>(pm.y()), static_cast<float>(pm.z()));
-      image.emplace_back(fr.keypoints[2 * matches[m].query], fr.keypoints[2 * matches[m].query + 1]);
+      object.emplace_back(static_cast<float>(pm.x()), static_cast<float>(pm.y()),
+                          static_cast<float>(pm.z()));
+      image.emplace_back(fr.keypoints[2 * matches[m].query],
+                         fr.keypoints[2 * matches[m].query + 1]);
     }
     const PnpSolution sol = pnp.Solve(object, image);
     if (!sol.found || sol.inliers < 20) continue;
@@ -155,8 +158,8 @@ TEST_CASE("textured images: ORB finds texture, a nearby view under other light v
     const double dt = (est.translation() - truth.translation()).norm();
     const double dr = Eigen::AngleAxisd(est.rotation().transpose() * truth.rotation()).angle();
     MESSAGE("view " << i << ": " << kf.count << " / " << fr.count << " features, " << n
-                    << " matches, " << sol.inliers << " inliers, error " << dt << " m "
-                    << dr * 57.3 << " deg");
+                    << " matches, " << sol.inliers << " inliers, error " << dt << " m " << dr * 57.3
+                    << " deg");
     if (dt < 0.05 && dr < 0.02) ++verified;
   }
   MESSAGE("ORB features per view: textured " << textured_features / w.poses.size() << ", flat "
@@ -185,7 +188,8 @@ PosterCount CountPosters(const SurfaceLook& look) {
       bool any_ink = false;
       for (int gy = 0; gy < 8; ++gy) {
         for (int gx = 0; gx < 5; ++gx) {
-          wall.along_m = static_cast<float>(slot) * 2.4f + 0.85f + 0.07f + 0.13f * static_cast<float>(gx);
+          wall.along_m =
+              static_cast<float>(slot) * 2.4f + 0.85f + 0.07f + 0.13f * static_cast<float>(gx);
           const Rgb c = look.Wall(wall, 2.05f - 0.06f - 0.09f * static_cast<float>(gy));
           sig.push_back(static_cast<std::uint8_t>(c[0]));
           any_ink = any_ink || c[0] < 100.0f;

@@ -9,10 +9,13 @@
 #include <fstream>
 
 #include "mapdb/mapdb_test_util.h"
+#include "support/test_util.h"
 #include "support/tum_folder_writer.h"
 
 namespace zm {
 namespace {
+
+using test::Contains;
 
 using test::TempDir;
 using test::TumFolderSpec;
@@ -23,8 +26,6 @@ TumFolderOptions OptionsFor(const TumFolderSpec& s) {
   o.camera = test::TumTestCamera(s);
   return o;
 }
-
-bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
 TEST_CASE("tum: rgb.txt and depth.txt are associated by the nearest stamp and every frame reads") {
   TempDir dir;
@@ -86,7 +87,8 @@ TEST_CASE("tum: gaps and malformed lines are counted and reported, not errors") 
   WriteTumFolder(dir.File("seq"), spec);
   {
     std::ofstream add(dir.File("seq/rgb.txt"), std::ios::app);
-    add << "not-a-stamp rgb/x.png\n" << "1305031200.0\n";
+    add << "not-a-stamp rgb/x.png\n"
+        << "1305031200.0\n";
   }
   auto folder = ReadTumFolder(dir.File("seq"), OptionsFor(spec));
   REQUIRE(folder.ok());
@@ -133,14 +135,16 @@ TEST_CASE("tum: every bad image is one error naming the file") {
   };
   const Case cases[] = {
       {0, StatusCode::kNotFound, "colour image " + folder->frames[0].rgb_path + " is missing"},
-      {1, StatusCode::kCorrupt, "colour image " + folder->frames[1].rgb_path + " (17 bytes) cannot be decoded"},
+      {1, StatusCode::kCorrupt,
+       "colour image " + folder->frames[1].rgb_path + " (17 bytes) cannot be decoded"},
       {2, StatusCode::kCorrupt, "depth image " + folder->frames[2].depth_path},
       {3, StatusCode::kInvalidArgument, "is 160x120, the camera is 320x240"},
   };
   for (const Case& c : cases) {
     CAPTURE(c.frame);
     TumFrameImages images;
-    const Status st = ReadTumFrame(folder->frames[static_cast<std::size_t>(c.frame)], OptionsFor(spec), &images);
+    const Status st =
+        ReadTumFrame(folder->frames[static_cast<std::size_t>(c.frame)], OptionsFor(spec), &images);
     REQUIRE_FALSE(st.ok());
     INFO(st.message());
     CHECK(st.code() == c.code);
@@ -158,7 +162,8 @@ TEST_CASE("tum: a folder without lists, and bad options, are refused") {
   std::filesystem::create_directories(dir.File("empty"));
   auto none = ReadTumFolder(dir.File("empty"));
   REQUIRE_FALSE(none.ok());
-  CHECK(Contains(none.status().message(), "has neither associations.txt nor both rgb.txt and depth.txt"));
+  CHECK(Contains(none.status().message(),
+                 "has neither associations.txt nor both rgb.txt and depth.txt"));
   auto missing = ReadTumFolder(dir.File("nope"));
   REQUIRE_FALSE(missing.ok());
   CHECK(missing.status().code() == StatusCode::kNotFound);

@@ -22,18 +22,17 @@
 #include "mapdb/mapdb_test_util.h"
 #include "runtime/daemon.h"
 #include "support/step_allocations.h"
+#include "support/test_util.h"
 #include "support/tum_folder_writer.h"
 
 namespace zm {
 namespace {
 
+using test::Contains;
+
 using test::TempDir;
 using test::TumFolderSpec;
 using test::WriteTumFolder;
-
-bool Contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
-}
 
 std::vector<std::string> Lines(const std::string& path) {
   std::ifstream f(path);
