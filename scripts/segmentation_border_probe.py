@@ -157,10 +157,14 @@ def merged(lab, accepted):
     return lut[lab]
 
 
+def open_rule(t):
+    """An open border at least t of the smaller segment's perimeter, and not wall-like."""
+    return lambda o, c: o is not None and o["open_perim_s"] >= t and o["wall_frac"] <= 0.3
+
+
 RULES = {"none (the shipped defaults)": lambda o, c: False}
 for t1 in (0.25, 0.35, 0.5):
-    RULES[f"open border >= {t1} of S's perimeter, wall-like <= 0.3"] = (
-        lambda t: lambda o, c: o is not None and o["open_perim_s"] >= t and o["wall_frac"] <= 0.3)(t1)
+    RULES[f"open border >= {t1} of S's perimeter, wall-like <= 0.3"] = open_rule(t1)
 RULES["separated by clutter alone (>= 10 cells between)"] = (
     lambda o, c: o is None and c is not None and c["clutter_frac"] == 1.0 and c["cells"] >= 10)
 
