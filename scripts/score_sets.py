@@ -6,9 +6,11 @@ the mean and largest segmentation time), or with --per-map one row per map. "IoU
 mean IoU over the GT rooms the map shows (from 200 free cells; a room the robot never entered is
 left out, where mean IoU counts it 0: docs/segmentation.md, issue 28, second round).
 --merge-model runs another layout merge model than the compiled-in one (docs/segmentation.md,
-issue 28).
+issue 28); --param K=V (repeatable) passes a segmentation option to every run, as
+`zones segment --param` does (the probes of issue 28's second and third rounds).
 
 Usage: scripts/score_sets.py ZONEMAP DIR [DIR ...] [--per-map] [--merge-model MODEL.json]
+           [--param K=V ...]
 """
 import argparse
 import json
@@ -32,8 +34,11 @@ def main():
     ap.add_argument("dirs", nargs="+", metavar="DIR")
     ap.add_argument("--per-map", action="store_true")
     ap.add_argument("--merge-model")
+    ap.add_argument("--param", action="append", default=[], metavar="K=V")
     a = ap.parse_args()
     extra = ["--merge-model", a.merge_model] if a.merge_model else []
+    for kv in a.param:
+        extra += ["--param", kv]
     if a.per_map:
         print("| map | GT rooms (shown) | zones | precision % | recall % | mean IoU % | "
               "IoU shown % | segmentation ms |")

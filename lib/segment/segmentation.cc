@@ -87,7 +87,12 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
     return whole;
   }
   const bool layout = options.learned.layout_merge_threshold > 0.0;
-  if (layout) ZM_RETURN_IF_ERROR(CheckLayoutMergeModelOptions(model, options.cut, options.rules));
+  // An oracle trace merges by the ground truth, not the model: it is how a model for other cut
+  // options is trained (scripts/train_layout_merge.py --param), so the model's options do not
+  // bind it.
+  if (layout && !trace.oracle) {
+    ZM_RETURN_IF_ERROR(CheckLayoutMergeModelOptions(model, options.cut, options.rules));
+  }
   const double res = grid.resolution_m;
   Segmentation seg;
   try {

@@ -4,7 +4,8 @@ render_r2v.py's three variants share one ground truth and the robot/ variant is 
 holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves augmentations out;
 render_sim.py's grid and ground truth
 agree in size, its corridor segments are one room; train_layout_merge.py fits a model that
-zonemap runs. Behaviour, not figures.
+zonemap runs; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does.
+Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
 """
@@ -105,5 +106,34 @@ run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robo
                       "--out", os.devnull, "--merge-model", model, "--json"],
                      capture_output=True, text=True)
 check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs the model")
+
+# score_sets.py passes --param to zonemap; segmentation_border_probe.py's scorer agrees with
+# ScoreSegmentation (its no-merge row is score_sets.py's row) and a rule only merges.
+robot_dir = os.path.join(work, "a", "robot")
+sets = subprocess.run([sys.executable, os.path.join(scripts, "score_sets.py"), zonemap, robot_dir,
+                       sim], check=True, capture_output=True, text=True).stdout
+rows = {r.split("|")[1].strip(): [float(x) for x in r.split("|")[3:7]]
+        for r in sets.splitlines() if r.startswith("| /")}
+bad = subprocess.run([sys.executable, os.path.join(scripts, "score_sets.py"), zonemap, robot_dir,
+                      "--param", "no_such_option=1"], capture_output=True, text=True)
+check(bad.returncode != 0 and "no_such_option" in bad.stderr,
+      "score_sets.py --param reaches zonemap (an unknown option is refused by name)")
+probe = subprocess.run([sys.executable, os.path.join(scripts, "segmentation_border_probe.py"),
+                        zonemap, os.path.join(work, "labels"), robot_dir, sim],
+                       capture_output=True, text=True)
+check(probe.returncode == 0 and probe.stdout.count("recall lost by how") == 2,
+      "segmentation_border_probe.py reports both sets")
+blocks = probe.stdout.split("== ")[1:]
+for block in blocks:
+    d = block.split(":")[0]
+    score_rows = {line.split("P/R/IoU/IoU shown %")[0].strip():
+                  [float(x) for x in line.split("%")[-1].split("/")]
+                  for line in block.splitlines() if "P/R/IoU/IoU shown %" in line}
+    none = score_rows.get("none (the shipped defaults)")
+    check(none is not None and d in rows and
+          all(abs(a - b) <= 0.11 for a, b in zip(none, rows[d])),
+          f"the probe's unmerged score is ScoreSegmentation's ({os.path.basename(d)})")
+    check(all(v[0] <= none[0] + 0.11 and v[1] >= none[1] - 0.11 for v in score_rows.values()),
+          f"a post-merge rule never raises precision nor lowers recall ({os.path.basename(d)})")
 
 sys.exit(1 if failures else 0)

@@ -4,7 +4,8 @@
 // makes its room; with the default (the learned layout merge), the same floors; a real map stays
 // above a labelled regression floor with each; grid loaders (YAML, PNG,
 // RTAB-Map opt_map) place cells right and reject bad input with one clear error; keyframe-only
-// zones and oversize splits respect their keyframe cap.
+// zones and oversize splits respect their keyframe cap; an oracle trace is not bound by the
+// model's cut options.
 #include "segment/segmentation.h"
 
 #include <doctest/doctest.h>
@@ -913,6 +914,37 @@ TEST_CASE("segments holding too many keyframes are split until each fits") {
     CHECK(n <= 16);
   }
   CHECK_FALSE(SplitOversizeSegments(grid, kf, 0, &*seg).ok());
+}
+
+// Training a model for other cut options starts with an oracle trace cut with them: the oracle
+// merges by the ground truth, so the compiled-in model's options do not bind it; a run that
+// merges by the model is still refused (issue 28, third round).
+TEST_CASE("an oracle trace runs with cut options the model was not trained with") {
+  cv::Mat truth;
+  const OccupancyGrid grid = SyntheticFloor(&truth);
+  SegmentOptions other;
+  other.cut.layout_cap_max_m = 0.0;  // the compiled-in model has 3.5
+  const auto refused = SegmentRooms(grid, other);
+  REQUIRE_FALSE(refused.ok());
+  CHECK(refused.status().message().find("layout_cap_max_m") != std::string::npos);
+
+  const auto dir = TempDir("oracle_other_cut");
+  const std::string csv_path = (dir / "trace.csv").string();
+  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
+  REQUIRE(csv != nullptr);
+  LayoutMergeTrace trace;
+  trace.ground_truth = &truth;
+  trace.csv = csv;
+  trace.oracle = true;
+  const auto traced = SegmentRooms(grid, other, DefaultLayoutMergeModel(), trace);
+  std::fclose(csv);
+  REQUIRE(traced.ok());
+  // The oracle joins the pieces of each room: the three rooms and the corridor.
+  CHECK(traced->segments.size() == 4);
+  std::ifstream in(csv_path);
+  std::string first_row;
+  CHECK(static_cast<bool>(std::getline(in, first_row)));  // the pairs it saw, with labels
+  CHECK_FALSE(first_row.empty());
 }
 
 }  // namespace
