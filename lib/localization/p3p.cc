@@ -88,7 +88,7 @@ int RealPolynomialRoots(const double* c, int degree, double lo, double hi, doubl
   }
   // Between consecutive real roots of the derivative the polynomial is monotonic: each such
   // interval holds at most one root, found by a bracketed search when the sign changes.
-  double derivative[4];
+  double derivative[4] = {};  // zeroed: GCC -O3 cannot see through the recursion that it is set
   for (int i = 0; i < degree; ++i) derivative[i] = (i + 1) * c[i + 1];
   double breaks[6];
   breaks[0] = lo;
