@@ -1,7 +1,7 @@
 // Kernel control files (cgroupfs, sysfs, procfs), read and written the way those interfaces
-// expect: read whole, written with one write(2). The cgroup, the swap device and the weights
-// cache all use these, so an error reads the same from each: it names the file, the value and
-// errno's text, after the caller's own prefix (`who`, e.g. "cgroup").
+// expect: read whole, written with one write(2). The cgroup and the swap device use them (the
+// weights cache only ErrnoText), so an error reads the same from each: it names the file, the
+// value and errno's text, after the caller's own prefix (`who`, e.g. "cgroup").
 #pragma once
 
 #include <string>
