@@ -16,16 +16,31 @@ JOBS="${JOBS:-2}"
 cmake --preset fuzz >/dev/null
 cmake --build build/fuzz --target zm_fuzzers -j "$JOBS"
 
+# One target is one process on one core (libFuzzer's own loop): JOBS targets run side by side,
+# each for its full time, and report in the order given.
+run_target() {
+  local t="$1" work="build/fuzz/findings/$1" corpus="build/fuzz/corpus/$1" rc=0
+  mkdir -p "$work" "$corpus"
+  cp -n fuzz/corpus/"$t"/* "$corpus"/ 2>/dev/null || true
+  build/fuzz/fuzz/zm_fuzz_"$t" -max_total_time="$SECONDS_PER_TARGET" -timeout=10 -rss_limit_mb=2048 \
+    -max_len=65536 -print_final_stats=1 -artifact_prefix="$work/" "$corpus" > "$work/log.txt" 2>&1 || rc=$?
+  echo "$rc" > "$work/rc"
+}
+
+running=0
+for t in "${TARGETS[@]}"; do
+  rm -f "build/fuzz/findings/$t/rc"
+  run_target "$t" &
+  running=$((running + 1))
+  if [ "$running" -ge "$JOBS" ]; then wait -n || true; running=$((running - 1)); fi
+done
+wait
+
 status=0
 for t in "${TARGETS[@]}"; do
   work="build/fuzz/findings/$t"
-  corpus="build/fuzz/corpus/$t"
-  mkdir -p "$work" "$corpus"
-  cp -n fuzz/corpus/"$t"/* "$corpus"/ 2>/dev/null || true
   echo "== $t: ${SECONDS_PER_TARGET}s"
-  if ! build/fuzz/fuzz/zm_fuzz_"$t" -max_total_time="$SECONDS_PER_TARGET" -timeout=10 -rss_limit_mb=2048 \
-       -max_len=65536 -print_final_stats=1 -artifact_prefix="$work/" "$corpus" \
-       > "$work/log.txt" 2>&1; then
+  if [ "$(cat "$work/rc" 2>/dev/null)" != 0 ]; then
     echo "!! $t found a crash (see $work/log.txt):"; ls "$work"/crash-* "$work"/leak-* "$work"/timeout-* "$work"/oom-* 2>/dev/null || true
     tail -40 "$work/log.txt"
     status=1
