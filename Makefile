@@ -78,7 +78,7 @@ bench: release
 fuzz:  # libFuzzer targets (clang-14), FUZZ_SECONDS per target (docs/reliability.md)
 	bash scripts/fuzz.sh $(FUZZ_SECONDS)
 
-fuzz-ci:  # bounded run for `make test`: 15 s a target, about 2.5 min with the clang build
+fuzz-ci:  # bounded run for `make test`: 15 s a target, two at a time, after the clang build
 	bash scripts/install-deps.sh --fuzz
 	bash scripts/fuzz.sh 15
 
