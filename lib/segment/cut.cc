@@ -10,7 +10,6 @@
 #include <opencv2/imgproc.hpp>
 #include <queue>
 #include <string>
-#include <tuple>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -197,19 +196,33 @@ cv::Mat FindSeeds(const cv::Mat& dt, const CutOptions& o, double res, int* seed_
 }
 
 // Priority flood (watershed on -dt) of the markers over free space, 4-connected: the highest
-// clearance cells are claimed first, so two floods meet at the narrowest passage.
+// clearance cells are claimed first, so two floods meet at the narrowest passage; among equal
+// clearances the one queued first. A cell is queued once, by its first neighbour: a later
+// entry of it would carry the same clearance and a later order, so it could only be popped
+// after the cell was claimed (the queue stays up to 4x shorter, with the same result).
 void Flood(const cv::Mat& free_mask, const cv::Mat& dt, cv::Mat* labels) {
-  using Entry = std::tuple<float, std::int64_t, int, int>;  // dt, -order, index, label
-  std::priority_queue<Entry> queue;
-  std::int64_t order = 0;
+  struct Entry {
+    float dt;
+    std::uint32_t order;  // at most one entry per cell, and cells are indexed by int
+    int index, label;
+  };
+  auto claimed_later = [](const Entry& a, const Entry& b) {
+    return a.dt < b.dt || (a.dt == b.dt && a.order > b.order);
+  };
+  std::priority_queue<Entry, std::vector<Entry>, decltype(claimed_later)> queue(claimed_later);
+  std::uint32_t order = 0;
   const int cols = free_mask.cols, rows = free_mask.rows;
+  cv::Mat queued = cv::Mat::zeros(free_mask.size(), CV_8U);
   auto push_neighbours = [&](int r, int c, int label) {
     const int dr[4] = {-1, 1, 0, 0}, dc[4] = {0, 0, -1, 1};
     for (int k = 0; k < 4; ++k) {
       const int nr = r + dr[k], nc = c + dc[k];
       if (nr < 0 || nc < 0 || nr >= rows || nc >= cols) continue;
       if (free_mask.at<std::uint8_t>(nr, nc) == 0 || labels->at<int>(nr, nc) != 0) continue;
-      queue.emplace(dt.at<float>(nr, nc), -order++, nr * cols + nc, label);
+      std::uint8_t& q = queued.at<std::uint8_t>(nr, nc);
+      if (q != 0) continue;
+      q = 1;
+      queue.push({dt.at<float>(nr, nc), order++, nr * cols + nc, label});
     }
   };
   for (int r = 0; r < rows; ++r) {
@@ -219,14 +232,11 @@ void Flood(const cv::Mat& free_mask, const cv::Mat& dt, cv::Mat* labels) {
     }
   }
   while (!queue.empty()) {
-    const auto [d, ord, index, label] = queue.top();
+    const Entry e = queue.top();
     queue.pop();
-    (void)d;
-    (void)ord;
-    const int r = index / cols, c = index % cols;
-    if (labels->at<int>(r, c) != 0) continue;
-    labels->at<int>(r, c) = label;
-    push_neighbours(r, c, label);
+    const int r = e.index / cols, c = e.index % cols;
+    labels->at<int>(r, c) = e.label;
+    push_neighbours(r, c, e.label);
   }
 }
 
