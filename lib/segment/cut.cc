@@ -107,8 +107,13 @@ cv::Mat FindSeeds(const cv::Mat& dt, const CutOptions& o, double res, int* seed_
   // Only two label images are alive at a time (this level and the one below): memory stays at
   // a few bytes per cell however many levels there are. Seed levels are relabelled at the end
   // (connectedComponents is deterministic, so the component numbers match).
+  // A level lies inside the one below it, so it is labelled inside the bounding box of the level
+  // below only (`boxes[i]`; its label image is of the box's size): connectedComponents numbers
+  // components in the raster order of their first cell, which the crop keeps.
+  std::vector<cv::Rect> boxes(levels.size());
+  if (!boxes.empty()) boxes[0] = cv::Rect(0, 0, dt.cols, dt.rows);
   auto label_level = [&](std::size_t i, cv::Mat* out) {
-    cv::Mat mask = dt > static_cast<double>(levels[i]);
+    cv::Mat mask = dt(boxes[i]) > static_cast<double>(levels[i]);
     return cv::connectedComponents(mask, *out, 4, CV_32S);
   };
   cv::Mat below, current;
@@ -121,21 +126,27 @@ cv::Mat FindSeeds(const cv::Mat& dt, const CutOptions& o, double res, int* seed_
       comps.resize(i + 1);
       break;
     }
-    for (int r = 0; r < dt.rows; ++r) {
-      const int* l = current.ptr<int>(r);
-      const int* lp = i > 0 ? below.ptr<int>(r) : nullptr;
+    const cv::Rect box = boxes[i];
+    const cv::Rect box_below = i > 0 ? boxes[i - 1] : box;
+    int r0 = box.y + box.height, r1 = box.y - 1, c0 = box.x + box.width, c1 = box.x - 1;
+    for (int r = box.y; r < box.y + box.height; ++r) {
+      const int* l = current.ptr<int>(r - box.y);
+      const int* lp = i > 0 ? below.ptr<int>(r - box_below.y) : nullptr;
       const float* d = dt.ptr<float>(r);
-      for (int c = 0; c < dt.cols; ++c) {
-        if (l[c] == 0) continue;
-        LevelComponent& comp = comps[i][Idx(l[c])];
+      for (int c = box.x; c < box.x + box.width; ++c) {
+        const int label = l[c - box.x];
+        if (label == 0) continue;
+        r0 = std::min(r0, r), r1 = std::max(r1, r), c0 = std::min(c0, c), c1 = std::max(c1, c);
+        LevelComponent& comp = comps[i][Idx(label)];
         ++comp.area;
         comp.max_dt = std::max(comp.max_dt, d[c]);
         if (lp != nullptr && comp.parent < 0) {
-          comp.parent = lp[c];
-          comps[i - 1][Idx(lp[c])].children.push_back(l[c]);
+          comp.parent = lp[c - box_below.x];
+          comps[i - 1][Idx(comp.parent)].children.push_back(label);
         }
       }
     }
+    if (i + 1 < boxes.size()) boxes[i + 1] = cv::Rect(c0, r0, c1 - c0 + 1, r1 - r0 + 1);
     std::swap(below, current);
   }
   // Select(level, comp) -> seeds as (level, comp) pairs.
@@ -182,10 +193,11 @@ cv::Mat FindSeeds(const cv::Mat& dt, const CutOptions& o, double res, int* seed_
   }
   for (const auto& [level, ids] : by_level) {
     label_level(level, &current);
-    for (int r = 0; r < dt.rows; ++r) {
+    const cv::Rect box = boxes[level];
+    for (int r = 0; r < box.height; ++r) {
       const int* l = current.ptr<int>(r);
-      int* m = markers.ptr<int>(r);
-      for (int c = 0; c < dt.cols; ++c) {
+      int* m = markers.ptr<int>(box.y + r) + box.x;
+      for (int c = 0; c < box.width; ++c) {
         if (l[c] == 0) continue;
         if (auto it = ids.find(l[c]); it != ids.end()) m[c] = it->second;
       }
