@@ -655,6 +655,7 @@ double DominantWallAngle(const cv::Mat& occupied) {
     const float* x = gx.ptr<float>(r);
     const float* y = gy.ptr<float>(r);
     for (int c = 0; c < f.cols; ++c) {
+      if (x[c] == 0.0f && y[c] == 0.0f) continue;  // most cells: no hypot call
       const double mag = static_cast<double>(std::hypot(x[c], y[c]));
       if (mag < 1e-6) continue;
       double deg = static_cast<double>(std::atan2(y[c], x[c])) * kDegPerRad;
