@@ -577,8 +577,16 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
   return out;
 }
 
+// std::lround's rounding (halves away from zero) without its library call, the hot step of
+// MeasureOpenings: exact, as a float plus or minus 0.5 is exact in double and truncation is
+// floor (ceil) for non-negative (negative) values.
+int RoundHalfAway(float v) {
+  const double d = static_cast<double>(v);
+  return static_cast<int>(static_cast<long long>(d >= 0.0 ? d + 0.5 : d - 0.5));
+}
+
 bool IsFree(const cv::Mat& free, cv::Point2f q) {
-  const int c = static_cast<int>(std::lround(q.x)), r = static_cast<int>(std::lround(q.y));
+  const int c = RoundHalfAway(q.x), r = RoundHalfAway(q.y);
   return r >= 0 && c >= 0 && r < free.rows && c < free.cols && free.at<std::uint8_t>(r, c) != 0;
 }
 
@@ -590,6 +598,41 @@ float FreeReach(const cv::Mat& free, cv::Point2f p, cv::Point2f dir) {
   while (IsFree(free, p + t * dir)) t += 0.5f;
   return t - 0.5f;
 }
+
+// The free half-cell steps of the line through `origin` along `dir` (a unit vector), each step
+// looked at once: MeasureOpenings counts them over about twenty overlapping intervals per point.
+class HalfStepFreeCounts {
+ public:
+  HalfStepFreeCounts(const cv::Mat& free, cv::Point2f origin, cv::Point2f dir)
+      : free_(&free), origin_(origin), dir_(dir) {}
+  // Free steps at t = -behind, -behind + 0.5, ..., ahead (both >= 0, multiples of 0.5), the
+  // same points as `origin + t * dir` stepped from -behind.
+  int Count(float behind, float ahead) {
+    const auto b = static_cast<std::size_t>(2.0f * behind);
+    const auto a = static_cast<std::size_t>(2.0f * ahead);
+    Extend(&ahead_, a + 1, 0.5f);
+    Extend(&behind_, b + 1, -0.5f);
+    return ahead_[a] + behind_[b];
+  }
+
+ private:
+  // counts[j]: free steps at t = step, 2 step, ..., j step, and t = 0 too when step > 0.
+  void Extend(std::vector<int>* counts, std::size_t size, float step) {
+    while (counts->size() < size) {
+      const std::size_t j = counts->size();
+      const bool at_zero = j == 0;
+      const int here =
+          (at_zero && step < 0.0f)
+              ? 0
+              : (IsFree(*free_, origin_ + (step * static_cast<float>(j)) * dir_) ? 1 : 0);
+      counts->push_back((at_zero ? 0 : counts->back()) + here);
+    }
+  }
+
+  const cv::Mat* free_;
+  cv::Point2f origin_, dir_;
+  std::vector<int> ahead_, behind_;
+};
 
 float Median(std::vector<float>* v) {
   if (v->empty()) return 0.0f;
@@ -612,6 +655,7 @@ double DominantWallAngle(const cv::Mat& occupied) {
     const float* x = gx.ptr<float>(r);
     const float* y = gy.ptr<float>(r);
     for (int c = 0; c < f.cols; ++c) {
+      if (x[c] == 0.0f && y[c] == 0.0f) continue;  // most cells: no hypot call
       const double mag = static_cast<double>(std::hypot(x[c], y[c]));
       if (mag < 1e-6) continue;
       double deg = static_cast<double>(std::atan2(y[c], x[c])) * kDegPerRad;
@@ -715,11 +759,15 @@ void MeasureOpenings(const cv::Mat& free, int side_depth_px, WallEvidence* evide
     const cv::Point2f dir = len > 0.0f ? d * (1.0f / len) : cv::Point2f(1.0f, 0.0f);
     const cv::Point2f normal(-dir.y, dir.x);
     const int first = static_cast<int>(std::ceil(0.5f * line.thickness_px)) + 1;
+    constexpr float kAt[3] = {0.25f, 0.5f, 0.75f};
+    HalfStepFreeCounts on_line_free[3] = {{free, line.from + kAt[0] * d, dir},
+                                          {free, line.from + kAt[1] * d, dir},
+                                          {free, line.from + kAt[2] * d, dir}};
     for (int side = 0; side < 2; ++side) {
       const float sign = side == 0 ? -1.0f : 1.0f;
       std::vector<float> widths, shares;
-      for (const float u : {0.25f, 0.5f, 0.75f}) {
-        const cv::Point2f on_line = line.from + u * d;
+      for (int i = 0; i < 3; ++i) {
+        const cv::Point2f on_line = line.from + kAt[i] * d;
         for (int k = first; k <= std::max(first, side_depth_px); ++k) {
           const cv::Point2f p = on_line + sign * static_cast<float>(k) * normal;
           const float ahead = FreeReach(free, p, dir);
@@ -728,10 +776,8 @@ void MeasureOpenings(const cv::Mat& free, int side_depth_px, WallEvidence* evide
           widths.push_back(ahead + behind + 1.0f);
           // The line itself over the same interval: free cells are the opening (and whatever
           // else is open on it), the rest is wall.
-          int open = 0, all = 0;
-          for (float t = -behind; t <= ahead; t += 0.5f, ++all) {
-            if (IsFree(free, on_line + t * dir)) ++open;
-          }
+          const int open = on_line_free[i].Count(behind, ahead);
+          const int all = static_cast<int>(2.0f * (behind + ahead)) + 1;
           shares.push_back(static_cast<float>(open) / static_cast<float>(std::max(1, all)));
         }
       }

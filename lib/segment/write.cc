@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "zones/polygon.h"
 
@@ -20,16 +21,51 @@ Status CheckOutlineOptions(const OutlineOptions& o) {
   return Status::Ok();
 }
 
+namespace {
+
+// Each label's bounding box (empty for a label no cell has), labels 1..max_label, in one pass.
+std::vector<cv::Rect> LabelBoxes(const cv::Mat& labels, int max_label) {
+  const auto n = static_cast<std::size_t>(std::max(0, max_label)) + 1;
+  std::vector<int> r0(n, labels.rows), r1(n, -1), c0(n, labels.cols), c1(n, -1);
+  for (int r = 0; r < labels.rows; ++r) {
+    const int* l = labels.ptr<int>(r);
+    for (int c = 0; c < labels.cols; ++c) {
+      if (l[c] <= 0 || l[c] > max_label) continue;
+      const auto i = static_cast<std::size_t>(l[c]);
+      r0[i] = std::min(r0[i], r), r1[i] = std::max(r1[i], r);
+      c0[i] = std::min(c0[i], c), c1[i] = std::max(c1[i], c);
+    }
+  }
+  std::vector<cv::Rect> boxes(n);
+  for (std::size_t i = 1; i < n; ++i) {
+    if (r1[i] >= 0) boxes[i] = cv::Rect(c0[i], r0[i], c1[i] - c0[i] + 1, r1[i] - r0[i] + 1);
+  }
+  return boxes;
+}
+
+}  // namespace
+
 Result<std::vector<Zone>> SegmentationToZones(const Segmentation& seg, const OccupancyGrid& grid,
                                               const OutlineOptions& options) {
   std::vector<Zone> zones;
   std::map<std::string, int> per_kind;
   const double eps_px = options.simplify_tolerance_m / grid.resolution_m;
   try {
+    // Each outline is traced inside its segment's box with a cell of margin, not over the whole
+    // grid once per segment: findContours walks the same cells (the box is all the mask holds)
+    // and its offset puts them back in grid cells.
+    int max_label = 0;
+    for (const SegmentInfo& s : seg.segments) max_label = std::max(max_label, s.label);
+    const std::vector<cv::Rect> boxes = LabelBoxes(seg.labels, max_label);
+    const cv::Rect whole(0, 0, seg.labels.cols, seg.labels.rows);
     for (const SegmentInfo& s : seg.segments) {
-      cv::Mat mask = seg.labels == s.label;
+      const cv::Rect cells = s.label > 0 ? boxes[static_cast<std::size_t>(s.label)] : whole;
+      if (cells.empty()) continue;  // no cell: no contour
+      const cv::Rect box =
+          cv::Rect(cells.x - 1, cells.y - 1, cells.width + 2, cells.height + 2) & whole;
+      cv::Mat mask = seg.labels(box) == s.label;
       std::vector<std::vector<cv::Point>> contours;
-      cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+      cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, box.tl());
       if (contours.empty()) continue;
       const auto largest = std::max_element(
           contours.begin(), contours.end(),

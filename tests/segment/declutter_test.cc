@@ -7,13 +7,15 @@
 // window's or a notch's), the mouth between two aligned wall ends, a wall end reaching a
 // collinear one facing it beyond an opening's width, a thin wall ending at a corner continued
 // into the free space beyond it, a free end capped across (not a door's jamb), openings measured
-// against the space beside them, and clutter islands filled unless they hold a wall or touch the
-// border.
+// against the space beside them (each point as the definition walks it), and clutter islands filled
+// unless they hold a wall or touch the border.
 #include "segment/declutter.h"
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <vector>
@@ -319,6 +321,92 @@ TEST_CASE("an opening across a corridor is open, a partition's opening constrict
   along.opening_lines = {line};
   MeasureOpenings(edge, 20, &along);
   CHECK(along.opening_lines[0].Constriction() == 0.0);
+}
+
+// MeasureOpenings' definition (declutter.h), walked point by point: at each offset beside the
+// line, opposite a quarter, the middle and three quarters of it, the free run parallel to the
+// line in half-cell steps (cells rounded halves away from zero), and the share of the line's
+// half-steps over that run that are free; medians per side.
+namespace {
+void MeasureOpeningsByDefinition(const cv::Mat& free, int side_depth_px, OpeningLine* line) {
+  auto is_free = [&](cv::Point2f q) {
+    const int c = static_cast<int>(std::lround(q.x)), r = static_cast<int>(std::lround(q.y));
+    return r >= 0 && c >= 0 && r < free.rows && c < free.cols && free.at<std::uint8_t>(r, c) != 0;
+  };
+  auto reach = [&](cv::Point2f p, cv::Point2f dir) {
+    if (!is_free(p)) return -1.0f;
+    float t = 0.5f;
+    while (is_free(p + t * dir)) t += 0.5f;
+    return t - 0.5f;
+  };
+  auto median = [](std::vector<float> v) {
+    if (v.empty()) return 0.0f;
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const cv::Point2f d = line->to - line->from;
+  const float len = std::hypot(d.x, d.y);
+  const cv::Point2f dir = len > 0.0f ? d * (1.0f / len) : cv::Point2f(1.0f, 0.0f);
+  const cv::Point2f normal(-dir.y, dir.x);
+  const int first = static_cast<int>(std::ceil(0.5f * line->thickness_px)) + 1;
+  for (int side = 0; side < 2; ++side) {
+    std::vector<float> widths, shares;
+    for (const float u : {0.25f, 0.5f, 0.75f}) {
+      const cv::Point2f on_line = line->from + u * d;
+      for (int k = first; k <= std::max(first, side_depth_px); ++k) {
+        const cv::Point2f p = on_line + (side == 0 ? -1.0f : 1.0f) * static_cast<float>(k) * normal;
+        const float ahead = reach(p, dir);
+        if (ahead < 0.0f) continue;
+        const float behind = reach(p, -dir);
+        widths.push_back(ahead + behind + 1.0f);
+        int open = 0, all = 0;
+        for (float t = -behind; t <= ahead; t += 0.5f, ++all) open += is_free(on_line + t * dir);
+        shares.push_back(static_cast<float>(open) / static_cast<float>(std::max(1, all)));
+      }
+    }
+    line->side_px[side] = median(widths);
+    line->open_share[side] = median(shares);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("MeasureOpenings measures every line as its definition does, rotated lines too") {
+  // Random rooms, clutter and lines (axis-aligned, at half cells where rounding ties, rotated,
+  // and running off the grid): each side's width and open share equal the definition's
+  // exactly (MeasureOpenings counts each half-step of the line once and rounds inline).
+  cv::RNG rng(28);
+  for (int trial = 0; trial < 20; ++trial) {
+    cv::Mat free = cv::Mat::zeros(120, 160, CV_8U);
+    for (int i = 0; i < 6; ++i) {
+      const int x = rng.uniform(0, 140), y = rng.uniform(0, 100);
+      free(cv::Rect(x, y, rng.uniform(5, 160 - x), rng.uniform(5, 120 - y))).setTo(255);
+    }
+    for (int i = 0; i < 40; ++i) {
+      cv::circle(free, cv::Point(rng.uniform(0, 160), rng.uniform(0, 120)), rng.uniform(0, 4),
+                 cv::Scalar(0), cv::FILLED);
+    }
+    WallEvidence measured;
+    for (int i = 0; i < 12; ++i) {
+      OpeningLine line;
+      line.from = {rng.uniform(-5.0f, 165.0f), rng.uniform(-5.0f, 125.0f)};
+      if (i % 3 == 0) line.from = {std::round(line.from.x) + 0.5f, std::round(line.from.y)};
+      const float angle = i % 2 == 0 ? 0.0f : rng.uniform(0.0f, 6.3f);
+      const float length = rng.uniform(0.0f, 80.0f);
+      line.to = line.from + length * cv::Point2f(std::cos(angle), std::sin(angle));
+      line.thickness_px = static_cast<float>(rng.uniform(1, 6));
+      measured.opening_lines.push_back(line);
+    }
+    std::vector<OpeningLine> expected = measured.opening_lines;
+    MeasureOpenings(free, 20, &measured);
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      MeasureOpeningsByDefinition(free, 20, &expected[i]);
+      for (int side = 0; side < 2; ++side) {
+        CHECK(measured.opening_lines[i].side_px[side] == expected[i].side_px[side]);
+        CHECK(measured.opening_lines[i].open_share[side] == expected[i].open_share[side]);
+      }
+    }
+  }
 }
 
 TEST_CASE("walls rotated off the axes are found in the rotated frame") {
