@@ -63,7 +63,8 @@ cv::Mat CleanFreeSpace(const cv::Mat& cells, const CutOptions& o, double res, Wa
                                .mouth = CellsFromMetres(o.mouth_opening_max_width_m, res),
                                .facing = CellsFromMetres(o.facing_opening_max_width_m, res),
                                .corner = CellsFromMetres(o.corner_opening_max_width_m, res),
-                               .cap = CellsFromMetres(o.cap_opening_max_width_m, res)};
+                               .cap = CellsFromMetres(o.cap_opening_max_width_m, res),
+                               .end_min_extent = CellsFromMetres(o.opening_end_min_extent_m, res)};
     *walls = FindWalls(occupied, DominantWallAngle(occupied), wall_cells, free_mask);
     free_mask = FillClutterIslands(free_mask, walls->walls);
     occupied &= ~free_mask;
@@ -302,7 +303,7 @@ Status CheckCutOptions(const CutOptions& o) {
     return bad("areas must be >= 0");
   }
   if (o.layout_line_max_m < 0.0 || o.layout_mouth_max_m < 0.0 || o.layout_facade_max_m < 0.0 ||
-      o.layout_corner_max_m < 0.0 || o.layout_cap_max_m < 0.0 ||
+      o.layout_corner_max_m < 0.0 || o.layout_cap_max_m < 0.0 || o.layout_end_min_extent_m < 0.0 ||
       o.layout_seedless_min_area_m2 < 0.0) {
     return bad("the layout_* lengths and areas must be >= 0");
   }
@@ -311,7 +312,7 @@ Status CheckCutOptions(const CutOptions& o) {
       o.mouth_opening_max_width_m < 0.0 || o.facing_opening_max_width_m < 0.0 ||
       o.corner_opening_max_width_m < 0.0 || o.cap_opening_max_width_m < 0.0 ||
       o.opening_side_depth_m < 0.0 || o.wall_stub_min_length_m < 0.0 ||
-      o.opening_wall_max_thickness_m < 0.0) {
+      o.opening_wall_max_thickness_m < 0.0 || o.opening_end_min_extent_m < 0.0) {
     return bad(
         "wall_min_length_m, wall_stub_min_length_m, wall_line_gap_m, door_max_width_m "
         "and the opening_* options must be >= 0");
@@ -328,6 +329,7 @@ CutOptions LayoutPieceCut(const CutOptions& o) {
       {&CutOptions::facade_opening_max_width_m, &CutOptions::layout_facade_max_m},
       {&CutOptions::corner_opening_max_width_m, &CutOptions::layout_corner_max_m},
       {&CutOptions::cap_opening_max_width_m, &CutOptions::layout_cap_max_m},
+      {&CutOptions::opening_end_min_extent_m, &CutOptions::layout_end_min_extent_m},
       {&CutOptions::seedless_room_min_area_m2, &CutOptions::layout_seedless_min_area_m2},
   };
   CutOptions p = o;

@@ -70,6 +70,11 @@ struct CutOptions {
                                               // face of a block or a corner is no free end
   double opening_side_depth_m = 1.0;          // an opening's constriction (declutter.h) is measured
                                               // up to this far either side of it
+  double opening_end_min_extent_m = 0.0;      // (issue 28, fourth round) a wall end whose
+                                              // occupied component spans less than this along
+                                              // both wall directions (a clutter block, a loose
+                                              // leaf) starts no opening, corner continuation,
+                                              // cap or mouth (declutter.h; 0 = off)
   double seed_min_level_m = 0.35;             // lowest distance-transform level tried for seeds
   double seed_level_step_m = 0.05;            // step between levels
   double seed_max_level_m = 3.0;              // highest level tried
@@ -87,8 +92,10 @@ struct CutOptions {
   double layout_line_max_m = 20.0;
   double layout_mouth_max_m = 6.0;
   double layout_facade_max_m = 8.0;
-  double layout_corner_max_m = 3.0;  // (sixth part) walls continued past corners and T's...
-  double layout_cap_max_m = 3.5;     // ...and free ends capped across (declutter.h)
+  double layout_corner_max_m = 3.0;      // (sixth part) walls continued past corners and T's...
+  double layout_cap_max_m = 3.5;         // ...and free ends capped across (declutter.h)
+  double layout_end_min_extent_m = 0.0;  // (fourth round) opening_end_min_extent_m of the layout
+                                         // pieces
   double layout_seedless_min_area_m2 = 0.2;
 };
 
@@ -106,6 +113,7 @@ inline constexpr OptionField<CutOptions> kCutOptionFields[] = {
     {"facing_opening_max_width_m", &CutOptions::facing_opening_max_width_m},
     {"corner_opening_max_width_m", &CutOptions::corner_opening_max_width_m},
     {"cap_opening_max_width_m", &CutOptions::cap_opening_max_width_m},
+    {"opening_end_min_extent_m", &CutOptions::opening_end_min_extent_m},
     {"opening_wall_max_thickness_m", &CutOptions::opening_wall_max_thickness_m},
     {"wall_stub_min_length_m", &CutOptions::wall_stub_min_length_m},
     {"opening_side_depth_m", &CutOptions::opening_side_depth_m},
@@ -120,6 +128,7 @@ inline constexpr OptionField<CutOptions> kCutOptionFields[] = {
     {"layout_facade_max_m", &CutOptions::layout_facade_max_m},
     {"layout_corner_max_m", &CutOptions::layout_corner_max_m},
     {"layout_cap_max_m", &CutOptions::layout_cap_max_m},
+    {"layout_end_min_extent_m", &CutOptions::layout_end_min_extent_m},
     {"layout_seedless_min_area_m2", &CutOptions::layout_seedless_min_area_m2},
 };
 

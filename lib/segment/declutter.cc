@@ -80,6 +80,49 @@ class FreeEnds {
   int max_thickness_;
 };
 
+// Which run ends belong to a small occupied component (see WallCells::end_min_extent): the
+// components of `occupied` dilated by a cell (8-connected), small when their bounding box is
+// under `min_extent` cells along both axes. Empty (nothing small) when `min_extent` is 0.
+class SmallEnds {
+ public:
+  SmallEnds(const cv::Mat& occupied, int min_extent) {
+    if (min_extent <= 0) return;
+    cv::Mat grown, stats, centroids;
+    cv::dilate(occupied, grown, cv::Mat::ones(3, 3, CV_8U));
+    const int n = cv::connectedComponentsWithStats(grown, ids_, stats, centroids, 8, CV_32S);
+    small_.assign(static_cast<std::size_t>(n), 0);
+    for (int i = 1; i < n; ++i) {
+      const bool small = stats.at<int>(i, cv::CC_STAT_WIDTH) < min_extent &&
+                         stats.at<int>(i, cv::CC_STAT_HEIGHT) < min_extent;
+      small_[static_cast<std::size_t>(i)] = small ? 1 : 0;
+    }
+  }
+  // The transposed view (runs along the columns are walked as rows of the transpose).
+  [[nodiscard]] SmallEnds Transposed() const {
+    SmallEnds t;
+    if (!ids_.empty()) t.ids_ = ids_.t();
+    t.small_ = small_;
+    return t;
+  }
+  // `c` is a run's last cell in row `r`, `inward` the step back into the run: the first labelled
+  // cell within three cells back (a run's band is a cell wider than its wall) decides.
+  [[nodiscard]] bool At(int r, int c, int inward) const {
+    if (ids_.empty()) return false;
+    for (int back = 0; back < 3; ++back) {
+      const int cc = c + back * inward;
+      if (cc < 0 || cc >= ids_.cols) break;
+      const int id = ids_.at<int>(r, cc);
+      if (id > 0) return small_[static_cast<std::size_t>(id)] != 0;
+    }
+    return false;
+  }
+
+ private:
+  SmallEnds() = default;
+  cv::Mat ids_;
+  std::vector<std::uint8_t> small_;
+};
+
 // Calls f(first, last) for each run of nonzero cells of the row `run` (`cols` long).
 template <typename F>
 void ForEachRun(const std::uint8_t* run, int cols, F f) {
@@ -106,9 +149,9 @@ void ForEachRun(const std::uint8_t* run, int cols, F f) {
 // free space just beyond it, is continued the same way across at most `corner_len` cells: the
 // wall's line extended past the room it bounds into the space beyond (a closet or WC set into a
 // room's corner, whose open side is the line of the wall beside it).
-void ContinueRunsAlongRows(const cv::Mat& runs, const FreeEnds& ends, const cv::Mat& walls,
-                           const cv::Mat& free, int max_len, int max_thickness, int facing_len,
-                           int corner_len, cv::Mat* out) {
+void ContinueRunsAlongRows(const cv::Mat& runs, const FreeEnds& ends, const SmallEnds& small,
+                           const cv::Mat& walls, const cv::Mat& free, int max_len,
+                           int max_thickness, int facing_len, int corner_len, cv::Mat* out) {
   const int rows = runs.rows, cols = runs.cols;
   auto free_end = [&](int r, int c, int inward) { return ends.At(r, c, inward); };
   const bool corners = corner_len > 0 && !free.empty();
@@ -136,12 +179,14 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const FreeEnds& ends, const cv::
              ends.Corner(r, c, inward, look);
     };
     ForEachRun(run, cols, [&](int a, int last) {
-      if (free_end(r, last, -1)) {
+      if (small.At(r, last, -1)) {
+      } else if (free_end(r, last, -1)) {
         walk(last + 1, +1, max_len, facing_len, kOpeningFreeEnd);
       } else if (corner(last, -1)) {
         walk(last + 1, +1, corner_len, 0, kOpeningCorner);
       }
-      if (free_end(r, a, +1)) {
+      if (small.At(r, a, +1)) {
+      } else if (free_end(r, a, +1)) {
         walk(a - 1, -1, max_len, facing_len, kOpeningFreeEnd);
       } else if (corner(a, +1)) {
         walk(a - 1, -1, corner_len, 0, kOpeningCorner);
@@ -157,8 +202,8 @@ void ContinueRunsAlongRows(const cv::Mat& runs, const FreeEnds& ends, const cv::
 // row there). The front of a closet whose side wall ends where its door closes lies on one.
 // Ends whose wall goes on within `jamb_gap` beyond them (a door's jambs) are not capped.
 void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const FreeEnds& ends,
-                const cv::Mat& walls, const cv::Mat& free, int max_thickness, int cap_len,
-                int jamb_gap, cv::Mat* out_t) {
+                const SmallEnds& small, const cv::Mat& walls, const cv::Mat& free,
+                int max_thickness, int cap_len, int jamb_gap, cv::Mat* out_t) {
   const int rows = runs.rows, cols = runs.cols;
   auto cap = [&](int r0, int c, int step) {
     int r = r0;
@@ -178,7 +223,7 @@ void CapRunEnds(const cv::Mat& runs, const cv::Mat& occupied, const FreeEnds& en
     ForEachRun(runs.ptr<std::uint8_t>(r), cols, [&](int a, int last) {
       // The band's top row caps upwards, its bottom row downwards; both at the end column.
       for (const auto& [end, inward] : {std::pair{last, -1}, std::pair{a, +1}}) {
-        if (!ends.At(r, end, inward)) continue;
+        if (!ends.At(r, end, inward) || small.At(r, end, inward)) continue;
         // A door's jamb: the wall's line goes on within `jamb_gap` (a run along it, a cell of
         // slack across: laser walls are ragged). The door explains the end, and a line across
         // it would cut the corridor or room the door opens onto at every door.
@@ -348,8 +393,9 @@ cv::Mat FacadeGapsAlongRows(const cv::Mat& occupied, const cv::Mat& free, const 
 // on the column between the two walls. Set in `*out` as a band of three columns across the
 // rows between them (so it crosses the rows, perpendicular to the runs).
 void AlignedEndMouthsAlongRows(const cv::Mat& runs, const cv::Mat& occupied,
-                               const FreeEnds& free_ends, const cv::Mat& outside, int min_gap,
-                               int max_gap, int tol, cv::Mat* out) {
+                               const FreeEnds& free_ends, const SmallEnds& small,
+                               const cv::Mat& outside, int min_gap, int max_gap, int tol,
+                               cv::Mat* out) {
   struct End {
     int row, col, dir;  // dir: +1 the run lies left of the end (a right end), -1 right of it
   };
@@ -360,8 +406,10 @@ void AlignedEndMouthsAlongRows(const cv::Mat& runs, const cv::Mat& occupied,
     const int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
     const int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
     const int mid = y + h / 2;
-    if (free_ends.At(mid, x, +1)) ends.push_back({mid, x, -1});
-    if (free_ends.At(mid, x + w - 1, -1)) ends.push_back({mid, x + w - 1, +1});
+    if (free_ends.At(mid, x, +1) && !small.At(mid, x, +1)) ends.push_back({mid, x, -1});
+    if (free_ends.At(mid, x + w - 1, -1) && !small.At(mid, x + w - 1, -1)) {
+      ends.push_back({mid, x + w - 1, +1});
+    }
   }
   // The end's nearest partner above and below (same direction, aligned within `tol`).
   auto partner = [&](std::size_t i, int side) {
@@ -489,6 +537,8 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
     // Where walls end freely, along the rows and (transposed) along the columns: once for the
     // mouths, the continuations and the caps.
     const FreeEnds row_ends(occupied, thickness), col_ends(t_occ, thickness);
+    const SmallEnds row_small(occupied, cells.end_min_extent);
+    const SmallEnds col_small = row_small.Transposed();
     cv::Mat outside, t_outside;
     if ((facade > 0 || mouth > 0) && !free.empty()) {
       outside = OutsideMask(free, occupied);
@@ -501,9 +551,11 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
       // Mouths between aligned wall ends cross the runs' direction: those of the row runs are
       // column bands (into the transposed openings), those of the column runs row bands.
       cv::Mat cols_out = cv::Mat::zeros(occupied.size(), CV_8U);
-      AlignedEndMouthsAlongRows(runs[0], occupied, row_ends, outside, gap, mouth, 2, &cols_out);
+      AlignedEndMouthsAlongRows(runs[0], occupied, row_ends, row_small, outside, gap, mouth, 2,
+                                &cols_out);
       cv::Mat rows_out_t = cv::Mat::zeros(t_runs.size(), CV_8U);
-      AlignedEndMouthsAlongRows(t_runs, t_occ, col_ends, t_outside, gap, mouth, 2, &rows_out_t);
+      AlignedEndMouthsAlongRows(t_runs, t_occ, col_ends, col_small, t_outside, gap, mouth, 2,
+                                &rows_out_t);
       mouths = cols_out | rows_out_t.t();
       t_out |= cv::Mat(cols_out.t()) & cv::Scalar(kOpeningMouth);
       row_out |= cv::Mat(rows_out_t.t()) & cv::Scalar(kOpeningMouth);
@@ -515,19 +567,20 @@ WallEvidence AxisWalls(const cv::Mat& occupied, const cv::Mat& free, const WallC
     const cv::Mat any_wall = ((runs[0] | runs[1]) & occupied) | out.doorways | mouths;
     cv::Mat t_free;
     if (!free.empty()) cv::transpose(free, t_free);
-    ContinueRunsAlongRows(runs[0], row_ends, any_wall, free, opening, thickness, facing,
+    ContinueRunsAlongRows(runs[0], row_ends, row_small, any_wall, free, opening, thickness, facing,
                           cells.corner, &row_out);
     cv::Mat t_wall;
     cv::transpose(any_wall, t_wall);
-    ContinueRunsAlongRows(t_runs, col_ends, t_wall, t_free, opening, thickness, facing,
+    ContinueRunsAlongRows(t_runs, col_ends, col_small, t_wall, t_free, opening, thickness, facing,
                           cells.corner, &t_out);
     if (cells.cap > 0 && !free.empty()) {
       // Gaps up to two doors' width (a double door with its frame) are doors in a wall.
       const int jamb_gap = 2 * door;
-      CapRunEnds(runs[0], occupied, row_ends, any_wall, free, thickness, cells.cap, jamb_gap,
-                 &t_out);
+      CapRunEnds(runs[0], occupied, row_ends, row_small, any_wall, free, thickness, cells.cap,
+                 jamb_gap, &t_out);
       cv::Mat caps = cv::Mat::zeros(occupied.size(), CV_8U);
-      CapRunEnds(t_runs, t_occ, col_ends, t_wall, t_free, thickness, cells.cap, jamb_gap, &caps);
+      CapRunEnds(t_runs, t_occ, col_ends, col_small, t_wall, t_free, thickness, cells.cap, jamb_gap,
+                 &caps);
       row_out |= caps;
     }
     if (facade > 0 && !free.empty()) {

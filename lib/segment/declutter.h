@@ -83,17 +83,20 @@ struct WallEvidence {
 
 // What FindWalls looks for, in cells (SegmentOptions holds them in metres). 0 turns a step off.
 struct WallCells {
-  int min_length = 0;  // a wall run: a straight occupied run at least this long...
-  int gap = 0;         // ...collinear pieces up to this far apart joined (dashed walls)
-  int door = 0;        // doorways: gaps up to this wide between two collinear runs
-  int opening = 0;     // openings: a run continued from a free end to the next wall this near
-  int thickness = 0;   // ...a free end is where the wall is at most this thick across the run
-  int stub = 0;        // stubs: shorter joined pieces this long bound doorways and openings
-  int facade = 0;      // facade openings up to this wide (needs `free`)
-  int mouth = 0;       // mouths between aligned wall ends up to this wide (needs `free`)
-  int facing = 0;      // openings reach this far to the free end of a collinear run facing it
-  int corner = 0;      // runs ending at a corner or a T continued this far (needs `free`)
-  int cap = 0;         // end caps across free ends up to this long (needs `free`)
+  int min_length = 0;      // a wall run: a straight occupied run at least this long...
+  int gap = 0;             // ...collinear pieces up to this far apart joined (dashed walls)
+  int door = 0;            // doorways: gaps up to this wide between two collinear runs
+  int opening = 0;         // openings: a run continued from a free end to the next wall this near
+  int thickness = 0;       // ...a free end is where the wall is at most this thick across the run
+  int stub = 0;            // stubs: shorter joined pieces this long bound doorways and openings
+  int facade = 0;          // facade openings up to this wide (needs `free`)
+  int mouth = 0;           // mouths between aligned wall ends up to this wide (needs `free`)
+  int facing = 0;          // openings reach this far to the free end of a collinear run facing it
+  int corner = 0;          // runs ending at a corner or a T continued this far (needs `free`)
+  int cap = 0;             // end caps across free ends up to this long (needs `free`)
+  int end_min_extent = 0;  // ends of walls whose occupied component (8-connected, a cell of
+                           // slack) spans less than this along both axes start no opening,
+                           // corner continuation, cap or mouth (0 = off)
 };
 
 // Wall evidence along `angle_rad` and `angle_rad` + pi/2: occupied cells on a straight run of
@@ -131,6 +134,10 @@ struct WallCells {
 // it.
 // Facade openings and mouths are openings like the others: candidates that segmentation.h keeps
 // or merges back.
+// Small components (`end_min_extent` > 0): a run whose occupied component (8-connected after a
+// one-cell dilation) spans fewer than `end_min_extent` cells along both axes of the rotated
+// frame (a clutter block, a door leaf standing free, a loose piece of scan) starts none of the
+// above from its ends; it is still a wall the others run to.
 [[nodiscard]] WallEvidence FindWalls(const cv::Mat& occupied, double angle_rad,
                                      const WallCells& cells, const cv::Mat& free = cv::Mat());
 

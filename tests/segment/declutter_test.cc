@@ -287,6 +287,32 @@ TEST_CASE("a thin wall's free end is capped across, to the next wall, a door's j
   CHECK(cv::countNonZero(FindWalls(occ, 0.0, off, free).openings) == 0);
 }
 
+TEST_CASE("the ends of a small free-standing piece start no opening or cap when asked") {
+  // A 6 x 4 m room (1 cell = 5 cm) with a 1.5 m partition down from the top wall (column 100,
+  // free end at row 40) and a free-standing 1.2 m bar (a bench, a loose door leaf: columns
+  // 30-53, rows 65-66) that touches nothing.
+  const Room room({{100, 10, 2, 31}, {30, 65, 24, 2}});
+  const cv::Mat& occ = room.occ;
+  const cv::Mat free = room.Free();
+  const WallCells cells{
+      .min_length = 20, .gap = 9, .door = 24, .opening = 60, .thickness = 6, .cap = 60};
+  const WallEvidence w = FindWalls(occ, 0.0, cells, free);
+  // Off (the default): the bar is continued to the left wall and capped up and down.
+  CHECK(w.openings.at<std::uint8_t>(65, 20) == 255);
+  CHECK(cv::countNonZero(w.openings(cv::Rect(30, 70, 1, 15))) > 0);
+  CHECK(w.openings.at<std::uint8_t>(40, 115) == 255);  // the partition's cap
+  // On, the bar's ends (its component spans less than 1.5 m) start nothing; the partition,
+  // joined to the room's outline, is capped and continued as before.
+  WallCells small = cells;
+  small.end_min_extent = 30;
+  const WallEvidence s = FindWalls(occ, 0.0, small, free);
+  CHECK(cv::countNonZero(s.openings(cv::Rect(12, 60, 20, 10))) == 0);
+  CHECK(cv::countNonZero(s.openings(cv::Rect(26, 12, 32, 50))) == 0);
+  CHECK(cv::countNonZero(s.openings(cv::Rect(26, 69, 32, 19))) == 0);
+  CHECK(s.openings.at<std::uint8_t>(40, 115) == 255);
+  CHECK(s.openings.at<std::uint8_t>(60, 100) == 255);
+}
+
 TEST_CASE("an opening across a corridor is open, a partition's opening constricts the room") {
   // MeasureOpenings on hand-made lines (1 cell = 5 cm). A corridor 1.6 m wide crossed by an
   // opening from wall to wall: the space beside the line is as wide as the line is open.
