@@ -4,7 +4,8 @@ render_r2v.py's three variants share one ground truth and the robot/ variant is 
 holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves augmentations out;
 render_sim.py's grid and ground truth
 agree in size, its corridor segments are one room; train_layout_merge.py fits a model that
-zonemap runs; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does.
+zonemap runs; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
+segmentation_identical.py tells identical zones from moved ones.
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
@@ -135,5 +136,20 @@ for block in blocks:
           f"the probe's unmerged score is ScoreSegmentation's ({os.path.basename(d)})")
     check(all(v[0] <= none[0] + 0.11 and v[1] >= none[1] - 0.11 for v in score_rows.values()),
           f"a post-merge rule never raises precision nor lowers recall ({os.path.basename(d)})")
+
+# segmentation_identical.py: a build against itself is identical; against one whose zones move
+# (the same zonemap with the rule merges, through a wrapper) it names the map and fails.
+same = subprocess.run([sys.executable, os.path.join(scripts, "segmentation_identical.py"), zonemap,
+                       zonemap, robot_dir], capture_output=True, text=True)
+check(same.returncode == 0 and "1 of 1 runs identical" in same.stdout,
+      "segmentation_identical.py: a build against itself is identical")
+rules = os.path.join(work, "zonemap_rules")
+with open(rules, "w") as f:
+    f.write('#!/bin/sh\nexec "%s" "$@" --param layout_merge_threshold=0\n' % zonemap)
+os.chmod(rules, 0o755)
+moved = subprocess.run([sys.executable, os.path.join(scripts, "segmentation_identical.py"),
+                        zonemap, rules, robot_dir], capture_output=True, text=True)
+check(moved.returncode == 1 and "DIFFERS: " in moved.stdout,
+      "segmentation_identical.py: zones that move are named and fail")
 
 sys.exit(1 if failures else 0)
