@@ -106,7 +106,7 @@ TEST_CASE("a layout merge model parses, and each defect gets one clear error") {
       "\"left\":[1,-1,-1],\"right\":[2,-1,-1],\"value\":[0,-10,10]}]";
   CHECK(ParseLayoutMergeModel(prefix + record).ok());
   std::string beyond = prefix;
-  beyond.replace(beyond.find("\"feature\":[2"), 13, "\"feature\":[3");
+  beyond.replace(beyond.find("\"feature\":[2"), 12, "\"feature\":[3");
   auto uses_unlisted = ParseLayoutMergeModel(beyond + record);
   REQUIRE_FALSE(uses_unlisted.ok());
   CHECK(uses_unlisted.status().message().find("node 0 is malformed") != std::string::npos);
