@@ -121,7 +121,79 @@ std::array<double, 3> EndSupport(const std::vector<int>& cells, const cv::Mat& o
 struct MapContext {
   double free_m2 = 0.0;
   double rule_segment_m2 = 0.0;
+  double specks_per_100m2 = 0.0;
+  double blobs_per_100m2 = 0.0;
+  double loose_occupied_share = 0.0;
+  double rough_face_share = 0.0;
+  double unknown_border_share = 0.0;
 };
+
+constexpr double kSpeckMaxM = 0.25;  // map-level features (kLayoutFeatureNames)
+constexpr double kBlobMaxM = 1.5;
+
+// The occupied components' part of MapContext (one labelling per map).
+void OccupiedComponents(const cv::Mat& occupied, double res, MapContext* map) {
+  cv::Mat comp, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(occupied != 0, comp, stats, centroids, 8, CV_32S);
+  double specks = 0, blobs = 0, loose = 0, all = 0;
+  for (int i = 1; i < n; ++i) {
+    const double extent =
+        std::max(stats.at<int>(i, cv::CC_STAT_WIDTH), stats.at<int>(i, cv::CC_STAT_HEIGHT)) * res;
+    const double cells = stats.at<int>(i, cv::CC_STAT_AREA);
+    all += cells;
+    if (extent <= kSpeckMaxM + 1e-9) {
+      ++specks;
+    } else if (extent <= kBlobMaxM + 1e-9) {
+      ++blobs;
+    }
+    if (extent <= kBlobMaxM + 1e-9) loose += cells;
+  }
+  const double per_100m2 = 100.0 / std::max(map->free_m2, 1.0);
+  map->specks_per_100m2 = specks * per_100m2;
+  map->blobs_per_100m2 = blobs * per_100m2;
+  map->loose_occupied_share = loose / std::max(all, 1.0);
+}
+
+// The wall faces' part of MapContext, on the grid's own free cells (the pieces leave a rim of
+// free cells along the walls out): of the edges between a free cell and a cell that is not
+// free, the share facing an unknown cell (neither free nor occupied, or outside), and of those
+// facing an occupied cell (a wall face), the share whose face does not continue straight: the
+// two cells beside this one, across the edge, must be free with an occupied cell beyond them.
+void GridFaces(const cv::Mat& free, const cv::Mat& occupied, MapContext* map) {
+  const int rows = free.rows, cols = free.cols;
+  auto is_free = [&](int r, int c) {
+    return r >= 0 && c >= 0 && r < rows && c < cols && free.at<std::uint8_t>(r, c) != 0;
+  };
+  auto is_occ = [&](int r, int c) {
+    return r >= 0 && c >= 0 && r < rows && c < cols && occupied.at<std::uint8_t>(r, c) != 0;
+  };
+  constexpr int kDr[4] = {0, 1, 0, -1}, kDc[4] = {1, 0, -1, 0};
+  double border = 0, unknown = 0, faces = 0, straight = 0;
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* row = free.ptr<std::uint8_t>(r);
+    for (int c = 0; c < cols; ++c) {
+      if (row[c] == 0) continue;
+      for (int k = 0; k < 4; ++k) {
+        const int nr = r + kDr[k], nc = c + kDc[k];
+        if (is_free(nr, nc)) continue;
+        ++border;
+        if (!is_occ(nr, nc)) {
+          ++unknown;
+          continue;
+        }
+        ++faces;
+        bool on_run = true;
+        for (int side : {-1, 1}) {
+          const int sr = r + side * kDc[k], sc = c + side * kDr[k];
+          on_run = on_run && is_free(sr, sc) && is_occ(sr + kDr[k], sc + kDc[k]);
+        }
+        if (on_run) ++straight;
+      }
+    }
+  }
+  map->rough_face_share = 1.0 - straight / std::max(faces, 1.0);
+  map->unknown_border_share = unknown / std::max(border, 1.0);
+}
 
 std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb, const Contact& c,
                                                 const cv::Mat& occupied, const Frame& f, double res,
@@ -180,7 +252,12 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       per_edge(c.kind_edges[2]),
       per_edge(c.kind_edges[3]),
       per_edge(c.kind_edges[4]),
-      per_edge(c.kind_edges[5])};
+      per_edge(c.kind_edges[5]),
+      map.specks_per_100m2,
+      map.blobs_per_100m2,
+      map.loose_occupied_share,
+      map.rough_face_share,
+      map.unknown_border_share};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
@@ -210,6 +287,9 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
           "layout merge: doorways and opening kinds must be CV_8UC1 of the "
           "labels' size");
     }
+  }
+  if (!in.free.empty() && (in.free.type() != CV_8UC1 || in.free.size() != labels.size())) {
+    return InvalidArgument("layout merge: free cells must be CV_8UC1 of the labels' size");
   }
   const int rows = labels.rows, cols = labels.cols, n = in.count;
   // Bit 0 a doorway, bits 1.. the OpeningKind bits, of one cell.
@@ -302,6 +382,8 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
       for (const auto& [seg, k] : p.rule) rule_cells[seg] += k;
     }
     context.free_m2 = cells * res * res;
+    OccupiedComponents(in.occupied, res, &context);
+    GridFaces(in.free.empty() ? cv::Mat(labels > 0) : in.free, in.occupied, &context);
     context.rule_segment_m2 = rule_cells.empty()
                                   ? context.free_m2
                                   : context.free_m2 / static_cast<double>(rule_cells.size());

@@ -27,7 +27,7 @@ namespace zm {
 
 // The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
 // in metres, areas in m2. The order is the model's input order.
-inline constexpr int kLayoutFeatureCount = 35;
+inline constexpr int kLayoutFeatureCount = 40;
 // One feature, or one family, per line with its meaning.
 // clang-format off
 inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
@@ -55,6 +55,17 @@ inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureName
     "doorway_share",      // share of the border's edges on a doorway (a gap in a wall)...
     "free_end_share", "corner_share", "mouth_share", "facade_share", "cap_share",  // ...or on
                           // an opening of that kind (declutter.h, OpeningKind)
+    // How clean the grid is (issue 28, fifth round), the same for every pair of a map: a plan
+    // drawn by hand has straight wall faces and no loose occupied cells; a robot's grid has
+    // noise, clutter, leaves and unexplored gaps. Occupied components are 8-connected cells of
+    // `occupied`; their extent is the larger side of their bounding box.
+    "map_specks_per_100m2",  // occupied components of extent <= 0.25 m per 100 m2 of pieces
+    "map_blobs_per_100m2",   // ...of extent 0.25-1.5 m (clutter, leaves, wall fragments)
+    "map_loose_occupied_share",  // share of occupied cells in components of extent <= 1.5 m
+    "map_rough_face_share",  // share of wall-face edges (a free cell beside an occupied one)
+                             // whose face does not continue straight on both sides
+    "map_unknown_border_share",  // share of the free cells' border edges that face neither
+                                 // a free nor an occupied cell (unexplored, or a gap)
 };
 // clang-format on
 
@@ -80,7 +91,8 @@ struct LayoutMergeModel {
 
 // Parses a model from its JSON text ({"features":[names], "init", "learning_rate",
 // "trees":[{"feature","threshold","left","right","value"}], "trained_with":{"cut":{...},
-// "rule_merge":{...}}}); the feature names must be kLayoutFeatureNames in order, and
+// "rule_merge":{...}}}); the feature names must be kLayoutFeatureNames in order (a model of
+// an earlier version may list only the first of them: its trees use no later one), and
 // trained_with must give every field of kCutOptionFields and kRuleMergeOptionFields by name and
 // nothing else. Errors name what is wrong.
 [[nodiscard]] Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text);
@@ -119,6 +131,8 @@ struct LayoutMergeInputs {
                                 // opinion is two features. Empty: both features 0
   cv::Mat doorways;             // CV_8UC1, labels' size, nonzero = doorway cell; may be empty
   cv::Mat opening_kinds;        // CV_8UC1, labels' size, OpeningKind bits; may be empty
+  cv::Mat free;                 // CV_8UC1, labels' size, nonzero = a free cell of the grid (the
+                                // wall-face and unknown-border features); empty: the pieces
 };
 
 // Merges pieces greedily while the best pair's probability is >= threshold; returns the number

@@ -81,10 +81,13 @@ Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text) {
   try {
     const nlohmann::json j = nlohmann::json::parse(json_text);
     const auto names = j.at("features").get<std::vector<std::string>>();
-    if (names.size() != kLayoutFeatureNames.size()) {
+    // A model trained before later features were added lists a prefix of them and uses no
+    // other (checked per node below).
+    if (names.empty() || names.size() > kLayoutFeatureNames.size()) {
       return InvalidArgument("layout merge model: " + std::to_string(names.size()) +
-                             " features, expected " + std::to_string(kLayoutFeatureCount));
+                             " features, expected 1 to " + std::to_string(kLayoutFeatureCount));
     }
+    const int known_features = static_cast<int>(names.size());
     for (std::size_t i = 0; i < names.size(); ++i) {
       if (names[i] != kLayoutFeatureNames[i]) {
         return InvalidArgument("layout merge model: feature " + std::to_string(i) + " is '" +
@@ -109,7 +112,7 @@ Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text) {
       for (std::size_t i = 0; i < n; ++i) {
         if (t.feature[i] < 0) continue;
         // Children come after their parent: no cycles, every walk ends at a leaf.
-        if (t.feature[i] >= kLayoutFeatureCount || t.left[i] <= static_cast<int>(i) ||
+        if (t.feature[i] >= known_features || t.left[i] <= static_cast<int>(i) ||
             t.right[i] <= static_cast<int>(i) || t.left[i] >= static_cast<int>(n) ||
             t.right[i] >= static_cast<int>(n)) {
           return InvalidArgument("layout merge model: tree " + std::to_string(m.trees.size()) +

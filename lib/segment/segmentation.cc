@@ -112,6 +112,7 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       in.labels = &labels;
       in.count = MergeSmallSegments(&labels, pieces.count, 0);  // numbers pieces densely
       in.occupied = (grid.cells(box) == kCellOccupied) & (labels == 0);
+      in.free = grid.cells(box) == kCellFree;
       in.resolution_m = res;
       in.wall_angle_rad = pieces.walls.angle_rad;
       in.offset = box.tl();

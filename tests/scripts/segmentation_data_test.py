@@ -108,6 +108,28 @@ run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robo
                      capture_output=True, text=True)
 check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs the model")
 
+# gate_layout_merge.py joins the compiled-in model (clean plans) and this one (robot-made
+# grids) into one: the plan's zones are the default's, the robot render's this model's.
+joined = os.path.join(work, "joined.json")
+subprocess.run([sys.executable, os.path.join(scripts, "gate_layout_merge.py"),
+                os.path.join(project, "lib", "segment", "layout_merge_model.inc"), model,
+                "--gate", "0.3", "--json", joined], check=True, capture_output=True)
+
+
+def zones_of(map_png, *extra):
+    out = os.path.join(work, "zones.geojson")
+    subprocess.run([zonemap, "zones", "segment", map_png, "--out", out] + list(extra),
+                   check=True, capture_output=True)
+    return open(out).read()
+
+
+plan_png = os.path.join(work, "a", "plan", name + "_map.png")
+robot_png = os.path.join(work, "a", "robot", name + "_map.png")
+check(zones_of(plan_png, "--merge-model", joined) == zones_of(plan_png),
+      "gate_layout_merge.py: a clean plan gets the compiled-in model's zones")
+check(zones_of(robot_png, "--merge-model", joined) == zones_of(robot_png, "--merge-model", model),
+      "gate_layout_merge.py: a robot-made grid gets the robot model's zones")
+
 # score_sets.py passes --param to zonemap; segmentation_border_probe.py's scorer agrees with
 # ScoreSegmentation (its no-merge row is score_sets.py's row) and a rule only merges.
 robot_dir = os.path.join(work, "a", "robot")

@@ -96,12 +96,33 @@ TEST_CASE("a layout merge model parses, and each defect gets one clear error") {
   REQUIRE_FALSE(bad.ok());
   CHECK(bad.status().message().find("feature 1 is 'wall_x'") != std::string::npos);
 
-  auto short_names = ParseLayoutMergeModel(
-      "{\"features\":[\"open_m\"],\"init\":0,"
-      "\"learning_rate\":1,\"trees\":[]}");
-  REQUIRE_FALSE(short_names.ok());
-  CHECK(short_names.status().message().find(
-            "1 features, expected " + std::to_string(kLayoutFeatureCount)) != std::string::npos);
+  // A model of an earlier version lists the first features only (backward compatible), and
+  // its trees may use no other; more names than zonemap knows are refused.
+  const std::string record =
+      ",\"trained_with\":" + LayoutMergeTrainedWithJson(CutOptions{}, RuleMergeOptions{}) + "}";
+  const std::string prefix =
+      "{\"features\":[\"open_m\",\"wall_m\",\"open_fraction\"],\"init\":0,"
+      "\"learning_rate\":1,\"trees\":[{\"feature\":[2,-1,-1],\"threshold\":[0.8,0,0],"
+      "\"left\":[1,-1,-1],\"right\":[2,-1,-1],\"value\":[0,-10,10]}]";
+  CHECK(ParseLayoutMergeModel(prefix + record).ok());
+  std::string beyond = prefix;
+  beyond.replace(beyond.find("\"feature\":[2"), 12, "\"feature\":[3");
+  auto uses_unlisted = ParseLayoutMergeModel(beyond + record);
+  REQUIRE_FALSE(uses_unlisted.ok());
+  CHECK(uses_unlisted.status().message().find("node 0 is malformed") != std::string::npos);
+  std::string names = Names();
+  names.insert(names.size() - 1, ",\"map_future\"");
+  auto too_many = ParseLayoutMergeModel("{\"features\":" + names +
+                                        ",\"init\":0,\"learning_rate\":1,\"trees\":[]" + record);
+  REQUIRE_FALSE(too_many.ok());
+  CHECK(too_many.status().message().find(std::to_string(kLayoutFeatureCount + 1) +
+                                         " features, expected 1 to " +
+                                         std::to_string(kLayoutFeatureCount)) != std::string::npos);
+  auto no_names = ParseLayoutMergeModel(
+      "{\"features\":[],\"init\":0,\"learning_rate\":1,"
+      "\"trees\":[]" +
+      record);
+  REQUIRE_FALSE(no_names.ok());
 
   std::string cycle = StumpModel(0.8);
   cycle.replace(cycle.find("\"left\":[1"), 9, "\"left\":[0");
@@ -243,6 +264,54 @@ TEST_CASE("the border's doorway and opening-kind shares are features") {
   auto bad = MergeLayoutPieces(in, LayoutMergeModel{}, 0.99);
   REQUIRE_FALSE(bad.ok());
   CHECK(bad.status().message().find("doorways and opening kinds") != std::string::npos);
+}
+
+// The features of the first pair row of a trace, by name.
+std::map<std::string, double> FirstRowFeatures(const LayoutMergeInputs& in, const cv::Mat& gt) {
+  Result<int> merged = 0;
+  const std::vector<std::string> lines = TraceLines(in, gt, false, 0.99, &merged);
+  REQUIRE(merged.ok());
+  REQUIRE_FALSE(lines.empty());
+  std::vector<double> v;
+  std::stringstream ss(lines.front());
+  std::string field;
+  while (std::getline(ss, field, ',')) v.push_back(std::stod(field));
+  REQUIRE(v.size() == 2 + kLayoutFeatureCount);
+  std::map<std::string, double> out;
+  for (int i = 0; i < kLayoutFeatureCount; ++i) {
+    out[kLayoutFeatureNames[static_cast<std::size_t>(i)]] = v[static_cast<std::size_t>(2 + i)];
+  }
+  return out;
+}
+
+TEST_CASE("map-level features tell a clean grid from a noisy one") {
+  Scene clean;
+  const auto a = FirstRowFeatures(clean.Inputs(), clean.gt);
+  CHECK(a.at("map_specks_per_100m2") == 0.0);
+  CHECK(a.at("map_blobs_per_100m2") == 0.0);
+  CHECK(a.at("map_loose_occupied_share") == 0.0);
+  CHECK(a.at("map_unknown_border_share") == 0.0);  // walled all round
+  CHECK(a.at("map_rough_face_share") < 0.05);      // only the corners and the door's jambs
+
+  // The same rooms with a robot's defects: two one-cell specks and a 0.5 m blob of clutter in
+  // room B, a gap of 1 m in the outer wall (unknown beyond), a notch in a wall face.
+  Scene noisy;
+  for (const cv::Point p : {cv::Point(150, 20), cv::Point(170, 80)}) {
+    noisy.occupied.at<std::uint8_t>(p) = 255;
+    noisy.labels.at<int>(p) = 0;
+  }
+  noisy.occupied(cv::Rect(130, 50, 10, 4)).setTo(255);
+  noisy.labels(cv::Rect(130, 50, 10, 4)).setTo(0);
+  noisy.occupied(cv::Rect(160, 99, 20, 1)).setTo(0);  // the gap: neither occupied nor a piece
+  noisy.occupied.at<std::uint8_t>(50, 1) = 255;       // the notch, on A's left wall
+  noisy.labels.at<int>(50, 1) = 0;
+  const auto b = FirstRowFeatures(noisy.Inputs(), noisy.gt);
+  const double free_m2 = b.at("map_free_m2");
+  CHECK(b.at("map_specks_per_100m2") == doctest::Approx(2 * 100.0 / free_m2));
+  CHECK(b.at("map_blobs_per_100m2") == doctest::Approx(100.0 / free_m2));
+  CHECK(b.at("map_loose_occupied_share") > 0.0);
+  CHECK(b.at("map_unknown_border_share") > 0.0);
+  CHECK(b.at("map_rough_face_share") > a.at("map_rough_face_share"));
 }
 
 TEST_CASE("bad inputs to the layout merge are one clear error") {
