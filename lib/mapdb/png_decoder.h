@@ -3,8 +3,8 @@
 //
 // Why not cv::imdecode: OpenCV's imgcodecs (Debian's build) loads GDAL, GDCM, poppler, HDF5 and
 // some 130 other shared libraries into every process that links it. On zonemapd that was 0.13 s
-// of start-up and about 11 MB of private dirty memory (their relocations and static
-// initialisers) taken from the co-tenant's budget, for one PNG read per frame. libpng alone is
+// of start-up and 36 MB of RSS, 10 MB of it private dirty (their relocations and static
+// initialisers), taken from the co-tenant's budget, for one PNG read per frame. libpng alone is
 // what imgcodecs used underneath.
 //
 // Memory: libpng's allocator is ours (png_create_read_struct_2): a bump pool reserved once in
