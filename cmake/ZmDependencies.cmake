@@ -6,6 +6,9 @@ find_package(SQLite3 REQUIRED)
 find_package(ZLIB REQUIRED)
 # Dense keyframes: JPEG colour through libjpeg-turbo with our own memory manager (dense_codec.cc).
 find_package(JPEG REQUIRED)
+# PNG camera frames in the loop's front-end: libpng with our own allocator (png_decoder.cc), so
+# the on-device core does not link OpenCV's imgcodecs (and the GDAL it pulls in).
+find_package(PNG REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)
 find_package(tomlplusplus REQUIRED)
 find_package(CLI11 REQUIRED)

@@ -38,7 +38,7 @@ set(ZM_PC_PREFIX "\${pcfiledir}/${ZM_PC_TO_PREFIX}")
 string(REGEX REPLACE "/$" "" ZM_PC_PREFIX "${ZM_PC_PREFIX}")
 # What the library's objects call: `pkg-config --static --libs zonemap` adds them, as the default
 # static library needs (docs/api.md); a shared libzonemap carries them itself.
-set(ZM_PC_REQUIRES_PRIVATE "opencv4 sqlite3 zlib libjpeg tomlplusplus")
+set(ZM_PC_REQUIRES_PRIVATE "opencv4 sqlite3 zlib libjpeg libpng tomlplusplus")
 configure_file(${PROJECT_SOURCE_DIR}/cmake/zonemap.pc.in ${PROJECT_BINARY_DIR}/zonemap.pc @ONLY)
 install(FILES ${PROJECT_BINARY_DIR}/zonemap.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig
         COMPONENT dev)

@@ -33,13 +33,15 @@ function(_zm_link_closure target out_var)
 endfunction()
 
 function(zm_assert_not_linked target)
-  cmake_parse_arguments(A "" "" "FORBIDDEN" ${ARGN})
+  cmake_parse_arguments(A "" "WHY" "FORBIDDEN" ${ARGN})
+  if(NOT A_WHY)
+    set(A_WHY "the on-device core knows nothing of the simulator, the evaluation harness or the "
+              "offline segmentation")
+  endif()
   _zm_link_closure(${target} closure)
   foreach(f ${A_FORBIDDEN})
     if(f IN_LIST closure)
-      message(FATAL_ERROR "${target} must not link ${f} (the on-device core knows nothing of the "
-                          "simulator, the evaluation harness or the offline segmentation); its "
-                          "link closure: ${closure}")
+      message(FATAL_ERROR "${target} must not link ${f} (${A_WHY}); its link closure: ${closure}")
     endif()
   endforeach()
 endfunction()

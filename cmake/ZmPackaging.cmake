@@ -29,7 +29,7 @@ endif()
 # link it. flann is only features2d's own dependency (not NEEDED by our binaries under
 # --as-needed), so dpkg-shlibdeps leaves it out on amd64 and this list must too.
 set(ZM_DEB_CROSS_DEPENDS
-  "libc6 (>= 2.35), libgcc-s1 (>= 3.4), libjpeg62-turbo (>= 1.3.1), libopencv-core406 (>= 4.6.0+dfsg), libopencv-features2d406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libsqlite3-0 (>= 3.30.1+fossil191229), libstdc++6 (>= 11), libtomlplusplus3 (>= 3.2.0), zlib1g (>= 1:1.2.0)")
+  "libc6 (>= 2.35), libgcc-s1 (>= 3.4), libjpeg62-turbo (>= 1.3.1), libopencv-core406 (>= 4.6.0+dfsg), libopencv-features2d406 (>= 4.6.0+dfsg), libopencv-imgcodecs406 (>= 4.6.0+dfsg), libopencv-imgproc406 (>= 4.6.0+dfsg), libpng16-16 (>= 1.6.2-1), libsqlite3-0 (>= 3.30.1+fossil191229), libstdc++6 (>= 11), libtomlplusplus3 (>= 3.2.0), zlib1g (>= 1:1.2.0)")
 set(ZM_DEB_CROSS_DEPENDS_OVERRIDE "" CACHE STRING
   "Depends of the zonemap package on a cross build for another distribution (empty: Debian 12's)")
 if(ZM_DEB_CROSS_DEPENDS_OVERRIDE)
@@ -76,9 +76,10 @@ The public C++20 API (zonemap/zonemap.h): drive zonemap's policies with the
 host's own keyframe store (ZoneManager), or run zonemap's complete map
 database and localization loop (MapLoop). Static library, CMake package
 (find_package(zonemap)) and pkg-config file.")
-# find_dependency(OpenCV/SQLite3/ZLIB/JPEG/tomlplusplus) and `pkg-config --static` need their -dev
+# find_dependency(OpenCV/SQLite3/ZLIB/JPEG/PNG/tomlplusplus) and `pkg-config --static` need their -dev
 # packages.
-set(ZM_DEB_DEV_DEPENDS "libopencv-dev, libsqlite3-dev, zlib1g-dev, libjpeg-dev, libtomlplusplus-dev")
+set(ZM_DEB_DEV_DEPENDS
+  "libopencv-dev, libsqlite3-dev, zlib1g-dev, libjpeg-dev, libpng-dev, libtomlplusplus-dev")
 if(ZM_BUILD_SHARED)
   string(APPEND ZM_DEB_DEV_DEPENDS ", zonemap (= ${PROJECT_VERSION}-1)")
 endif()

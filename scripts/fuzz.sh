@@ -2,7 +2,7 @@
 # Builds the libFuzzer targets (the `fuzz` preset: clang-14, ASan + UBSan) and runs each for a
 # bounded time on a copy of its seed corpus (fuzz/corpus/<target>/, never modified here).
 #   scripts/fuzz.sh [SECONDS_PER_TARGET=30] [TARGET...]
-# Targets: zone_file payload dense_codec rtabmap_blob line_protocol. A crash stops with a non-zero exit and
+# Targets: zone_file payload dense_codec png_decoder rtabmap_blob line_protocol. A crash stops with a non-zero exit and
 # leaves the input as build/fuzz/findings/<target>/crash-*; copy it into fuzz/regressions/<target>/
 # (tests/reliability replays every file there) and fix the code.
 set -euo pipefail
@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET="${1:-30}"
 shift || true
 TARGETS=("$@")
-if [ ${#TARGETS[@]} -eq 0 ]; then TARGETS=(zone_file payload dense_codec rtabmap_blob line_protocol); fi
+if [ ${#TARGETS[@]} -eq 0 ]; then TARGETS=(zone_file payload dense_codec png_decoder rtabmap_blob line_protocol); fi
 JOBS="${JOBS:-2}"
 
 cmake --preset fuzz >/dev/null

@@ -33,7 +33,7 @@ host_pkgs=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libopencv-dev libsqlite3-dev sqlite3 libmimalloc-dev
   doctest-dev libbenchmark-dev nlohmann-json3-dev libtomlplusplus-dev libcli11-dev
-  zlib1g-dev libjpeg-dev python3 python3-matplotlib python3-numpy
+  zlib1g-dev libjpeg-dev libpng-dev python3 python3-matplotlib python3-numpy
   # scripts/train_layout_merge.py fits the layout merge model (tests/scripts runs it);
   # scripts/render_r2v.py and render_sim.py draw the training and held-out grids.
   python3-sklearn python3-pil
@@ -42,6 +42,7 @@ cross_pkgs=(g++-aarch64-linux-gnu qemu-user)
 # The arm64 libraries that go into the sysroot (apt adds their whole dependency closure).
 arm64_pkgs=(
   libc6-dev libstdc++-12-dev libopencv-dev libsqlite3-dev libmimalloc-dev zlib1g-dev libjpeg-dev
+  libpng-dev
   libeigen3-dev doctest-dev nlohmann-json3-dev libtomlplusplus-dev libcli11-dev
 )
 fuzz_pkgs=(clang-14 libclang-rt-14-dev llvm-14)

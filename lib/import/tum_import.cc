@@ -11,6 +11,7 @@
 #include "geometry/trajectory.h"
 #include "localization/camera.h"
 #include "segment/split.h"
+#include "tum/tum_frame.h"
 #include "zones/annotate.h"
 
 namespace zm {

@@ -3,8 +3,8 @@
 // the loop's features are the mapping's.
 //
 // Process(frame):
-//   1. decodes frame->colour (JPEG: libjpeg-turbo with fixed pools, DenseDecoder; PNG:
-//      cv::imdecode) into an RGB buffer of the camera's size, reserved once;
+//   1. decodes frame->colour (JPEG: libjpeg-turbo with fixed pools, DenseDecoder; PNG: libpng
+//      with a fixed pool, PngDecoder) into an RGB buffer of the camera's size, reserved once;
 //   2. converts it to grey and runs the extractor (depth is not needed: the localizer matches
 //      the frame's 2-D keypoints to the resident keyframes' 3-D points);
 //   3. writes the strongest max_features features into frame->descriptors / keypoints (strongest
@@ -17,9 +17,9 @@
 // one Status naming the frame, the image and the limit; the frame is left without features, so
 // the loop goes on on odometry and counts the frame as refused.
 //
-// Allocation: the RGB and grey buffers are sized once; JPEG decoding runs in DenseDecoder's
-// fixed pools; PNG decoding and OpenCV's work run inside the extractor's FrameScratch. A warm
-// Process allocates nothing from the heap (tests/localization/front_end_test.cc).
+// Allocation: the RGB and grey buffers are sized once; JPEG and PNG decoding run in their
+// decoders' fixed pools; OpenCV's work runs inside the extractor's FrameScratch. A warm Process
+// allocates nothing from the heap (tests/localization/front_end_test.cc).
 #pragma once
 
 #include <cstdint>
@@ -32,6 +32,7 @@
 #include "localization/frame.h"
 #include "localization/orb_extractor.h"
 #include "mapdb/dense_codec.h"
+#include "mapdb/png_decoder.h"
 
 namespace zm {
 
@@ -57,15 +58,16 @@ class FrontEnd {
 
  private:
   FrontEnd(OrbExtractor extractor, std::unique_ptr<DenseDecoder> jpeg,
-           const CameraIntrinsics& image_camera, double to_map_x, double to_map_y);
+           std::unique_ptr<PngDecoder> png, const CameraIntrinsics& image_camera, double to_map_x,
+           double to_map_y);
 
   OrbExtractor extractor_;
   std::unique_ptr<DenseDecoder> jpeg_;
+  std::unique_ptr<PngDecoder> png_;
   CameraIntrinsics camera_;  // the image's (the map camera scaled to the image size)
   float to_map_x_ = 1.0f;    // image pixels -> map camera pixels
   float to_map_y_ = 1.0f;
   std::vector<std::uint8_t> rgb_;  // width * height * 3
-  cv::Mat png_;                    // cv::imdecode's target (reused)
   cv::Mat grey_;
   OrbFeatures features_;
 };

@@ -1,9 +1,9 @@
-// TUM RGB-D folders (Sturm et al. 2012, https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats):
-// what is in one, and one frame's images. Used to build a map (`zonemap import-tum`,
+// TUM RGB-D folders (Sturm et al. 2012,
+// https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats): what is in one (one frame's
+// images are read by tum_frame.h). Used to build a map (`zonemap import-tum`,
 // lib/import/tum_import.h) and to replay one into zonemapd (`zonemapd --tum`, tum_replay.h,
-// which lists the folder here and leaves reading the images to zonemapd's input edge); so
-// listing a folder and reading a frame's images are separate calls, and nothing here builds a
-// map.
+// which lists the folder here and leaves reading the images to zonemapd's front-end); so listing
+// a folder and reading a frame's images are separate targets, and nothing here builds a map.
 //
 //   rgb.txt, depth.txt   "stamp path" a line, '#' comments; paths relative to the folder
 //   associations.txt     "rgb_stamp rgb_path depth_stamp depth_path" (associate.py's output);
@@ -18,11 +18,11 @@
 // max_stamp_difference_s (0.02 s, associate.py's default); a depth frame may serve two colour
 // frames. A colour frame with none is a gap: counted and reported, never an error. A malformed
 // line is reported with its line number and skipped. Missing and unreadable images are found
-// when a frame is read (ReadTumFrame): one Status line naming the file, never a crash.
+// when a frame is read (ReadTumFrame, tum_frame.h): one Status line naming the file, never a
+// crash.
 #pragma once
 
 #include <cstdint>
-#include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
 
@@ -69,17 +69,5 @@ struct TumFolder {
 // unreadable list, a list with no usable line.
 [[nodiscard]] Result<TumFolder> ReadTumFolder(const std::string& dir,
                                               const TumFolderOptions& options = {});
-
-struct TumFrameImages {
-  cv::Mat colour;   // 8UC3 BGR (8UC1 grey kept as is)
-  cv::Mat depth16;  // 16UC1, options.depth_units_per_m per metre
-};
-
-// Reads and checks one frame's images (into `out`, reusing its buffers where OpenCV can): a
-// missing, unreadable or truncated file, a colour image that is not 8-bit, a depth image that is
-// not 16-bit single-channel, or either not of the camera's size is one error naming the file
-// and the limit; `out` is then left empty.
-[[nodiscard]] Status ReadTumFrame(const TumFrameFiles& frame, const TumFolderOptions& options,
-                                  TumFrameImages* out);
 
 }  // namespace zm

@@ -17,6 +17,7 @@
 extern "C" int ZmFuzzZoneFile(const std::uint8_t* data, std::size_t size);
 extern "C" int ZmFuzzPayload(const std::uint8_t* data, std::size_t size);
 extern "C" int ZmFuzzDenseCodec(const std::uint8_t* data, std::size_t size);
+extern "C" int ZmFuzzPngDecoder(const std::uint8_t* data, std::size_t size);
 extern "C" int ZmFuzzRtabmapBlob(const std::uint8_t* data, std::size_t size);
 extern "C" int ZmFuzzLineProtocol(const std::uint8_t* data, std::size_t size);
 
@@ -56,6 +57,7 @@ void ReplayTarget(const std::string& target, FuzzFn fn) {
 TEST_CASE("fuzz regressions: zone file parser") { ReplayTarget("zone_file", ZmFuzzZoneFile); }
 TEST_CASE("fuzz regressions: keyframe payload decoder") { ReplayTarget("payload", ZmFuzzPayload); }
 TEST_CASE("fuzz regressions: dense keyframe decoder") { ReplayTarget("dense_codec", ZmFuzzDenseCodec); }
+TEST_CASE("fuzz regressions: PNG frame decoder") { ReplayTarget("png_decoder", ZmFuzzPngDecoder); }
 TEST_CASE("fuzz regressions: RTAB-Map blob decoders") { ReplayTarget("rtabmap_blob", ZmFuzzRtabmapBlob); }
 TEST_CASE("fuzz regressions: line protocol") { ReplayTarget("line_protocol", ZmFuzzLineProtocol); }
 

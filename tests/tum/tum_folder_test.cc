@@ -1,8 +1,6 @@
 // The TUM RGB-D folder reader (lib/tum/tum_folder.h) on folders written by the test: both
 // listings, colour-depth association by nearest stamp within the tolerance, gaps and malformed
 // lines counted and reported, and every bad image one error naming the file, never a crash.
-#include "tum/tum_folder.h"
-
 #include <doctest/doctest.h>
 
 #include <filesystem>
@@ -11,6 +9,7 @@
 #include "mapdb/mapdb_test_util.h"
 #include "support/test_util.h"
 #include "support/tum_folder_writer.h"
+#include "tum/tum_frame.h"
 
 namespace zm {
 namespace {
