@@ -366,11 +366,18 @@ TEST_CASE("device run (cgroup): the map process OOM-killed by the kernel, the ru
   r.device = DeviceKind::kCgroup;
   r.device_explicit = true;
   r.time_compression = 10.0;
-  // A second into the run, the map process starts allocating (and touching) memory until the
-  // kernel kills it.
-  r.map_child_hook = [] {
-    std::thread([] {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  // Once the map process has written its first pose (estimate.tum is streamed, and RunOnDevice
+  // removes an old one before the run), it starts allocating (and touching) memory until the
+  // kernel kills it. Not after a fixed delay: under load a short replay could end first (it did,
+  // once, at load 5.5).
+  const std::string estimate = r.out_dir + "/estimate.tum";
+  r.map_child_hook = [estimate] {
+    std::thread([estimate] {
+      std::error_code ec;
+      for (int i = 0; i < 60000; ++i) {  // at most a minute; the run's own checks follow
+        if (std::filesystem::file_size(estimate, ec) > 0 && !ec) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
       for (;;) {
         void* p =
             mmap(nullptr, 4 << 20, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
