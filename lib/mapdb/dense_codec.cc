@@ -21,6 +21,7 @@
 #include <limits>
 #include <string>
 
+#include "arena/bump_region.h"
 #include "mapdb/map_db_internal.h"  // Kf
 #include "mapdb/rvl.h"
 
@@ -60,20 +61,6 @@ void InstallErrorHandler(JpegError* e) {
   e->message[0] = '\0';
 }
 
-// A bump allocator over a fixed region.
-struct Pool {
-  std::byte* base = nullptr;
-  std::size_t size = 0;
-  std::size_t used = 0;
-  std::size_t high = 0;
-  void* Take(std::size_t n) {
-    if (n > size - used) return nullptr;
-    void* p = base + used;
-    used += n;
-    high = std::max(high, used);
-    return p;
-  }
-};
 
 }  // namespace
 
@@ -82,7 +69,7 @@ struct DenseDecoder::Impl {
   bool has_camera = false;
   std::byte* storage = nullptr;  // both pools, 64-byte aligned
   std::size_t storage_bytes = 0;
-  Pool permanent, image;
+  BumpRegion permanent, image;  // libjpeg's two pools, in storage
   jpeg_decompress_struct cinfo{};
   JpegError err{};
   jpeg_memory_mgr mgr{};
@@ -116,7 +103,7 @@ Impl* Of(j_common_ptr c) { return static_cast<Impl*>(c->client_data); }
   std::abort();  // error_exit longjmps
 }
 
-Pool* PoolFor(j_common_ptr c, int pool_id) {
+BumpRegion* PoolFor(j_common_ptr c, int pool_id) {
   Impl* im = Of(c);
   if (pool_id == JPOOL_PERMANENT) return &im->permanent;
   if (pool_id == JPOOL_IMAGE) return &im->image;
@@ -125,8 +112,7 @@ Pool* PoolFor(j_common_ptr c, int pool_id) {
 }
 
 void* AllocSmall(j_common_ptr c, int pool_id, std::size_t bytes) {
-  Pool* pool = PoolFor(c, pool_id);
-  void* p = bytes <= pool->size ? pool->Take(RoundUp(bytes, kAlign)) : nullptr;
+  void* p = PoolFor(c, pool_id)->Take(bytes, kAlign);
   if (p == nullptr) {
     Impl* im = Of(c);
     im->refusal = pool_id == JPOOL_IMAGE ? "image pool" : "permanent pool";
@@ -182,8 +168,8 @@ JBLOCKARRAY AccessVirtBarray(j_common_ptr c, jvirt_barray_ptr, JDIMENSION, JDIME
 
 void FreePool(j_common_ptr c, int pool_id) {
   Impl* im = Of(c);
-  if (pool_id == JPOOL_IMAGE) im->image.used = 0;
-  if (pool_id == JPOOL_PERMANENT) im->permanent.used = 0;
+  if (pool_id == JPOOL_IMAGE) im->image.Reset();
+  if (pool_id == JPOOL_PERMANENT) im->permanent.Reset();
 }
 
 void SelfDestruct(j_common_ptr) {}  // the pools belong to Impl
@@ -371,8 +357,8 @@ Result<std::unique_ptr<DenseDecoder>> DenseDecoder::Create(const CameraIntrinsic
                              " bytes for the dense keyframe decoder");
   }
   im->storage_bytes = perm + image;
-  im->permanent = Pool{im->storage, perm};
-  im->image = Pool{im->storage + perm, image};
+  im->permanent = BumpRegion{im->storage, perm};
+  im->image = BumpRegion{im->storage + perm, image};
   if (CreateRaw(im.get()) != kRawOk) {
     return Internal(std::string("libjpeg could not create a decompressor: ") + im->err.message);
   }
@@ -431,7 +417,7 @@ Status DenseDecoder::DecodeJpegRgb(std::span<const std::byte> jpeg, std::uint32_
                        " bytes: " + im.refusal);
   }
   if (im.refusal != nullptr) {
-    const Pool& p = std::strcmp(im.refusal, "image pool") == 0 ? im.image : im.permanent;
+    const BumpRegion& p = std::strcmp(im.refusal, "image pool") == 0 ? im.image : im.permanent;
     return ResourceExhausted("JPEG " + std::to_string(width) + "x" + std::to_string(height) +
                              ": libjpeg's " + im.refusal + " of " + std::to_string(p.size) +
                              " bytes is exhausted (" + std::to_string(im.refused_bytes) +

@@ -16,13 +16,13 @@
 #include <cstring>
 #include <string>
 
+#include "arena/bump_region.h"
+
 namespace zm {
 
 struct PngDecoder::Impl {
-  std::byte* storage = nullptr;  // the pool, 64-byte aligned
-  std::size_t size = 0;
-  std::size_t used = 0;
-  std::size_t high = 0;
+  std::byte* storage = nullptr;  // the pool's memory, 64-byte aligned
+  BumpRegion pool;               // over storage; reset after every image
   // The stream being read.
   const unsigned char* src = nullptr;
   std::size_t left = 0;
@@ -46,14 +46,9 @@ constexpr std::size_t RoundUp(std::size_t v, std::size_t a) { return (v + a - 1)
 
 png_voidp PoolMalloc(png_structp png, png_alloc_size_t bytes) {
   auto* im = static_cast<Impl*>(png_get_mem_ptr(png));
-  const std::size_t n = RoundUp(std::max<std::size_t>(bytes, 1), kAlign);
-  if (bytes > im->size || n > im->size - im->used) {
-    im->refused_bytes = bytes;
-    return nullptr;  // libpng raises "Out of memory" (png_malloc) or copes (png_malloc_warn)
-  }
-  void* p = im->storage + im->used;
-  im->used += n;
-  im->high = std::max(im->high, im->used);
+  void* p = im->pool.Take(std::max<png_alloc_size_t>(bytes, 1), kAlign);
+  // nullptr: libpng raises "Out of memory" (png_malloc) or copes (png_malloc_warn)
+  if (p == nullptr) im->refused_bytes = bytes;
   return p;
 }
 
@@ -142,15 +137,16 @@ Result<std::unique_ptr<PngDecoder>> PngDecoder::Create(PngDecoderOptions options
                            " bytes: at least 16384 (libpng's structures and zlib's state)");
   }
   auto im = std::make_unique<Impl>();
-  im->size = RoundUp(options.pool_bytes, 64);
-  im->storage = static_cast<std::byte*>(std::aligned_alloc(64, im->size));
+  const std::size_t size = RoundUp(options.pool_bytes, 64);
+  im->storage = static_cast<std::byte*>(std::aligned_alloc(64, size));
   if (im->storage == nullptr) {
-    return ResourceExhausted("PNG decoder pool of " + std::to_string(im->size) + " bytes");
+    return ResourceExhausted("PNG decoder pool of " + std::to_string(size) + " bytes");
   }
+  im->pool = BumpRegion{im->storage, size};
   return std::unique_ptr<PngDecoder>(new PngDecoder(std::move(im)));
 }
 
-std::size_t PngDecoder::pool_high_water_bytes() const { return impl_->high; }
+std::size_t PngDecoder::pool_high_water_bytes() const { return impl_->pool.high; }
 
 Status PngDecoder::DecodeRgb(std::span<const std::byte> png, std::uint32_t width,
                              std::uint32_t height, std::span<std::uint8_t> rgb) {
@@ -164,7 +160,7 @@ Status PngDecoder::DecodeRgb(std::span<const std::byte> png, std::uint32_t width
                    " bytes without the PNG signature)");
   }
   Impl& im = *impl_;
-  im.used = 0;
+  im.pool.Reset();
   im.src = src;
   im.left = png.size();
   im.refused_bytes = 0;
@@ -185,7 +181,7 @@ Status PngDecoder::DecodeRgb(std::span<const std::byte> png, std::uint32_t width
   }
   if (im.refused_bytes != 0 && std::strstr(im.message, "memory") != nullptr) {
     return ResourceExhausted(bytes + ": libpng asked for " + std::to_string(im.refused_bytes) +
-                             " more bytes than the decoder's pool of " + std::to_string(im.size) +
+                             " more bytes than the decoder's pool of " + std::to_string(im.pool.size) +
                              " (PngDecoderOptions::pool_bytes)");
   }
   if (im.truncated) return Corrupt(bytes + " ends before its image does");
