@@ -1,11 +1,12 @@
 # zm_add_test(name SOURCES a_test.cc ... DEPS zm_x ...): one doctest executable per folder of
-# tests/, every TEST_CASE discovered as its own ctest test. When cross-compiling, discovery and
-# the tests themselves run through CMAKE_CROSSCOMPILING_EMULATOR (qemu-aarch64).
-include(${doctest_DIR}/doctest.cmake OPTIONAL RESULT_VARIABLE ZM_DOCTEST_CMAKE)
-if(NOT ZM_DOCTEST_CMAKE)
-  find_file(ZM_DOCTEST_CMAKE_FILE doctest.cmake PATHS /usr/lib/cmake/doctest REQUIRED)
-  include(${ZM_DOCTEST_CMAKE_FILE})
-endif()
+# tests/. After it links, cmake/ZmTestChunks.cmake lists its cases and registers them with ctest
+# in chunks of at most ZM_TEST_CHUNK consecutive cases of one source file (that script says why),
+# named `executable:file.cc:first-last` (the cases' ordinals in the file; one case alone:
+# `executable:file.cc:n`). When cross-compiling,
+# the listing and the tests themselves run through CMAKE_CROSSCOMPILING_EMULATOR (qemu-aarch64).
+# One case alone: run the executable with --test-case="its name" (or -sf=FILE to run one file).
+set(ZM_TEST_CHUNK 8 CACHE STRING "Most doctest cases of one source file per ctest test")
+set(ZM_TEST_CHUNKS_SCRIPT ${CMAKE_CURRENT_LIST_DIR}/ZmTestChunks.cmake)
 
 function(zm_add_test name)
   cmake_parse_arguments(T "" "RESOURCE_LOCK" "SOURCES;DEPS;LABELS" ${ARGN})
@@ -26,12 +27,26 @@ function(zm_add_test name)
   if(CMAKE_CROSSCOMPILING)
     list(APPEND labels qemu)
   endif()
-  set(props TIMEOUT 600)
-  if(labels)
-    list(APPEND props LABELS "${labels}")
-  endif()
-  if(T_RESOURCE_LOCK)  # cases that share a machine-wide resource run one at a time under ctest -j
-    list(APPEND props RESOURCE_LOCK ${T_RESOURCE_LOCK})
-  endif()
-  doctest_discover_tests(${name} PROPERTIES ${props} DISCOVERY_TIMEOUT 120)
+  list(JOIN labels "|" labels)
+  get_property(emulator TARGET ${name} PROPERTY CROSSCOMPILING_EMULATOR)
+  set(tests_file ${CMAKE_CURRENT_BINARY_DIR}/${name}_chunks.cmake)
+  # T_RESOURCE_LOCK: cases that share a machine-wide resource run one at a time under ctest -j.
+  add_custom_command(TARGET ${name} POST_BUILD
+    BYPRODUCTS ${tests_file}
+    COMMAND ${CMAKE_COMMAND} -D TEST_TARGET=${name} -D TEST_EXECUTABLE=$<TARGET_FILE:${name}>
+            "-D" "TEST_EXECUTOR=${emulator}" -D TEST_WORKING_DIR=${CMAKE_CURRENT_BINARY_DIR}
+            -D CHUNK=${ZM_TEST_CHUNK} -D TEST_TIMEOUT=600 "-D" "TEST_LABELS=${labels}"
+            "-D" "TEST_RESOURCE_LOCK=${T_RESOURCE_LOCK}" -D CTEST_FILE=${tests_file}
+            -P ${ZM_TEST_CHUNKS_SCRIPT}
+    VERBATIM)
+  set(include_file ${CMAKE_CURRENT_BINARY_DIR}/${name}_include.cmake)
+  file(WRITE ${include_file}
+    "if(EXISTS \"${tests_file}\")\n"
+    "  include(\"${tests_file}\")\n"
+    "else()\n"
+    "  add_test(${name}_NOT_BUILT ${name}_NOT_BUILT)\n"
+    "endif()\n")
+  set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES ${include_file})
+  # For tests/test_chunks.cmake, which checks that the chunks run every case exactly once.
+  set_property(GLOBAL APPEND PROPERTY ZM_TEST_CHUNK_PAIRS "$<TARGET_FILE:${name}>|${tests_file}")
 endfunction()

@@ -25,8 +25,10 @@ endif()
 set(ZM_ROBOT_SCENARIO ${CMAKE_CURRENT_BINARY_DIR}/robot_scenario)
 add_test(NAME robot_example_scenario COMMAND sh -c
   "rm -rf '${ZM_ROBOT_SCENARIO}' && ${ZM_ROBOT_EMULATOR} '$<TARGET_FILE:zonemap>' sim hospital --seed 3 --area 300 --tasks 2 --footprint-scale 0.02 --features oracle --quiet --out '${ZM_ROBOT_SCENARIO}' > /dev/null")
+# COST (here and below): ctest -j starts the long tests first, so the last minutes of a run are
+# not one long test on one core while the other has nothing left (cmake/ZmTestChunks.cmake).
 set_tests_properties(robot_example_scenario PROPERTIES FIXTURES_SETUP zm_robot_scenario
-  LABELS app TIMEOUT 900)
+  LABELS app TIMEOUT 900 COST 100)
 
 # MemoryThr 120 of the scenario's keyframes: zones are loaded and evicted along the patrol.
 foreach(transport pipe udp)
@@ -35,7 +37,7 @@ foreach(transport pipe udp)
     --scenario ${ZM_ROBOT_SCENARIO} --memory-thr 120 --transport ${transport} --check
     --emulator "${ZM_ROBOT_EMULATOR}")
   set_tests_properties(robot_example_${transport} PROPERTIES
-    FIXTURES_REQUIRED zm_robot_scenario LABELS app TIMEOUT 900)
+    FIXTURES_REQUIRED zm_robot_scenario LABELS app TIMEOUT 900 COST 100)
 endforeach()
 
 # The soak's short version: the real daemon through the line protocol, resident <= K_max on every
@@ -53,4 +55,4 @@ add_test(NAME zonemapd_soak_short COMMAND ${Python3_EXECUTABLE}
   --scenario ${ZM_ROBOT_SCENARIO} --ticks ${ZM_SOAK_TICKS} --period 1000 --memory-thr 120
   --no-rss-check --out ${CMAKE_CURRENT_BINARY_DIR}/soak_short --emulator "${ZM_ROBOT_EMULATOR}")
 set_tests_properties(zonemapd_soak_short PROPERTIES
-  FIXTURES_REQUIRED zm_robot_scenario LABELS app TIMEOUT 1200)
+  FIXTURES_REQUIRED zm_robot_scenario LABELS app TIMEOUT 1200 COST 100)

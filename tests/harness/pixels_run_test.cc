@@ -20,7 +20,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-TEST_CASE("default path: pixels in, pose out, the oracle never runs") {
+TEST_CASE("default path: pixels in, pose out, the oracle never runs" *
+          doctest::test_suite("slow")) {
   CHECK_MESSAGE(sim::ScenarioOptions{}.features == sim::FeatureSource::kOrb,
                 "the oracle is the default nowhere (issue 26)");
   const fs::path dir =

@@ -75,7 +75,8 @@ TEST_CASE("run: the recorded frames pass the input gate, and each tick is publis
   CHECK(Lines(run.dir / "run" / "estimate.tum") == ticks + 1);  // + the TUM header
 }
 
-TEST_CASE("run from pixels: every stage timed, closures beside frames localized") {
+TEST_CASE("run from pixels: every stage timed, closures beside frames localized" *
+          doctest::test_suite("slow")) {
   sim::ScenarioOptions o;
   o.seed = 3;
   o.features = sim::FeatureSource::kOrb;

@@ -260,7 +260,8 @@ TEST_CASE("a warm tick that runs no PnP allocates nothing") {
   CHECK_FALSE(r.accepted);
 }
 
-TEST_CASE("points decoded from depth (camera frame, some without depth) localize like map points") {
+TEST_CASE("points decoded from depth (camera frame, some without depth) localize like map points" *
+          doctest::test_suite("slow")) {
   // Two identical worlds, so both runs see the same keyframes and the same frames.
   World world_map({}), world_cam({});
   const KeyframeStore store_map = MakeKeyframes(world_map);

@@ -381,7 +381,8 @@ TEST_CASE("a warm localizer tick that verifies and accepts a candidate allocates
   CHECK((r.t_map_body.translation() - truth.translation()).norm() < 0.05);
 }
 
-TEST_CASE("the PnP covariance predicts the spread of the pose over noise draws") {
+TEST_CASE("the PnP covariance predicts the spread of the pose over noise draws" *
+          doctest::test_suite("slow")) {
   // One geometry, 400 draws of 1 px pixel noise: the empirical covariance of the left
   // perturbation xi (T_est = Exp(xi) T_true) against the solutions' sigma^2 (J^T J)^-1; then the
   // camera position in the map, as BodyCovarianceFromCamera carries it to the robot.

@@ -193,7 +193,8 @@ void MakeRtabmap(const std::string& path, int nodes) {
   }
 }
 
-TEST_CASE("crash safety: import-rtabmap killed at random points leaves no OUT or a whole one") {
+TEST_CASE("crash safety: import-rtabmap killed at random points leaves no OUT or a whole one" *
+          doctest::test_suite("slow")) {
   if (Skip()) return;
   TempDir dir;
   const std::string in = dir.File("rtabmap.db");
@@ -236,7 +237,8 @@ std::string GridZones(int rooms, double w) {
   return s.str();
 }
 
-TEST_CASE("crash safety: zones annotate killed at random points leaves the old zones or the new ones") {
+TEST_CASE("crash safety: zones annotate killed at random points leaves the old zones or the new ones" *
+          doctest::test_suite("slow")) {
   if (Skip()) return;
   TempDir dir;
   const std::string base = dir.File("base.db");
@@ -263,7 +265,8 @@ TEST_CASE("crash safety: zones annotate killed at random points leaves the old z
                  [&] { CopyDb(base, db); }, 3);
 }
 
-TEST_CASE("crash safety: sim hospital killed at random points leaves no map or the old map or the new one") {
+TEST_CASE("crash safety: sim hospital killed at random points leaves no map or the old map or the new one" *
+          doctest::test_suite("slow")) {
   if (Skip()) return;
   TempDir dir;
   const std::string out = dir.File("scenario");

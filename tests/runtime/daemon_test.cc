@@ -342,7 +342,8 @@ TEST_CASE("a route becomes the zone sequence predictive prefetches along") {
   CHECK(s.daemon->counters().routes_rejected == 2);
 }
 
-TEST_CASE("budget down unloads at once and holds, up is clamped to the arena") {
+TEST_CASE("budget down unloads at once and holds, up is clamped to the arena" *
+          doctest::test_suite("slow")) {
   RoomsMap map(6, 10, "budget");
   for (const std::string policy : {"semantic", "oracle", "predictive", "radius"}) {
     CAPTURE(policy);
@@ -472,7 +473,8 @@ TEST_CASE("UDP: frames, routes and budgets in, pose lines and acks back to the s
   ::close(sock);
 }
 
-TEST_CASE("every warm Step allocates nothing, for every policy, over a live feed") {
+TEST_CASE("every warm Step allocates nothing, for every policy, over a live feed" *
+          doctest::test_suite("slow")) {
   // As zonemapd runs: SQLite on its fixed heap (sqlite_heap.h), installed before any database.
   auto heap = SqliteHeap::Install(64 << 20);
   REQUIRE_MESSAGE(heap.ok(), heap.status().ToString());

@@ -24,7 +24,8 @@ ZoneId BruteForce(const ZoneSet& set, const Eigen::Vector3d& p) {
   return kNoZone;
 }
 
-TEST_CASE("grid lookup agrees with brute force on random rooms and points") {
+TEST_CASE("grid lookup agrees with brute force on random rooms and points" *
+          doctest::test_suite("slow")) {
   std::mt19937 rng(42);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<Zone> zones;
