@@ -17,6 +17,14 @@ Two variants per plan:
          angles, rooms left unexplored (a quarter of the viewpoints dropped, the others moved up
          to 0.3 m), a range of 4-8 m, wall faces a cell in front or behind where a ray hits, and
          specks of people in the free space. plan/ and scan/ are unchanged by it.
+  laser/ (only with --laser; issue 28, sixth round) robot/'s world and scan with what the shared
+         robot maps show and robot/ does not: a band of unknown cells 1-3 cells wide between a
+         share (0-100 %) of the returns and the free space (a real SLAM grid's cells next to a
+         wall or an obstacle are neither free nor occupied enough to pass the thresholds, so
+         free space meets unknown, not occupied), a share (0-15 %) of the returns themselves
+         left unknown (dotted faces), and a coarser laser (0.25, 0.5 or 1 degree between rays:
+         streaks of free cells with unknown between them at range). Its own generator, seeded
+         by the plan's name and "laser"; robot/ is unchanged by it.
 
 Ground truth: every region enclosed by walls with doors closed is one room (R2V's room labels
 only mark a point in a room; enclosed regions of any label are rooms).
@@ -25,10 +33,10 @@ quartile of its door openings is 0.75 m (a single interior door; the wider openi
 balcony sliders and double doors), the only physical assumption made. It was fixed before any
 segmentation was scored on these plans.
 
-Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...]]
+Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...] | --laser]
 --robot-off renders robot/ only, with the named augmentations left out (glass, leaves, clutter,
 unexplored, range, noise, specks; issue 28's ablation). Every random number is still drawn, so
-the other augmentations are exactly those of the full render.
+the other augmentations are exactly those of the full render. --laser renders laser/ only.
 (robot_world and robot_scan are also scripts/render_sim.py's.)
 """
 import collections
@@ -224,13 +232,13 @@ def robot_world(items, free, occupied, rooms, n, rng, off=()):
     return free, occupied
 
 
-def laser_rays(free, viewpoints, range_m):
-    """For each viewpoint, the 1440 rays of a 360-degree laser sampled every half cell out to
+def laser_rays(free, viewpoints, range_m, rays=1440):
+    """For each viewpoint, the `rays` rays (1440 unless said) of a 360-degree laser sampled every half cell out to
     range_m: (r, c, first), the cells along each ray (clipped to the grid) and each ray's first
     sample that is not free or leaves the grid (the sample count where none). A viewpoint that
     is not free itself (inside furniture) sees nothing and yields nothing."""
     h, w = free.shape
-    angles = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
+    angles = np.linspace(0, 2 * np.pi, rays, endpoint=False)
     steps = np.arange(0, range_m / RES, 0.5)
     for vx, vy in viewpoints:
         c = (vx + np.outer(np.cos(angles), steps)).astype(int)
@@ -243,7 +251,7 @@ def laser_rays(free, viewpoints, range_m):
         yield r, c, np.where(blocked.any(axis=1), blocked.argmax(axis=1), steps.size)
 
 
-def robot_scan(free, occupied, viewpoints, rng, off=()):
+def robot_scan(free, occupied, viewpoints, rng, off=(), rays=1440):
     """A robot's laser map (robot/): a quarter of the viewpoints dropped (rooms left
     unexplored), the rest moved up to 0.3 m, range 4-8 m, each wall hit a cell in front of or
     behind its face, specks of people in the free space."""
@@ -263,7 +271,7 @@ def robot_scan(free, occupied, viewpoints, rng, off=()):
         range_m = RANGE_M
     seen_free = np.zeros_like(free)
     seen_occ = np.zeros_like(free)
-    for r, c, first in laser_rays(free, moved, range_m):
+    for r, c, first in laser_rays(free, moved, range_m, rays):
         samples = r.shape[1]
         hit = np.nonzero(first < samples)[0]
         keep_hit = occupied[r[hit, first[hit]], c[hit, first[hit]]]
@@ -283,6 +291,34 @@ def robot_scan(free, occupied, viewpoints, rng, off=()):
     if "specks" in off:
         specks &= False
     return seen_free & ~specks, seen_occ | specks
+
+
+LASER_RAYS = (360, 720, 1440)  # laser/: 1, 0.5 or 0.25 degrees between rays
+
+
+def near(mask, cells):
+    """Cells within `cells` (Chebyshev distance) of a True cell of mask, without wrapping."""
+    out = mask.copy()
+    h, w = mask.shape
+    for dr in range(-cells, cells + 1):
+        for dc in range(-cells, cells + 1):
+            src = mask[max(0, -dr):h - max(0, dr), max(0, -dc):w - max(0, dc)]
+            out[max(0, dr):h - max(0, -dr), max(0, dc):w - max(0, -dc)] |= src
+    return out
+
+
+def real_grid(seen_free, seen_occ, rng):
+    """laser/'s look of a real SLAM grid on a robot_scan result: free cells within 1-3 cells of
+    a return become unknown (the band) for a share (0-100 %) of the returns, then 0-15 % of the
+    returns become unknown (dotted faces); the amounts drawn once per map. Returns (free,
+    occupied)."""
+    band = int(rng.integers(1, 4))
+    banded = rng.uniform(0.0, 1.0)
+    dotted = rng.uniform(0.0, 0.15)
+    halo = near(seen_occ & (rng.random(seen_occ.shape) < banded), band)
+    free = seen_free & ~halo
+    occupied = seen_occ & (rng.random(seen_occ.shape) >= dotted)
+    return free, occupied
 
 
 def scan(free, occupied, viewpoints):
@@ -316,6 +352,9 @@ def main():
     here = os.path.dirname(os.path.abspath(__file__))
     args = sys.argv[1:]
     off = None
+    laser = "--laser" in args
+    if laser:
+        args.remove("--laser")
     if "--robot-off" in args:
         i = args.index("--robot-off")
         off = tuple(k for k in args[i + 1].split(",") if k)
@@ -323,6 +362,8 @@ def main():
         bad = [k for k in off if k not in AUGMENTATIONS]
         if bad:
             sys.exit(f"--robot-off: unknown {bad}; known: {', '.join(AUGMENTATIONS)}")
+    if laser and off is not None:
+        sys.exit("--laser and --robot-off: one at a time")
     src = args[0] if len(args) == 2 else os.path.join(here, "..", "tests", "data",
                                                       "segmentation", "r2v")
     out = args[-1] if args else sys.exit(__doc__)
@@ -331,6 +372,15 @@ def main():
             continue
         name = "r2v_" + fname[:-4]
         free, occupied, rooms, n, views = render(parse(os.path.join(src, fname)))
+        if laser:
+            rng = np.random.default_rng(zlib.crc32((name + "/laser").encode()))
+            world_free, world_occ = robot_world(parse(os.path.join(src, fname)), free, occupied,
+                                                rooms, n, rng)
+            rays = int(rng.choice(LASER_RAYS))
+            seen = robot_scan(world_free, world_occ, views, rng, rays=rays)
+            write(os.path.join(out, "laser"), name, *real_grid(*seen, rng), rooms, n)
+            print(f"{name}: laser/, {rays} rays")
+            continue
         if off is None:
             write(os.path.join(out, "plan"), name, free, occupied, rooms, n)
             seen_free, seen_occ = scan(free, occupied, views)

@@ -15,7 +15,11 @@ Ground truth: the simulator's zones (zones.geojson) filled into the grid, over t
 free cells; its corridor segments (the spine cut once per branch, branches cut every 15 m,
 docs/sim.md) are one room where they touch, as a building's corridor is one space.
 
-Usage: scripts/render_sim.py ZONEMAP OUT_DIR SEED [SEED ...]
+With --laser (issue 28, sixth round) the grid is render_r2v.py's laser/ instead: the same
+building, clutter and route, a laser of 360, 720 or 1440 rays, and real_grid's band of unknown
+cells at the returns and dotted faces, drawn from a second generator seeded by (SEED, 1).
+
+Usage: scripts/render_sim.py ZONEMAP OUT_DIR SEED [SEED ...] [--laser]
 """
 import json
 import os
@@ -27,14 +31,14 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from render_r2v import RES, components, robot_scan, write  # noqa: E402
+from render_r2v import LASER_RAYS, RES, components, real_grid, robot_scan, write  # noqa: E402
 
 
 def read_pgm(path):
     return np.array(Image.open(path))
 
 
-def render(zonemap, seed, tmp):
+def render(zonemap, seed, tmp, laser=False):
     rng = np.random.default_rng(seed)
     area = 400 + (seed * 7919) % 1201
     out = os.path.join(tmp, f"sim{seed}")
@@ -96,17 +100,26 @@ def render(zonemap, seed, tmp):
             if last is None or np.hypot(x - last[0], y - last[1]) >= 0.5:
                 views.append(px(x, y))
                 last = (x, y)
-    seen_free, seen_occ = robot_scan(world_free, world_occ, views, rng)
+    if laser:
+        lrng = np.random.default_rng([seed, 1])
+        seen = robot_scan(world_free, world_occ, views, rng, rays=int(lrng.choice(LASER_RAYS)))
+        seen_free, seen_occ = real_grid(*seen, lrng)
+    else:
+        seen_free, seen_occ = robot_scan(world_free, world_occ, views, rng)
     return seen_free, seen_occ, rooms, n, area, len(views)
 
 
 def main():
-    if len(sys.argv) < 4:
+    args = sys.argv[1:]
+    laser = "--laser" in args
+    if laser:
+        args.remove("--laser")
+    if len(args) < 3:
         sys.exit(__doc__)
-    zonemap, out = sys.argv[1], sys.argv[2]
+    zonemap, out = args[0], args[1]
     with tempfile.TemporaryDirectory() as tmp:
-        for seed in (int(s) for s in sys.argv[3:]):
-            seen_free, seen_occ, rooms, n, area, nv = render(zonemap, seed, tmp)
+        for seed in (int(s) for s in args[2:]):
+            seen_free, seen_occ, rooms, n, area, nv = render(zonemap, seed, tmp, laser)
             name = f"sim_hospital_{seed}"
             write(out, name, seen_free, seen_occ, rooms, n)
             print(f"{name}: {area} m2, {seen_free.shape[1]}x{seen_free.shape[0]} cells, "

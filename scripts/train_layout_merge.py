@@ -19,11 +19,14 @@ cut with other options.
 
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
-           [--weight DIR=W ...] [--loo DIR] [--param K=V ...] [--learner exact|hist]
+           [--weight DIR=W ...] [--loo DIR [--loo-models OUT_DIR]] [--param K=V ...]
+           [--learner exact|hist]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
-prints the leave-one-out table instead: each map of DIR scored by a model trained without it.
+prints the leave-one-out table instead: each map of DIR scored by a model trained without it;
+--loo-models keeps each of those models as OUT_DIR/<map>.json (to score them at another
+threshold, or trace the left-out map with its own model, without training again).
 --param K=V is passed to every `zones segment` run (SegmentOptions; the model records the
 cutting options they give, and is refused with any other). The DAgger pass merges at --dagger-threshold (0.6, as
 when the threshold was chosen); --loo scores at --threshold (the default's 0.4).
@@ -183,7 +186,8 @@ def train(zonemap, pairs, dir_weight, dagger_threshold, params):
         return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y2), y.mean()
 
 
-def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshold, params):
+def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshold, params,
+                  keep=None):
     """For each map of loo_dir (which is also a training DIR): train without it, score it."""
     print("| map | precision % | recall % | mean IoU % | segments |")
     print("|---|---:|---:|---:|---:|")
@@ -196,6 +200,10 @@ def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshol
             path = os.path.join(tmp, "model.json")
             with open(path, "w") as f:
                 json.dump(model, f)
+            if keep:
+                os.makedirs(keep, exist_ok=True)
+                with open(os.path.join(keep, name + ".json"), "w") as f:
+                    f.write(json.dumps(model, separators=(",", ":")) + "\n")
             out = subprocess.run([zonemap, "zones", "segment", m, "--out", os.devnull, "--score",
                                   g, "--json", "--merge-model", path, "--param",
                                   f"layout_merge_threshold={threshold}"] + params,
@@ -230,6 +238,7 @@ def main(argv):
     ap.add_argument("--dagger-threshold", type=float, default=0.6)
     ap.add_argument("--weight", action="append", default=[], metavar="DIR=W")
     ap.add_argument("--loo", metavar="DIR")
+    ap.add_argument("--loo-models", metavar="OUT_DIR")
     ap.add_argument("--param", action="append", default=[], metavar="K=V")
     ap.add_argument("--learner", choices=["exact", "hist"], default="exact")
     a = ap.parse_args(argv)
@@ -241,7 +250,7 @@ def main(argv):
     zonemap, dirs = a.zonemap, a.dirs
     if loo_dir:
         return leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, a.dagger_threshold,
-                             params)
+                             params, a.loo_models)
     pairs = list(maps(dirs, exclude))
     model, n1, n2, share = train(zonemap, pairs, dir_weight, a.dagger_threshold, params)
     print(f"{len(pairs)} maps, {n1} oracle + {n2} model-driven pair rows, "

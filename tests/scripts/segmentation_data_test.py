@@ -1,10 +1,11 @@
 #!/usr/bin/python3
 """The segmentation's data scripts (issue 28) on one R2V plan and one small simulated hospital:
 render_r2v.py's three variants share one ground truth and the robot/ variant is reproducible and
-holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves augmentations out;
+holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves augmentations out,
+--laser's laser/ is reproducible and its unknown band and dotted faces only make cells unknown;
 render_sim.py's grid and ground truth
 agree in size, its corridor segments are one room; train_layout_merge.py fits a model that
-zonemap runs; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
+zonemap runs, and --loo-models keeps the leave-one-out's models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
 segmentation_identical.py tells identical zones from moved ones.
 Behaviour, not figures.
 
@@ -84,6 +85,48 @@ bad = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), sr
                      text=True)
 check(bad.returncode != 0 and "paint" in bad.stderr, "--robot-off names an unknown augmentation")
 
+# laser/ (--laser, issue 28's sixth round): written alone, the plan's ground truth, reproducible,
+# trinary; real_grid only turns free cells and returns into unknown, and its band leaves fewer
+# free cells touching a return (free space meets unknown, as on the shared robot maps).
+for out in ("la", "lb"):
+    subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                    os.path.join(work, out), "--laser"], check=True, capture_output=True)
+laser = load(os.path.join(work, "la", "laser", name + "_map.png"))
+check(not os.path.exists(os.path.join(work, "la", "robot")), "--laser writes laser/ only")
+check((load(os.path.join(work, "la", "laser", name + "_gt.png")) == gts["plan"]).all(),
+      "laser/ has the plan's ground truth")
+check((load(os.path.join(work, "lb", "laser", name + "_map.png")) == laser).all(),
+      "laser/ is reproducible")
+check(set(np.unique(laser)) <= {0, 128, 255}, "laser/ is a trinary grid")
+both = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                       os.path.join(work, "lc"), "--laser", "--robot-off", "noise"],
+                      capture_output=True, text=True)
+check(both.returncode != 0, "--laser and --robot-off together are refused")
+sys.path.insert(0, scripts)
+from render_r2v import real_grid  # noqa: E402
+
+wall = np.zeros((40, 40), bool)
+wall[5, 5:35] = wall[34, 5:35] = wall[5:35, 5] = wall[5:35, 34] = True
+inside = np.zeros_like(wall)
+inside[6:34, 6:34] = True
+
+
+def touches(free, occupied):
+    o = np.zeros_like(occupied)
+    o[1:] |= occupied[:-1]
+    o[:-1] |= occupied[1:]
+    o[:, 1:] |= occupied[:, :-1]
+    o[:, :-1] |= occupied[:, 1:]
+    return (free & o).sum()
+
+
+results = [real_grid(inside, wall, np.random.default_rng(k)) for k in range(20)]
+check(all((f <= inside).all() and (o <= wall).all() for f, o in results),
+      "real_grid only makes cells unknown")
+check(all(touches(f, wall) < touches(inside, wall) and f.sum() > 0 for f, _ in results),
+      "real_grid: the band leaves fewer free cells touching a return, and free space remains")
+check(any(o.sum() < wall.sum() for _, o in results), "real_grid: dotted faces")
+
 # One small simulated hospital mapped by its robot.
 sim = os.path.join(work, "sim")
 out = subprocess.run([sys.executable, os.path.join(scripts, "render_sim.py"), zonemap, sim, "7"],
@@ -96,6 +139,12 @@ check(len(colours) >= 5, f"sim ground truth has rooms ({len(colours)})")
 seen = (grid == 255).sum() / max(1, gt.any(axis=2).sum())
 check(0.3 < seen < 1.0, f"the robot saw part of the building's free space ({seen:.2f})")
 check("rooms" in out, "render_sim.py reports its buildings")
+lsim = os.path.join(work, "lsim")
+subprocess.run([sys.executable, os.path.join(scripts, "render_sim.py"), zonemap, lsim, "7",
+                "--laser"], check=True, capture_output=True)
+check((load(os.path.join(lsim, "sim_hospital_7_gt.png")) == gt).all() and
+      not (load(os.path.join(lsim, "sim_hospital_7_map.png")) == grid).all(),
+      "render_sim.py --laser: the same building and rooms, another grid")
 
 # A model fitted on these three maps runs in zonemap.
 model = os.path.join(work, "model.json")
@@ -107,6 +156,19 @@ run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robo
                       "--out", os.devnull, "--merge-model", model, "--json"],
                      capture_output=True, text=True)
 check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs the model")
+
+# --loo with --loo-models keeps each fold's model (trained without its map) under the map's name.
+kept = os.path.join(work, "loo_models")
+table = subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
+                        os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
+                        "--learner", "hist", "--loo", sim, "--loo-models", kept],
+                       check=True, capture_output=True, text=True).stdout
+check(sorted(os.listdir(kept)) == ["sim_hospital_7.json"] and "| sim_hospital_7 |" in table,
+      "--loo-models keeps the left-out map's model")
+run = subprocess.run([zonemap, "zones", "segment", os.path.join(sim, "sim_hospital_7_map.png"),
+                      "--out", os.devnull, "--merge-model",
+                      os.path.join(kept, "sim_hospital_7.json")], capture_output=True)
+check(run.returncode == 0, "zonemap runs a kept fold model")
 
 # gate_layout_merge.py joins the compiled-in model (clean plans) and this one (robot-made
 # grids) into one: the plan's zones are the default's, the robot render's this model's.
