@@ -197,13 +197,12 @@ def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshol
         model, _, _, _ = train(zonemap, list(maps(dirs, {name})), dir_weight, dagger_threshold,
                                params)
         with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, "model.json")
-            with open(path, "w") as f:
-                json.dump(model, f)
+            # The fold's model is written once: where --loo-models keeps it, else a scratch file.
             if keep:
                 os.makedirs(keep, exist_ok=True)
-                with open(os.path.join(keep, name + ".json"), "w") as f:
-                    f.write(json.dumps(model, separators=(",", ":")) + "\n")
+            path = os.path.join(keep or tmp, (name if keep else "model") + ".json")
+            with open(path, "w") as f:
+                f.write(json.dumps(model, separators=(",", ":")) + "\n")
             out = subprocess.run([zonemap, "zones", "segment", m, "--out", os.devnull, "--score",
                                   g, "--json", "--merge-model", path, "--param",
                                   f"layout_merge_threshold={threshold}"] + params,
