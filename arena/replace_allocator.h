@@ -24,20 +24,12 @@
 #include <new>
 
 #include "arena/frame_scratch.h"
+#include "arena/sanitizers.h"
 #include "arena/scratch_malloc.h"
 
 // Which sanitizer owns malloc, if any: ZM_ALLOC_ASAN (AddressSanitizer, whose malloc hooks the
 // tests count through) and ZM_SANITIZER_OWNS_MALLOC (ASan, TSan or MSan).
-#if defined(__SANITIZE_ADDRESS__)
-#define ZM_ALLOC_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define ZM_ALLOC_ASAN 1
-#endif
-#endif
-#ifndef ZM_ALLOC_ASAN
-#define ZM_ALLOC_ASAN 0
-#endif
+#define ZM_ALLOC_ASAN ZM_ASAN
 #if ZM_ALLOC_ASAN || defined(__SANITIZE_THREAD__)
 #define ZM_SANITIZER_OWNS_MALLOC 1
 #elif defined(__has_feature)

@@ -12,13 +12,7 @@
 #include <fstream>
 #include <string>
 
-#if defined(__SANITIZE_ADDRESS__)
-#define ZM_HAVE_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define ZM_HAVE_ASAN 1
-#endif
-#endif
+#include "arena/sanitizers.h"
 
 namespace zm {
 namespace {
@@ -68,7 +62,7 @@ const char* CapResourceName(CapResource r) {
 }
 
 bool BuiltWithAddressSanitizer() noexcept {
-#ifdef ZM_HAVE_ASAN
+#if ZM_ASAN
   return true;
 #else
   return false;

@@ -11,7 +11,9 @@
 #include <mutex>
 #include <string>
 
-#if defined(__SANITIZE_ADDRESS__)
+#include "arena/sanitizers.h"
+
+#if ZM_ASAN
 #include <sanitizer/asan_interface.h>
 #define ZM_HEAP_POISON(p, n) ASAN_POISON_MEMORY_REGION((p), (n))
 #define ZM_HEAP_UNPOISON(p, n) ASAN_UNPOISON_MEMORY_REGION((p), (n))

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "arena/sanitizers.h"
 #include "support/counting_allocator.h"
 
 namespace zm {
@@ -163,7 +164,7 @@ TEST_CASE("frame scratch: nested scopes on one region close it once") {
   CHECK(scratch->stats().blocks_outliving_scope == 0);
 }
 
-#if !defined(__SANITIZE_ADDRESS__)
+#if !ZM_ASAN
 TEST_CASE("frame scratch: without a sanitizer the C allocator is served too (malloc, calloc, "
           "realloc, posix_memalign)") {
   auto scratch = Make(64 << 10);

@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "arena/sanitizers.h"
 #include "localization/qvga_camera.h"
 #include "mapdb/dense_codec.h"
 #include "support/counting_allocator.h"
@@ -106,7 +107,7 @@ TEST_CASE("front-end: a warm frame allocates nothing from the heap") {
   REQUIRE(fe->Process(&b, &t).ok());  // a JPEG frame
   REQUIRE(fe->Process(&p, &t).ok());  // and a PNG one
   CHECK(news.allocations() == 0);
-#if defined(__SANITIZE_ADDRESS__)
+#if ZM_ASAN
   CHECK(mallocs.mallocs() <= 2 * OrbOptions{}.levels);  // FAST's BufferArea: orb_extractor_test
 #else
   CHECK(mallocs.mallocs() == 0);

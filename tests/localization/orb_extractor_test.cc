@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "arena/sanitizers.h"
 #include "localization/camera.h"
 #include "localization/qvga_camera.h"
 #include "support/counting_allocator.h"
@@ -214,7 +215,7 @@ TEST_CASE(
   CHECK(orb_news > 0);
   CHECK(orb_mallocs > 0);
   CHECK(ours_news == 0);
-#if defined(__SANITIZE_ADDRESS__)
+#if ZM_ASAN
   // AddressSanitizer owns malloc, so the scratch cannot take the C allocator's requests here:
   // what remains is FAST's row buffers (cv::utils::BufferArea -> cv::fastMalloc), one per
   // pyramid level. The build without a sanitizer (the aarch64 tests) interposes malloc and

@@ -22,13 +22,14 @@
 #include <string>
 #include <vector>
 
+#include "arena/sanitizers.h"
 #include "localization/camera.h"
 #include "localization/localizer.h"
 #include "localization/p3p.h"
 #include "support/counting_allocator.h"
 #include "synthetic_world.h"
 
-#if defined(__SANITIZE_ADDRESS__)
+#if ZM_ASAN
 #define ZM_PNP_TEST_ASAN 1
 extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*,
                                                                              std::size_t),

@@ -14,6 +14,7 @@
 #include <random>
 #include <sstream>
 
+#include "arena/sanitizers.h"
 #include "rooms_map.h"
 #include "runtime/daemon.h"
 #include "runtime/sqlite_heap.h"
@@ -329,7 +330,7 @@ TEST_CASE("warm image steps allocate nothing: JPEG and PNG frames, and refused i
       test::CountStepAllocations([&] { return s.daemon->Step(); });
   CHECK(warm_steps.steps == in.size() - warm);
   CHECK(warm_steps.news == 0);
-#if defined(__SANITIZE_ADDRESS__)
+#if ZM_ASAN
   // ASan owns malloc, so the C libraries' malloc calls inside the scratch scope reach it:
   // FAST's BufferArea (one per pyramid level, orb_extractor_test) and libpng's (its structs,
   // zlib's inflate state) per PNG frame. Their bytes are freed in the frame.

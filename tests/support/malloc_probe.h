@@ -13,7 +13,9 @@
 #include <cstddef>
 #include <cstdint>
 
-#if defined(__SANITIZE_ADDRESS__)
+#include "arena/sanitizers.h"
+
+#if ZM_ASAN
 #define ZM_MALLOC_PROBE_ASAN 1
 extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*,
                                                                              std::size_t),
