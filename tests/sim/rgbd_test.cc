@@ -51,7 +51,7 @@ RenderedKeyframe Render(const World& w, std::size_t i, const DenseOptions& dense
   Rng rng(seed, 100 + i);
   RenderedKeyframe kf;
   const Status s = RenderKeyframe(w.building, w.landmarks, 0, w.poses[i], w.camera, NoiseOptions{}, dense,
-                                  dense.width, dense.height, KeyframeId(static_cast<std::int64_t>(i + 1)),
+                                  dense.width, dense.height, KeyframeId{static_cast<std::int64_t>(i + 1)},
                                   rng, &kf);
   REQUIRE_MESSAGE(s.ok(), s.ToString());
   return kf;

@@ -14,8 +14,8 @@ using test::Rect;
 
 LinkRecord Link(std::int64_t a, std::int64_t b) {
   LinkRecord l;
-  l.from = KeyframeId(a);
-  l.to = KeyframeId(b);
+  l.from = KeyframeId{a};
+  l.to = KeyframeId{b};
   return l;
 }
 
@@ -34,19 +34,19 @@ TEST_CASE("touching polygons are neighbours, gaps and other floors are not") {
   });
   const ZoneGraph g = BuildAdjacency(set, {}, {});
   CHECK(g.zone_count() == 7);
-  CHECK(g.Adjacent(ZoneId(0), ZoneId(1)));
-  CHECK(g.Adjacent(ZoneId(1), ZoneId(0)));
-  CHECK(g.Adjacent(ZoneId(1), ZoneId(2)));
-  CHECK_FALSE(g.Adjacent(ZoneId(0), ZoneId(2)));
-  CHECK(g.Neighbours(ZoneId(3)).empty());
-  CHECK_FALSE(g.Adjacent(ZoneId(0), ZoneId(4)));
-  CHECK(g.Adjacent(ZoneId(1), ZoneId(5)));
-  CHECK(g.Adjacent(ZoneId(6), ZoneId(0)));
-  const auto nb = g.Neighbours(ZoneId(1));
+  CHECK(g.Adjacent(ZoneId{0}, ZoneId{1}));
+  CHECK(g.Adjacent(ZoneId{1}, ZoneId{0}));
+  CHECK(g.Adjacent(ZoneId{1}, ZoneId{2}));
+  CHECK_FALSE(g.Adjacent(ZoneId{0}, ZoneId{2}));
+  CHECK(g.Neighbours(ZoneId{3}).empty());
+  CHECK_FALSE(g.Adjacent(ZoneId{0}, ZoneId{4}));
+  CHECK(g.Adjacent(ZoneId{1}, ZoneId{5}));
+  CHECK(g.Adjacent(ZoneId{6}, ZoneId{0}));
+  const auto nb = g.Neighbours(ZoneId{1});
   CHECK(std::vector<ZoneId>(nb.begin(), nb.end()) ==
-        std::vector<ZoneId>{ZoneId(0), ZoneId(2), ZoneId(5), ZoneId(6)});
+        std::vector<ZoneId>{ZoneId{0}, ZoneId{2}, ZoneId{5}, ZoneId{6}});
   const ZoneGraph strict = BuildAdjacency(set, {}, {}, {.touch_tolerance_m = 0.01});
-  CHECK_FALSE(strict.Adjacent(ZoneId(1), ZoneId(2)));
+  CHECK_FALSE(strict.Adjacent(ZoneId{1}, ZoneId{2}));
   for (const ZoneEdge& e : g.edges()) {
     CHECK(e.a < e.b);
     CHECK(e.touching);
@@ -56,19 +56,19 @@ TEST_CASE("touching polygons are neighbours, gaps and other floors are not") {
 TEST_CASE("links across zones and shared keyframes join zones that do not touch") {
   const ZoneSet set = MakeSet({MakeZone("A", Rect(0, 0, 5, 5)), MakeZone("B", Rect(20, 0, 25, 5)),
                                MakeZone("C", Rect(40, 0, 45, 5)), MakeZone("D", Rect(60, 0, 65, 5))});
-  const std::vector<ZoneMember> members = {{ZoneId(0), KeyframeId(1)}, {ZoneId(1), KeyframeId(2)},
-                                           {ZoneId(2), KeyframeId(3)}, {ZoneId(3), KeyframeId(3)},
-                                           {ZoneId(0), KeyframeId(4)}};
+  const std::vector<ZoneMember> members = {{ZoneId{0}, KeyframeId{1}}, {ZoneId{1}, KeyframeId{2}},
+                                           {ZoneId{2}, KeyframeId{3}}, {ZoneId{3}, KeyframeId{3}},
+                                           {ZoneId{0}, KeyframeId{4}}};
   const std::vector<LinkRecord> links = {Link(1, 2), Link(1, 4), Link(2, 99)};
   const ZoneGraph g = BuildAdjacency(set, members, links);
-  CHECK(g.Adjacent(ZoneId(0), ZoneId(1)));   // link 1-2
-  CHECK(g.Adjacent(ZoneId(2), ZoneId(3)));   // keyframe 3 in both
-  CHECK_FALSE(g.Adjacent(ZoneId(0), ZoneId(2)));
+  CHECK(g.Adjacent(ZoneId{0}, ZoneId{1}));   // link 1-2
+  CHECK(g.Adjacent(ZoneId{2}, ZoneId{3}));   // keyframe 3 in both
+  CHECK_FALSE(g.Adjacent(ZoneId{0}, ZoneId{2}));
   REQUIRE(g.edges().size() == 2);
   CHECK(g.edges()[0].links == 1);
   CHECK_FALSE(g.edges()[0].touching);
   CHECK(g.edges()[1].shared_keyframes == 1);
-  CHECK(g.Neighbours(ZoneId(42)).empty());
+  CHECK(g.Neighbours(ZoneId{42}).empty());
 }
 
 }  // namespace

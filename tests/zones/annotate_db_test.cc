@@ -31,8 +31,8 @@ void BuildLine(const std::string& path) {
   std::vector<LinkRecord> links;
   for (int i = 1; i < 10; ++i) {
     LinkRecord l;
-    l.from = KeyframeId(i);
-    l.to = KeyframeId(i + 1);
+    l.from = KeyframeId{i};
+    l.to = KeyframeId{i + 1};
     links.push_back(l);
   }
   REQUIRE((*w)->InsertLinks(links).ok());

@@ -18,7 +18,7 @@ using test::Rect;
 std::vector<ZoneId> ZonesOf(const AnnotationReport& r, std::int64_t kf) {
   std::vector<ZoneId> out;
   for (const ZoneMember& m : r.members) {
-    if (m.keyframe == KeyframeId(kf)) out.push_back(m.zone);
+    if (m.keyframe == KeyframeId{kf}) out.push_back(m.zone);
   }
   return out;
 }
@@ -38,12 +38,12 @@ TEST_CASE("containment, doorway band and nearest-zone fallback") {
   };
   auto r = AnnotateKeyframes(set, kfs, {.band_m = 0.5});
   REQUIRE_MESSAGE(r.ok(), r.status().ToString());
-  CHECK(ZonesOf(*r, 1) == std::vector<ZoneId>{ZoneId(0)});
-  CHECK(ZonesOf(*r, 2) == std::vector<ZoneId>{ZoneId(0), ZoneId(1)});
-  CHECK(ZonesOf(*r, 3) == std::vector<ZoneId>{ZoneId(0), ZoneId(1)});
-  CHECK(ZonesOf(*r, 4) == std::vector<ZoneId>{ZoneId(1)});
-  CHECK(ZonesOf(*r, 5) == std::vector<ZoneId>{ZoneId(0)});
-  CHECK(ZonesOf(*r, 6) == std::vector<ZoneId>{ZoneId(2)});
+  CHECK(ZonesOf(*r, 1) == std::vector<ZoneId>{ZoneId{0}});
+  CHECK(ZonesOf(*r, 2) == std::vector<ZoneId>{ZoneId{0}, ZoneId{1}});
+  CHECK(ZonesOf(*r, 3) == std::vector<ZoneId>{ZoneId{0}, ZoneId{1}});
+  CHECK(ZonesOf(*r, 4) == std::vector<ZoneId>{ZoneId{1}});
+  CHECK(ZonesOf(*r, 5) == std::vector<ZoneId>{ZoneId{0}});
+  CHECK(ZonesOf(*r, 6) == std::vector<ZoneId>{ZoneId{2}});
   CHECK(ZonesOf(*r, 7).size() == 1);
   CHECK(r->keyframes == 7);
   CHECK(r->inside == 4);
@@ -56,8 +56,8 @@ TEST_CASE("containment, doorway band and nearest-zone fallback") {
 
   auto narrow = AnnotateKeyframes(set, kfs, {.band_m = 0.0});
   REQUIRE(narrow.ok());
-  CHECK(ZonesOf(*narrow, 2) == std::vector<ZoneId>{ZoneId(0)});
-  CHECK(ZonesOf(*narrow, 5) == std::vector<ZoneId>{ZoneId(0)});  // now by nearest
+  CHECK(ZonesOf(*narrow, 2) == std::vector<ZoneId>{ZoneId{0}});
+  CHECK(ZonesOf(*narrow, 5) == std::vector<ZoneId>{ZoneId{0}});  // now by nearest
   CHECK(narrow->nearest == 3);
 }
 
@@ -68,7 +68,7 @@ TEST_CASE("budget warning and splitting during annotation") {
   kfs.push_back(KeyframeAt(100, 41, 2));
   auto warned = AnnotateKeyframes(set, kfs, {.band_m = 0.1, .warn_zone_keyframes = 20});
   REQUIRE(warned.ok());
-  CHECK(warned->over_budget == std::vector<ZoneId>{ZoneId(0)});
+  CHECK(warned->over_budget == std::vector<ZoneId>{ZoneId{0}});
 
   auto split = AnnotateKeyframes(set, kfs, {.band_m = 0.1, .warn_zone_keyframes = 20,
                                              .max_zone_keyframes = 20});
@@ -92,7 +92,7 @@ TEST_CASE("keyframe-list zones use their lists, unknown ids are an error naming 
   CHECK(r->members.size() == 5);
   CHECK(r->counts == std::vector<std::uint32_t>{3, 2});
   CHECK(r->unassigned == 1);  // keyframe 5
-  CHECK(r->zones.initial_zone() == ZoneId(0));
+  CHECK(r->zones.initial_zone() == ZoneId{0});
 
   kfs.pop_back();
   kfs.erase(kfs.begin() + 3);  // drop keyframe 4, listed by H1

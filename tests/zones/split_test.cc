@@ -25,11 +25,11 @@ TEST_CASE("an oversize zone is split into parts that each fit, along its long ax
   std::vector<ZoneMember> members;
   for (int i = 0; i < 5; ++i) {
     kfs.push_back(KeyframeAt(i + 1, 5, 5));
-    members.push_back({ZoneId(0), KeyframeId(i + 1)});
+    members.push_back({ZoneId{0}, KeyframeId{i + 1}});
   }
   for (int i = 0; i < 230; ++i) {
     kfs.push_back(KeyframeAt(100 + i, ux(rng), uy(rng)));
-    members.push_back({ZoneId(1), KeyframeId(100 + i)});
+    members.push_back({ZoneId{1}, KeyframeId{100 + i}});
   }
   auto r = SplitOversizeZones(set, members, kfs, 50);
   REQUIRE_MESSAGE(r.ok(), r.status().ToString());
@@ -41,7 +41,7 @@ TEST_CASE("an oversize zone is split into parts that each fit, along its long ax
   CHECK(e.parts[0] == "Ward3/1");
   CHECK_FALSE(e.polygon_shared);
   REQUIRE(r->zones.size() == 6);
-  CHECK(r->zones.zone(ZoneId(0)).name == "Hall");
+  CHECK(r->zones.zone(ZoneId{0}).name == "Hall");
 
   std::map<ZoneId, std::uint32_t> counts;
   std::map<KeyframeId, int> times;
@@ -57,7 +57,7 @@ TEST_CASE("an oversize zone is split into parts that each fit, along its long ax
   std::map<KeyframeId, Eigen::Vector2d> pos;
   for (const auto& k : kfs) pos[k.id] = k.pose.translation().head<2>();
   for (std::size_t i = 1; i < r->zones.size(); ++i) {
-    const Zone& part = r->zones.zone(ZoneId(static_cast<std::int32_t>(i)));
+    const Zone& part = r->zones.zone(ZoneId{static_cast<std::int32_t>(i)});
     area += part.AreaM2();
     const Box2 box = BoundingBox(part.polygon);
     CHECK(box.max.y() - box.min.y() == doctest::Approx(6.0));  // cut across the long axis
@@ -75,22 +75,22 @@ TEST_CASE("keyframe-list zones split their lists, zones that fit are untouched")
   std::vector<ZoneMember> members;
   for (int i = 1; i <= 6; ++i) {
     kfs.push_back(KeyframeAt(i, i, 0));
-    members.push_back({ZoneId(i <= 5 ? 0 : 1), KeyframeId(i)});
+    members.push_back({ZoneId{i <= 5 ? 0 : 1}, KeyframeId{i}});
   }
   auto r = SplitOversizeZones(*set, members, kfs, 2);
   REQUIRE_MESSAGE(r.ok(), r.status().ToString());
   REQUIRE(r->zones.size() == 4);  // L1/1, L1/2, L1/3, H1
   CHECK(r->zones.has_keyframe_lists());
-  CHECK(r->zones.zone(ZoneId(0)).name == "L1/1");
-  CHECK(r->zones.keyframes(ZoneId(0)) == std::vector<KeyframeId>{KeyframeId(1), KeyframeId(2)});
-  CHECK(r->zones.keyframes(ZoneId(3)) == std::vector<KeyframeId>{KeyframeId(6)});
-  CHECK(r->zones.initial_zone() == ZoneId(0));
+  CHECK(r->zones.zone(ZoneId{0}).name == "L1/1");
+  CHECK(r->zones.keyframes(ZoneId{0}) == std::vector<KeyframeId>{KeyframeId{1}, KeyframeId{2}});
+  CHECK(r->zones.keyframes(ZoneId{3}) == std::vector<KeyframeId>{KeyframeId{6}});
+  CHECK(r->zones.initial_zone() == ZoneId{0});
   CHECK(r->report.entries[0].part_keyframes == std::vector<std::uint32_t>{2, 2, 1});
 }
 
 TEST_CASE("split errors: zero budget, members without poses") {
   const ZoneSet set = MakeSet({MakeZone("A", Rect(0, 0, 1, 1))});
-  const std::vector<ZoneMember> members = {{ZoneId(0), KeyframeId(1)}, {ZoneId(0), KeyframeId(2)}};
+  const std::vector<ZoneMember> members = {{ZoneId{0}, KeyframeId{1}}, {ZoneId{0}, KeyframeId{2}}};
   const std::vector<KeyframeMeta> kfs = {KeyframeAt(1, 0.5, 0.5)};
   CHECK_FALSE(SplitOversizeZones(set, members, kfs, 0).ok());
   auto r = SplitOversizeZones(set, members, kfs, 1);

@@ -60,7 +60,7 @@ TEST_CASE("grid lookup agrees with brute force on random rooms and points" *
 TEST_CASE("hysteresis: no flip-flop along a shared edge, switch once well inside") {
   const ZoneSet set = MakeSet({MakeZone("A", Rect(0, 0, 10, 5)), MakeZone("B", Rect(10, 0, 20, 5))});
   const ZoneIndex index(set, {.hysteresis_m = 0.5});
-  const ZoneId a(0), b(1);
+  const ZoneId a{0}, b{1};
   CHECK(index.GetZone(PoseFromXYYaw(9.9, 2.5, 0), kNoZone) == a);  // start: containing zone
 
   // Weaving across the shared edge by up to 0.4 m never leaves A.
@@ -89,9 +89,9 @@ TEST_CASE("a corridor narrower than twice the hysteresis can still be entered") 
   const ZoneSet set =
       MakeSet({MakeZone("Room", Rect(0, 0, 10, 10)), MakeZone("Corridor", Rect(10, 4.7, 30, 5.3))});
   const ZoneIndex index(set, {.hysteresis_m = 0.5});
-  CHECK(index.ZoneHysteresis(ZoneId(1)) < 0.3);
-  CHECK(index.ZoneHysteresis(ZoneId(0)) == 0.5);
-  CHECK(index.GetZone(PoseFromXYYaw(20, 5, 0), ZoneId(0)) == ZoneId(1));
+  CHECK(index.ZoneHysteresis(ZoneId{1}) < 0.3);
+  CHECK(index.ZoneHysteresis(ZoneId{0}) == 0.5);
+  CHECK(index.GetZone(PoseFromXYYaw(20, 5, 0), ZoneId{0}) == ZoneId{1});
 }
 
 TEST_CASE("floors: a pose is looked up only among its own floor's zones") {
@@ -99,21 +99,21 @@ TEST_CASE("floors: a pose is looked up only among its own floor's zones") {
                                MakeZone("F1", Rect(0, 0, 10, 10), 1, 1.5, 4.5),
                                MakeZone("F1b", Rect(20, 0, 30, 10), 1, 1.5, 4.5)});
   const ZoneIndex index(set);
-  CHECK(index.Lookup({5, 5, 0.2}) == ZoneId(0));
-  CHECK(index.Lookup({5, 5, 3.0}) == ZoneId(1));
+  CHECK(index.Lookup({5, 5, 0.2}) == ZoneId{0});
+  CHECK(index.Lookup({5, 5, 3.0}) == ZoneId{1});
   CHECK(index.Lookup({25, 5, 0.0}) == kNoZone);  // F1b is upstairs only
-  CHECK(index.Lookup({25, 5, 3.0}) == ZoneId(2));
-  CHECK(index.GetZone(PoseFromXYYaw(5, 5, 0, 3.0), ZoneId(0)) == ZoneId(1));  // took the lift
-  CHECK(index.Depth(ZoneId(0), {5, 5, 3.0}) < 0.0);
-  CHECK(index.Depth(ZoneId(1), {5, 5, 3.0}) == doctest::Approx(5.0));
+  CHECK(index.Lookup({25, 5, 3.0}) == ZoneId{2});
+  CHECK(index.GetZone(PoseFromXYYaw(5, 5, 0, 3.0), ZoneId{0}) == ZoneId{1});  // took the lift
+  CHECK(index.Depth(ZoneId{0}, {5, 5, 3.0}) < 0.0);
+  CHECK(index.Depth(ZoneId{1}, {5, 5, 3.0}) == doctest::Approx(5.0));
 }
 
 TEST_CASE("overlapping zones: lowest id wins a lookup, staying inside the current one") {
   const ZoneSet set = MakeSet({MakeZone("Hall", Rect(0, 0, 20, 10)), MakeZone("Bay", Rect(5, 2, 9, 8))});
   const ZoneIndex index(set);
-  CHECK(index.Lookup({7, 5, 0}) == ZoneId(0));
-  CHECK(index.GetZone(PoseFromXYYaw(7, 5, 0), ZoneId(1)) == ZoneId(1));
-  CHECK(index.GetZone(PoseFromXYYaw(7, 5, 0), ZoneId(0)) == ZoneId(0));
+  CHECK(index.Lookup({7, 5, 0}) == ZoneId{0});
+  CHECK(index.GetZone(PoseFromXYYaw(7, 5, 0), ZoneId{1}) == ZoneId{1});
+  CHECK(index.GetZone(PoseFromXYYaw(7, 5, 0), ZoneId{0}) == ZoneId{0});
 }
 
 TEST_CASE("GetZone and Lookup allocate nothing") {

@@ -31,7 +31,7 @@ TEST_CASE("GeoJSON zones keep file order, kinds, floors and z ranges") {
   auto r = ParseZoneJson(text, "z.geojson");
   REQUIRE_MESSAGE(r.ok(), r.status().ToString());
   REQUIRE(r->size() == 2);
-  const Zone& ward = r->zone(ZoneId(0));
+  const Zone& ward = r->zone(ZoneId{0});
   CHECK(ward.name == "Ward3");
   CHECK(ward.kind == "ward");
   CHECK(ward.floor == 1);
@@ -39,11 +39,11 @@ TEST_CASE("GeoJSON zones keep file order, kinds, floors and z ranges") {
   CHECK(ward.z_max_m == doctest::Approx(6.0));
   CHECK(ward.polygon.size() == 4);  // closing vertex dropped
   CHECK(ward.AreaM2() == doctest::Approx(50.0));
-  const Zone& lobby = r->zone(ZoneId(1));
+  const Zone& lobby = r->zone(ZoneId{1});
   CHECK(lobby.kind == "room");
   CHECK(lobby.z_min_m == -1.0);
   CHECK(lobby.z_max_m == 2.5);
-  CHECK(r->Find("Lobby") == ZoneId(1));
+  CHECK(r->Find("Lobby") == ZoneId{1});
   CHECK(r->Find("nope") == kNoZone);
   CHECK_FALSE(r->has_keyframe_lists());
 }
@@ -54,10 +54,10 @@ TEST_CASE("keyframe-list zones keep file order, lists and the initial zone") {
   REQUIRE_MESSAGE(r.ok(), r.status().ToString());
   REQUIRE(r->has_keyframe_lists());
   REQUIRE(r->size() == 3);
-  CHECK(r->zone(ZoneId(0)).name == "L1");
-  CHECK(r->zone(ZoneId(1)).name == "H1");
-  CHECK(r->keyframes(ZoneId(0)) == std::vector<KeyframeId>{KeyframeId(1), KeyframeId(7), KeyframeId(8)});
-  CHECK(r->initial_zone() == ZoneId(0));
+  CHECK(r->zone(ZoneId{0}).name == "L1");
+  CHECK(r->zone(ZoneId{1}).name == "H1");
+  CHECK(r->keyframes(ZoneId{0}) == std::vector<KeyframeId>{KeyframeId{1}, KeyframeId{7}, KeyframeId{8}});
+  CHECK(r->initial_zone() == ZoneId{0});
   CHECK(r->source() == "paper.json");
 }
 
@@ -135,27 +135,27 @@ TEST_CASE("GeoJSON and database records round-trip") {
   std::filesystem::remove(path);
   REQUIRE_MESSAGE(back.ok(), back.status().ToString());
   REQUIRE(back->size() == 2);
-  CHECK(back->zone(ZoneId(1)).floor == 1);
-  CHECK(back->zone(ZoneId(1)).z_min_m == 1.5);
-  CHECK(back->zone(ZoneId(0)).z_min_m == -kUnboundedZM);
-  CHECK(back->zone(ZoneId(1)).polygon == set.zone(ZoneId(1)).polygon);
+  CHECK(back->zone(ZoneId{1}).floor == 1);
+  CHECK(back->zone(ZoneId{1}).z_min_m == 1.5);
+  CHECK(back->zone(ZoneId{0}).z_min_m == -kUnboundedZM);
+  CHECK(back->zone(ZoneId{1}).polygon == set.zone(ZoneId{1}).polygon);
 
   const auto records = ToZoneRecords(set);
   REQUIRE(records.size() == 2);
   CHECK(records[1].polygon.size() == 4);
   auto again = ZoneSetFromRecords(records);
   REQUIRE(again.ok());
-  CHECK(again->zone(ZoneId(1)).name == "B");
-  CHECK(again->zone(ZoneId(1)).polygon == set.zone(ZoneId(1)).polygon);
+  CHECK(again->zone(ZoneId{1}).name == "B");
+  CHECK(again->zone(ZoneId{1}).polygon == set.zone(ZoneId{1}).polygon);
 
   // List zones come back with their members.
   std::vector<ZoneRecord> lists(1);
-  lists[0].id = ZoneId(0);
+  lists[0].id = ZoneId{0};
   lists[0].name = "L1";
-  const std::vector<ZoneMember> members = {{ZoneId(0), KeyframeId(5)}, {ZoneId(0), KeyframeId(2)}};
+  const std::vector<ZoneMember> members = {{ZoneId{0}, KeyframeId{5}}, {ZoneId{0}, KeyframeId{2}}};
   auto from_lists = ZoneSetFromRecords(lists, members);
   REQUIRE(from_lists.ok());
-  CHECK(from_lists->keyframes(ZoneId(0)) == std::vector<KeyframeId>{KeyframeId(2), KeyframeId(5)});
+  CHECK(from_lists->keyframes(ZoneId{0}) == std::vector<KeyframeId>{KeyframeId{2}, KeyframeId{5}});
   CHECK_FALSE(WriteGeoJson(*from_lists, path).ok());
 }
 

@@ -44,7 +44,7 @@ inline ZoneSet MakeSet(std::vector<Zone> zones) {
 
 inline KeyframeMeta KeyframeAt(std::int64_t id, double x, double y, double z = 0.0) {
   KeyframeMeta k;
-  k.id = KeyframeId(id);
+  k.id = KeyframeId{id};
   k.pose = PoseFromXYYaw(x, y, 0.0, z);
   return k;
 }
