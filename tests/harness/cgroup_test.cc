@@ -266,7 +266,9 @@ TEST_CASE("the map's residency is visible in the cgroup: slots taken and given b
   CHECK(full.peak_bytes >= full.usage_bytes);
   CHECK(released.peak_bytes >= full.usage_bytes);
   CHECK(rss_full.rss_anon_bytes >= rss_empty.rss_anon_bytes + touched - kMiB);
-  CHECK(rss_released.rss_bytes + given_back - kMiB <= rss_full.rss_bytes);
+  // Anonymous memory, as above: the slots are anonymous, and file-backed RSS grows on its own as
+  // code runs for the first time (Clang's static ASan runtime: about 0.2 MiB across Release).
+  CHECK(rss_released.rss_anon_bytes + given_back - kMiB <= rss_full.rss_anon_bytes);
   CHECK(full.oom_kills == 0);
 }
 
