@@ -79,7 +79,6 @@ fuzz:  # libFuzzer targets (clang-14), FUZZ_SECONDS per target (docs/reliability
 	bash scripts/fuzz.sh $(FUZZ_SECONDS)
 
 fuzz-ci:  # bounded run for `make test`: 15 s a target, two at a time, after the clang build
-	bash scripts/install-deps.sh --fuzz
 	bash scripts/fuzz.sh 15
 
 format:

@@ -5,7 +5,6 @@
 #
 #   scripts/install-deps.sh            host packages + the aarch64 cross toolchain and sysroot
 #   scripts/install-deps.sh --host     host packages only
-#   scripts/install-deps.sh --fuzz     also clang + the libFuzzer/LeakSanitizer runtime
 #
 # Why an arm64 sysroot instead of `apt-get install libopencv-dev:arm64`: on Debian 12 the two
 # architectures of libopencv-dev Conflict with each other, and libopencv-imgcodecs406:arm64
@@ -18,12 +17,10 @@
 set -euo pipefail
 
 want_arm64=1
-want_fuzz=0
 for a in "$@"; do
   case "$a" in
     --host) want_arm64=0 ;;
-    --fuzz) want_fuzz=1 ;;
-    *) echo "install-deps.sh: unknown option '$a' (known: --host, --fuzz)" >&2; exit 2 ;;
+    *) echo "install-deps.sh: unknown option '$a' (known: --host)" >&2; exit 2 ;;
   esac
 done
 
@@ -37,6 +34,9 @@ host_pkgs=(
   # scripts/train_layout_merge.py fits the layout merge model (tests/scripts runs it);
   # scripts/render_r2v.py and render_sim.py draw the training and held-out grids.
   python3-sklearn python3-pil
+  # Clang builds the host's ASan + UBSan tests (host-debug: in about 55 % of GCC's CPU time) and
+  # the libFuzzer targets; lld links them, llvm-symbolizer names the frames of a sanitizer report.
+  clang-14 libclang-rt-14-dev lld-14 llvm-14
 )
 cross_pkgs=(g++-aarch64-linux-gnu qemu-user)
 # The arm64 libraries that go into the sysroot (apt adds their whole dependency closure).
@@ -45,7 +45,6 @@ arm64_pkgs=(
   libpng-dev
   libeigen3-dev doctest-dev nlohmann-json3-dev libtomlplusplus-dev libcli11-dev
 )
-fuzz_pkgs=(clang-14 libclang-rt-14-dev llvm-14)
 
 as_root=()
 if [ "$(id -u)" -ne 0 ]; then as_root=(sudo); fi
@@ -61,7 +60,6 @@ missing() {
 
 pkgs=("${host_pkgs[@]}")
 if [ "$want_arm64" = 1 ]; then pkgs+=("${cross_pkgs[@]}"); fi
-if [ "$want_fuzz" = 1 ]; then pkgs+=("${fuzz_pkgs[@]}"); fi
 updated=0
 todo=$(missing "${pkgs[@]}")
 if [ -n "$todo" ]; then
