@@ -13,14 +13,18 @@ both, as the shipped model was trained; --learner hist fits HistGradientBoosting
 the same trees (learning rate 0.1, one thread: OMP_NUM_THREADS=1 is set here), which took a
 minute per fit where the exact learner took half an hour on issue 28's 403 training maps on a
 shared machine (issue 28's models and leave-one-out); it is written as JSON (--json) and as lib/segment/layout_merge_model.inc (--inc), which is
-compiled in. The model records the options its pieces were cut with ("trained_with": the cut
+compiled in. --bag K makes the final fit K times on the same rows, each with the maps resampled
+with replacement within their DIR (a stratified bootstrap, seeds 1..K), and joins the K into one
+model whose log-odds is the mean of theirs (the compiled-in format sums trees, so it holds a bag
+as it holds one model; issue 28, seventh round: one fit's variance moved single maps' IoU by
+points). The model records the options its pieces were cut with ("trained_with": the cut
 and rule-merge options zonemap reports with --merge-trace), and zonemap refuses to merge pieces
 cut with other options.
 
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
            [--weight DIR=W ...] [--loo DIR [--loo-models OUT_DIR]] [--param K=V ...]
-           [--learner exact|hist]
+           [--learner exact|hist] [--bag K]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
@@ -97,15 +101,55 @@ def collect(zonemap, pairs, tmp, extra, dir_weight):
     per_dir = {}
     for _, _, d in pairs:
         per_dir[d] = per_dir.get(d, 0) + 1
-    xs, ys, ws, options = [], [], [], []
-    for m, g, d in pairs:
+    xs, ys, ws, owners, options = [], [], [], [], []
+    for i, (m, g, d) in enumerate(pairs):
         x, y, trained_with = trace(zonemap, m, g, os.path.join(tmp, "trace.csv"), extra)
         xs.append(x)
         ys.append(y)
         ws.append(np.full(len(y), dir_weight.get(d, 1.0) / (max(1, len(y)) * per_dir[d])))
+        owners.append(np.full(len(y), i))
         options.append(trained_with)
     assert all(o == options[0] for o in options), "maps cut with different options"
-    return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws), options[0]
+    return (np.concatenate(xs), np.concatenate(ys), np.concatenate(ws), options[0],
+            np.concatenate(owners))
+
+
+def bootstrap_counts(map_dirs, seed):
+    """How often each map is drawn when the maps are resampled with replacement within their
+    DIR (every DIR keeps its number of maps, so its share of the weight). The DIRs draw in the
+    order of their absolute paths, so a seed gives the same sample however a path is spelled."""
+    rng = np.random.default_rng(seed)
+    counts = np.zeros(len(map_dirs))
+    by_dir = {}
+    for i, d in enumerate(map_dirs):
+        by_dir.setdefault(os.path.abspath(d), []).append(i)
+    for d in sorted(by_dir):
+        for j in rng.integers(0, len(by_dir[d]), len(by_dir[d])):
+            counts[by_dir[d][j]] += 1
+    return counts
+
+
+def bag_models(models):
+    """One model whose log-odds is the mean of the models' (zonemap sums the trees)."""
+    k = len(models)
+    trees = [dict(t, value=[v * m["learning_rate"] / k for v in t["value"]])
+             for m in models for t in m["trees"]]
+    return {"features": models[0]["features"], "init": float(np.mean([m["init"] for m in models])),
+            "learning_rate": 1.0, "trees": trees, "trained_with": models[0]["trained_with"]}
+
+
+def check_bag(model, clfs, x_check):
+    # The joined model must give the mean of the learners' own log-odds.
+    raw = np.full(len(x_check), model["init"])
+    for tree in model["trees"]:
+        for i, row in enumerate(x_check):
+            n = 0
+            while tree["feature"][n] >= 0:
+                n = tree["left"][n] if float(row[tree["feature"][n]]) <= tree["threshold"][n] \
+                    else tree["right"][n]
+            raw[i] += tree["value"][n]
+    want = np.mean([c.decision_function(x_check) for c in clfs], axis=0)
+    assert np.allclose(raw, want, atol=1e-6), "bag mismatch"
 
 
 LEARNER = "exact"  # --learner
@@ -171,23 +215,30 @@ def check_export(model, clf, x_check, trained_with):
     return model
 
 
-def train(zonemap, pairs, dir_weight, dagger_threshold, params):
+def train(zonemap, pairs, dir_weight, dagger_threshold, params, bag=0):
     with tempfile.TemporaryDirectory() as tmp:
-        x1, y1, w1, trained_with = collect(zonemap, pairs, tmp, ["--merge-oracle"] + params,
+        x1, y1, w1, trained_with, o1 = collect(zonemap, pairs, tmp, ["--merge-oracle"] + params,
                                            dir_weight)
         first = export(fit(x1, y1, w1), x1[:200], trained_with)
         first_json = os.path.join(tmp, "first.json")
         with open(first_json, "w") as f:
             json.dump(first, f)
-        x2, y2, w2, _ = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
+        x2, y2, w2, _, o2 = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
                                                     f"layout_merge_threshold={dagger_threshold}"]
                              + params, dir_weight)
         x, y, w = np.concatenate([x1, x2]), np.concatenate([y1, y2]), np.concatenate([w1, w2])
-        return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y2), y.mean()
+        if not bag:
+            return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y2), y.mean()
+        owner = np.concatenate([o1, o2])
+        clfs = [fit(x, y, w * bootstrap_counts([d for _, _, d in pairs], s)[owner])
+                for s in range(1, bag + 1)]
+        model = bag_models([export(c, x[:200], trained_with) for c in clfs])
+        check_bag(model, clfs, x[:50])
+        return model, len(y1), len(y2), y.mean()
 
 
 def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshold, params,
-                  keep=None):
+                  keep=None, bag=0):
     """For each map of loo_dir (which is also a training DIR): train without it, score it."""
     print("| map | precision % | recall % | mean IoU % | segments |")
     print("|---|---:|---:|---:|---:|")
@@ -195,7 +246,7 @@ def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshol
     for m, g, _ in maps([loo_dir], set()):
         name = os.path.basename(m)[: -len("_map.png")]
         model, _, _, _ = train(zonemap, list(maps(dirs, {name})), dir_weight, dagger_threshold,
-                               params)
+                               params, bag)
         with tempfile.TemporaryDirectory() as tmp:
             # The fold's model is written once: where --loo-models keeps it, else a scratch file.
             if keep:
@@ -240,6 +291,7 @@ def main(argv):
     ap.add_argument("--loo-models", metavar="OUT_DIR")
     ap.add_argument("--param", action="append", default=[], metavar="K=V")
     ap.add_argument("--learner", choices=["exact", "hist"], default="exact")
+    ap.add_argument("--bag", type=int, default=0, metavar="K")
     a = ap.parse_args(argv)
     global LEARNER
     LEARNER = a.learner
@@ -249,9 +301,9 @@ def main(argv):
     zonemap, dirs = a.zonemap, a.dirs
     if loo_dir:
         return leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, a.dagger_threshold,
-                             params, a.loo_models)
+                             params, a.loo_models, a.bag)
     pairs = list(maps(dirs, exclude))
-    model, n1, n2, share = train(zonemap, pairs, dir_weight, a.dagger_threshold, params)
+    model, n1, n2, share = train(zonemap, pairs, dir_weight, a.dagger_threshold, params, a.bag)
     print(f"{len(pairs)} maps, {n1} oracle + {n2} model-driven pair rows, "
           f"{100 * share:.0f} % one room", file=sys.stderr)
     text = json.dumps(model, separators=(",", ":"))

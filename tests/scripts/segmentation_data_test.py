@@ -5,7 +5,8 @@ holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves 
 --laser's laser/ is reproducible and its unknown band and dotted faces only make cells unknown;
 render_sim.py's grid and ground truth
 agree in size, its corridor segments are one room; train_layout_merge.py fits a model that
-zonemap runs, and --loo-models keeps the leave-one-out's models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
+zonemap runs, --bag joins bootstrap fits
+into one model zonemap runs, and --loo-models keeps the leave-one-out's models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
 segmentation_identical.py tells identical zones from moved ones.
 Behaviour, not figures.
 
@@ -156,6 +157,31 @@ run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robo
                       "--out", os.devnull, "--merge-model", model, "--json"],
                      capture_output=True, text=True)
 check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs the model")
+
+# --bag 2: two fits on maps resampled within their DIR, joined into one model (twice the trees,
+# the learners' mean log-odds, checked inside the script), reproducible, run by zonemap.
+bags = []
+for out in ("bag_a.json", "bag_b.json"):
+    subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
+                    os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
+                    "--json", os.path.join(work, out), "--learner", "hist", "--bag", "2"],
+                   check=True, capture_output=True)
+    bags.append(open(os.path.join(work, out)).read())
+one, two = json.load(open(model)), json.loads(bags[0])
+check(bags[0] == bags[1] and len(two["trees"]) == 2 * len(one["trees"]) and
+      two["trained_with"] == one["trained_with"], "--bag 2: two joined fits, reproducibly")
+run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
+                                                               name + "_map.png"),
+                      "--out", os.devnull, "--merge-model", os.path.join(work, "bag_a.json"),
+                      "--json"], capture_output=True, text=True)
+check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs a bagged model")
+sys.path.insert(0, scripts)
+import train_layout_merge  # noqa: E402
+counts = train_layout_merge.bootstrap_counts(["a", "a", "a", "b", "b"], 1)
+check(counts[:3].sum() == 3 and counts[3:].sum() == 2 and
+      (counts == train_layout_merge.bootstrap_counts(["a", "a", "a", "b", "b"], 1)).all() and
+      not all((train_layout_merge.bootstrap_counts(["a"] * 8, s) == 1).all() for s in (1, 2, 3)),
+      "bootstrap_counts: every DIR keeps its number of maps, the same for a seed")
 
 # --loo with --loo-models keeps each fold's model (trained without its map) under the map's name.
 kept = os.path.join(work, "loo_models")
