@@ -3,11 +3,11 @@
 render_r2v.py's three variants share one ground truth and the robot/ variant is reproducible and
 holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves augmentations out,
 --laser's laser/ is reproducible and its unknown band and dotted faces only make cells unknown;
-render_sim.py's grid and ground truth
-agree in size, its corridor segments are one room; train_layout_merge.py fits a model that
-zonemap runs, --bag joins bootstrap fits
-into one model zonemap runs, and --loo-models keeps the leave-one-out's models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
-segmentation_identical.py tells identical zones from moved ones.
+render_sim.py's grid and ground truth agree in size, its corridor segments are one room;
+train_layout_merge.py fits a model that zonemap runs, --bag joins bootstrap fits into one model
+zonemap runs, and --loo-models keeps the leave-one-out's models; score_sets.py passes --param
+on, segmentation_border_probe.py scores as zonemap does; segmentation_identical.py tells
+identical zones from moved ones.
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
