@@ -140,16 +140,8 @@ def bag_models(models):
 
 def check_bag(model, clfs, x_check):
     # The joined model must give the mean of the learners' own log-odds.
-    raw = np.full(len(x_check), model["init"])
-    for tree in model["trees"]:
-        for i, row in enumerate(x_check):
-            n = 0
-            while tree["feature"][n] >= 0:
-                n = tree["left"][n] if float(row[tree["feature"][n]]) <= tree["threshold"][n] \
-                    else tree["right"][n]
-            raw[i] += tree["value"][n]
     want = np.mean([c.decision_function(x_check) for c in clfs], axis=0)
-    assert np.allclose(raw, want, atol=1e-6), "bag mismatch"
+    assert np.allclose(log_odds(model, x_check), want, atol=1e-6), "bag mismatch"
 
 
 LEARNER = "exact"  # --learner
@@ -200,17 +192,23 @@ def export_hist(clf, x_check, trained_with):
     return check_export(model, clf, x_check, trained_with)
 
 
-def check_export(model, clf, x_check, trained_with):
-    # The exported form must give scikit-learn's own answer (zonemap evaluates it the same way).
-    raw = np.full(len(x_check), model["init"])
+def log_odds(model, x):
+    """The exported model's log-odds for each row of x, evaluated as zonemap evaluates it."""
+    raw = np.full(len(x), model["init"])
     for tree in model["trees"]:
-        for i, row in enumerate(x_check):
+        for i, row in enumerate(x):
             n = 0
             while tree["feature"][n] >= 0:
                 n = tree["left"][n] if float(row[tree["feature"][n]]) <= tree["threshold"][n] \
                     else tree["right"][n]
             raw[i] += model["learning_rate"] * tree["value"][n]
-    assert np.allclose(raw, clf.decision_function(x_check), atol=1e-6), "export mismatch"
+    return raw
+
+
+def check_export(model, clf, x_check, trained_with):
+    # The exported form must give scikit-learn's own answer (zonemap evaluates it the same way).
+    assert np.allclose(log_odds(model, x_check), clf.decision_function(x_check), atol=1e-6), \
+        "export mismatch"
     model["trained_with"] = trained_with  # last, so a record alone changes only the last line
     return model
 
