@@ -27,10 +27,9 @@
 #include "arena/sanitizers.h"
 #include "arena/scratch_malloc.h"
 
-// Which sanitizer owns malloc, if any: ZM_ALLOC_ASAN (AddressSanitizer, whose malloc hooks the
-// tests count through) and ZM_SANITIZER_OWNS_MALLOC (ASan, TSan or MSan).
-#define ZM_ALLOC_ASAN ZM_ASAN
-#if ZM_ALLOC_ASAN || defined(__SANITIZE_THREAD__)
+// Which sanitizer owns malloc, if any: ZM_ASAN (arena/sanitizers.h; AddressSanitizer, whose
+// malloc hooks the tests count through) and ZM_SANITIZER_OWNS_MALLOC (ASan, TSan or MSan).
+#if ZM_ASAN || defined(__SANITIZE_THREAD__)
 #define ZM_SANITIZER_OWNS_MALLOC 1
 #elif defined(__has_feature)
 #if __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)

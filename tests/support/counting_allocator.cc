@@ -29,7 +29,7 @@ void OnHeapMalloc() noexcept { ++t_mallocs; }
 
 #include "arena/replace_allocator.h"
 
-#if ZM_ALLOC_ASAN
+#if ZM_ASAN
 extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*,
                                                                              std::size_t),
                                                          void (*free_hook)(const volatile void*));
@@ -44,7 +44,7 @@ std::uint64_t ThreadMallocs() { return t_mallocs; }
 MallocCounter::MallocCounter() {
   // Without a count nothing would be counted and every "no malloc" check would pass silently:
   // refuse to run instead.
-#if ZM_ALLOC_ASAN
+#if ZM_ASAN
   static const bool installed = __sanitizer_install_malloc_and_free_hooks(OnMalloc, OnFree) != 0;
   if (!installed) std::abort();
 #elif ZM_SANITIZER_OWNS_MALLOC

@@ -16,17 +16,14 @@
 #include "arena/sanitizers.h"
 
 #if ZM_ASAN
-#define ZM_MALLOC_PROBE_ASAN 1
 extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*,
                                                                              std::size_t),
                                                          void (*free_hook)(const volatile void*));
-#else
-#define ZM_MALLOC_PROBE_ASAN 0
 #endif
 
 namespace zm::test {
 
-#if ZM_MALLOC_PROBE_ASAN
+#if ZM_ASAN
 inline thread_local std::uint64_t t_probe_mallocs = 0;
 inline void ProbeOnMalloc(const volatile void*, std::size_t) { ++t_probe_mallocs; }
 inline void ProbeOnFree(const volatile void*) {}
@@ -35,7 +32,7 @@ inline void ProbeOnFree(const volatile void*) {}
 class MallocProbe {
  public:
   MallocProbe() {
-#if ZM_MALLOC_PROBE_ASAN
+#if ZM_ASAN
     static const bool installed =
         __sanitizer_install_malloc_and_free_hooks(ProbeOnMalloc, ProbeOnFree) != 0;
     REQUIRE(installed);
@@ -46,16 +43,16 @@ class MallocProbe {
   }
   // Zero when nothing was allocated (see the file comment for what each build can see).
   [[nodiscard]] std::uint64_t count() const {
-#if ZM_MALLOC_PROBE_ASAN
+#if ZM_ASAN
     return t_probe_mallocs - start_;
 #else
     return InUse() - start_;
 #endif
   }
-  [[nodiscard]] static constexpr bool counts_every_call() { return ZM_MALLOC_PROBE_ASAN != 0; }
+  [[nodiscard]] static constexpr bool counts_every_call() { return ZM_ASAN != 0; }
 
  private:
-#if !ZM_MALLOC_PROBE_ASAN
+#if !ZM_ASAN
   static std::uint64_t InUse() {
     const struct mallinfo2 m = mallinfo2();
     return m.uordblks + m.hblkhd;
