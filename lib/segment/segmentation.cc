@@ -96,7 +96,12 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
   const double res = grid.resolution_m;
   Segmentation seg;
   try {
-    Pieces pieces = CutPieces(grid, layout ? LayoutPieceCut(options.cut) : options.cut);
+    // A robot's grid is cut with fewer kinds of line than a clean plan (CutOptions::
+    // layout_rough_*); the model learns which cut made its pieces (the map_rough_cut feature).
+    seg.rough_face_share = GridRoughFaceShare(grid);
+    seg.rough_cut = layout && seg.rough_face_share > options.cut.layout_rough_face_share;
+    Pieces pieces = CutPieces(grid, layout ? LayoutPieceCut(options.cut, seg.rough_cut)
+                                           : options.cut);
     seg.free_cleaned = pieces.free_cleaned;
     seg.wall_angle_rad = pieces.walls.angle_rad;
     seg.labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
@@ -124,6 +129,7 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       in.rule_labels = rules.labels(box).clone();
       in.doorways = pieces.walls.doorways(box);  // views: `pieces` outlives the merge
       in.opening_kinds = pieces.walls.opening_kinds(box);
+      in.rough_cut = seg.rough_cut;
       ZM_ASSIGN_OR_RETURN(
           const int merged,
           MergeLayoutPieces(in, model, options.learned.layout_merge_threshold, trace));
