@@ -253,11 +253,16 @@ check(zones_of(plan_png, "--merge-model", rough_joined, *rough) == zones_of(plan
 check(zones_of(robot_png, "--merge-model", rough_joined, *rough) ==
       zones_of(robot_png, "--merge-model", rough_model, *rough),
       "map_rough_cut gate: a rough grid gets the robot half's zones, cut without caps")
-for robot, why in ((model, "no map would reach it"), (rough_model, "between")):
+never_rough = json.load(open(rough_model))
+never_rough["trained_with"]["cut"]["layout_rough_face_share"] = 1.0
+never_rough_model = os.path.join(work, "never_rough.json")
+json.dump(never_rough, open(never_rough_model, "w"))
+for robot, gate, why in ((never_rough_model, "0.5", "no map would reach it"),
+                         (rough_model, "1", "between")):
     bad = subprocess.run([sys.executable, os.path.join(scripts, "gate_layout_merge.py"),
                           os.path.join(project, "lib", "segment", "layout_merge_model.inc"),
-                          robot, "--gate", "0.5" if robot == model else "1",
-                          "--gate-feature", "map_rough_cut"], capture_output=True, text=True)
+                          robot, "--gate", gate, "--gate-feature", "map_rough_cut"],
+                         capture_output=True, text=True)
     check(bad.returncode != 0 and why in bad.stderr and "Traceback" not in bad.stderr,
           "gate_layout_merge.py refuses, in one line: " + why)
 
