@@ -75,7 +75,20 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
     part.origin_m =
         grid.origin_m +
         Eigen::Vector2d(known.x, grid.cells.rows - known.y - known.height) * grid.resolution_m;
-    ZM_ASSIGN_OR_RETURN(Segmentation inner, SegmentRooms(part, options, model, trace));
+    // The trace's ground truth is the whole grid's: the part's cell (0, 0) is its cell at
+    // known.tl(). Without this view every pair of a cropped map was labelled from cells
+    // known.tl() away (c375483 until the eighth round: map15's and map17's training rows).
+    LayoutMergeTrace part_trace = trace;
+    cv::Mat gt_part;
+    if (trace.ground_truth != nullptr) {
+      // known.tl() >= (0, 0), so the overlap starts there unless it is empty.
+      const cv::Rect in_gt =
+          known & cv::Rect(0, 0, trace.ground_truth->cols, trace.ground_truth->rows);
+      gt_part = in_gt.area() > 0 ? (*trace.ground_truth)(in_gt)
+                                 : cv::Mat(0, 0, trace.ground_truth->type());
+      part_trace.ground_truth = &gt_part;
+    }
+    ZM_ASSIGN_OR_RETURN(Segmentation inner, SegmentRooms(part, options, model, part_trace));
     Segmentation whole = std::move(inner);
     cv::Mat labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
     cv::Mat free_cleaned = cv::Mat::zeros(grid.cells.size(), CV_8U);

@@ -1050,6 +1050,45 @@ TEST_CASE("a rough grid's layout pieces are cut with the rough-grid options, a c
   }
 }
 
+// The trace of `grid` against `truth` (oracle merges), as text.
+std::string OracleTrace(const OccupancyGrid& grid, const cv::Mat& truth, const std::string& name) {
+  const auto dir = TempDir(name);
+  const std::string csv_path = (dir / "trace.csv").string();
+  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
+  REQUIRE(csv != nullptr);
+  LayoutMergeTrace trace;
+  trace.ground_truth = &truth;
+  trace.csv = csv;
+  trace.oracle = true;
+  const auto seg = SegmentRooms(grid, SegmentOptions{}, DefaultLayoutMergeModel(), trace);
+  std::fclose(csv);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  std::ifstream in(csv_path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+TEST_CASE("a cropped grid's trace is labelled from its own cells of the ground truth") {
+  // The floor inside 30 m of unknown on every side: only the known part (plus a 10 m rim) is
+  // segmented, and the ground truth must be read at the same cells.
+  cv::Mat truth;
+  const OccupancyGrid floor = SyntheticFloor(&truth);
+  constexpr int kPad = 600;  // 30 m at 0.05 m
+  OccupancyGrid padded = floor;
+  cv::copyMakeBorder(floor.cells, padded.cells, kPad, kPad, kPad, kPad, cv::BORDER_CONSTANT,
+                     cv::Scalar(kCellUnknown));
+  cv::Mat padded_truth;
+  cv::copyMakeBorder(truth, padded_truth, kPad, kPad, kPad, kPad, cv::BORDER_CONSTANT,
+                     cv::Scalar(0));
+  const std::string plain = OracleTrace(floor, truth, "trace_plain");
+  const std::string cropped = OracleTrace(padded, padded_truth, "trace_cropped");
+  CHECK_FALSE(plain.empty());
+  CHECK(cropped == plain);
+  // Labelled at all: some pair is one room (the oracle joins each room's pieces).
+  CHECK(plain.find(",1,") != std::string::npos);
+}
+
 TEST_CASE("rough-grid options out of range are one clear error") {
   cv::Mat truth;
   const OccupancyGrid grid = SyntheticFloor(&truth);
