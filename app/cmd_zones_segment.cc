@@ -178,6 +178,9 @@ void Run(const SegmentOpts& o, CommandContext& ctx) {
     if (!seg.ok()) return ctx.Fail(kCmd, o.map + ": " + seg.status().message());
     report["source"] = o.map;
     report["segment_ms"] = seg->runtime_ms;
+    // Which layout cut ran: a robot's rough grid is cut with CutOptions::layout_rough_*.
+    report["rough_face_share"] = seg->rough_face_share;
+    report["rough_cut"] = seg->rough_cut;
     if (!o.labels_png.empty()) {
       if (Status st = WriteSegmentationPng(o.labels_png, *grid, *seg); !st.ok()) {
         return ctx.Fail(kCmd, st);

@@ -57,7 +57,8 @@ FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "
             "rule_open_share", "map_free_m2", "map_rule_segment_m2", "doorway_share",
             "free_end_share", "corner_share", "mouth_share", "facade_share",
             "cap_share", "map_specks_per_100m2", "map_blobs_per_100m2",
-            "map_loose_occupied_share", "map_rough_face_share", "map_unknown_border_share"]
+            "map_loose_occupied_share", "map_rough_face_share", "map_unknown_border_share",
+            "map_rough_cut"]
 
 
 def maps(dirs, exclude):

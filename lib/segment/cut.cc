@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <map>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -289,8 +290,8 @@ int CellsFromMetres(double m, double resolution_m) {
 }
 
 Status CheckCutOptions(const CutOptions& o) {
-  auto bad = [](const char* what) {
-    return InvalidArgument(std::string("segmentation option ") + what);
+  auto bad = [](const std::string& what) {
+    return InvalidArgument("segmentation option " + what);
   };
   if (!(o.seed_level_step_m > 0.0)) return bad("seed_level_step_m must be > 0");
   if (!(o.seed_min_level_m > 0.0 && o.seed_max_level_m >= o.seed_min_level_m)) {
@@ -304,8 +305,16 @@ Status CheckCutOptions(const CutOptions& o) {
   }
   if (o.layout_line_max_m < 0.0 || o.layout_mouth_max_m < 0.0 || o.layout_facade_max_m < 0.0 ||
       o.layout_corner_max_m < 0.0 || o.layout_cap_max_m < 0.0 || o.layout_end_min_extent_m < 0.0 ||
-      o.layout_seedless_min_area_m2 < 0.0) {
+      o.layout_seedless_min_area_m2 < 0.0 || o.layout_rough_corner_max_m < 0.0 ||
+      o.layout_rough_cap_max_m < 0.0) {
     return bad("the layout_* lengths and areas must be >= 0");
+  }
+  if (!(o.layout_rough_face_share >= 0.0 && o.layout_rough_face_share <= 1.0)) {
+    char got[32];
+    std::snprintf(got, sizeof got, "%g", o.layout_rough_face_share);
+    return bad(std::string("layout_rough_face_share is a share of wall faces: it must be in "
+                           "[0, 1], got ") +
+               got);
   }
   if (o.wall_min_length_m < 0.0 || o.wall_line_gap_m < 0.0 || o.door_max_width_m < 0.0 ||
       o.opening_max_width_m < 0.0 || o.facade_opening_max_width_m < 0.0 ||
@@ -320,7 +329,49 @@ Status CheckCutOptions(const CutOptions& o) {
   return Status::Ok();
 }
 
-CutOptions LayoutPieceCut(const CutOptions& o) {
+GridFaceShares MeasureGridFaces(const cv::Mat& free, const cv::Mat& occupied) {
+  const int rows = free.rows, cols = free.cols;
+  auto is_free = [&](int r, int c) {
+    return r >= 0 && c >= 0 && r < rows && c < cols && free.at<std::uint8_t>(r, c) != 0;
+  };
+  auto is_occ = [&](int r, int c) {
+    return r >= 0 && c >= 0 && r < rows && c < cols && occupied.at<std::uint8_t>(r, c) != 0;
+  };
+  constexpr int kDr[4] = {0, 1, 0, -1}, kDc[4] = {1, 0, -1, 0};
+  double border = 0, unknown = 0, faces = 0, straight = 0;
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* row = free.ptr<std::uint8_t>(r);
+    for (int c = 0; c < cols; ++c) {
+      if (row[c] == 0) continue;
+      for (int k = 0; k < 4; ++k) {
+        const int nr = r + kDr[k], nc = c + kDc[k];
+        if (is_free(nr, nc)) continue;
+        ++border;
+        if (!is_occ(nr, nc)) {
+          ++unknown;
+          continue;
+        }
+        ++faces;
+        bool on_run = true;
+        for (int side : {-1, 1}) {
+          const int sr = r + side * kDc[k], sc = c + side * kDr[k];
+          on_run = on_run && is_free(sr, sc) && is_occ(sr + kDr[k], sc + kDc[k]);
+        }
+        if (on_run) ++straight;
+      }
+    }
+  }
+  GridFaceShares s;
+  s.rough = 1.0 - straight / std::max(faces, 1.0);
+  s.unknown_border = unknown / std::max(border, 1.0);
+  return s;
+}
+
+double GridRoughFaceShare(const OccupancyGrid& grid) {
+  return MeasureGridFaces(grid.cells == kCellFree, grid.cells == kCellOccupied).rough;
+}
+
+CutOptions LayoutPieceCut(const CutOptions& o, bool rough_grid) {
   // Which option each layout_* option stands in for when the layout pieces are cut.
   constexpr std::pair<double CutOptions::*, double CutOptions::*> kLayoutFor[] = {
       {&CutOptions::opening_max_width_m, &CutOptions::layout_line_max_m},
@@ -334,6 +385,10 @@ CutOptions LayoutPieceCut(const CutOptions& o) {
   };
   CutOptions p = o;
   for (const auto& [field, layout] : kLayoutFor) p.*field = o.*layout;
+  if (rough_grid) {
+    p.corner_opening_max_width_m = o.layout_rough_corner_max_m;
+    p.cap_opening_max_width_m = o.layout_rough_cap_max_m;
+  }
   return p;
 }
 

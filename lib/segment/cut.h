@@ -97,6 +97,15 @@ struct CutOptions {
   double layout_end_min_extent_m = 0.0;  // (fourth round) opening_end_min_extent_m of the layout
                                          // pieces
   double layout_seedless_min_area_m2 = 0.2;
+  // (issue 28, eighth round) A robot's grid: when more than `layout_rough_face_share` of the
+  // grid's wall faces are rough (GridFaceShares::rough, measured on the grid before any
+  // cleaning), its layout pieces are cut with the two lengths below instead of
+  // layout_corner_max_m and layout_cap_max_m. Corners and caps were added for the closets of
+  // clean plans; a SLAM grid's noise, leaves and clutter make a free wall end or a corner at
+  // every bump. 1 = no grid is rough (every share is at most 1).
+  double layout_rough_face_share = 1.0;
+  double layout_rough_corner_max_m = 3.0;
+  double layout_rough_cap_max_m = 3.5;
 };
 
 // The fields by name, in the order of `--param` and of a layout merge model's record.
@@ -130,14 +139,38 @@ inline constexpr OptionField<CutOptions> kCutOptionFields[] = {
     {"layout_cap_max_m", &CutOptions::layout_cap_max_m},
     {"layout_end_min_extent_m", &CutOptions::layout_end_min_extent_m},
     {"layout_seedless_min_area_m2", &CutOptions::layout_seedless_min_area_m2},
+    {"layout_rough_face_share", &CutOptions::layout_rough_face_share},
+    {"layout_rough_corner_max_m", &CutOptions::layout_rough_corner_max_m},
+    {"layout_rough_cap_max_m", &CutOptions::layout_rough_cap_max_m},
 };
 
 // An InvalidArgument naming the first option out of its range.
 [[nodiscard]] Status CheckCutOptions(const CutOptions& o);
 
+// How a grid's free space meets what is not free, counted over the edges between a free cell and
+// a cell that is not (4-neighbours; outside the image counts as unknown). A plan drawn by hand
+// has straight wall faces and is walled all round; a robot's grid has noise, clutter and
+// unexplored gaps.
+struct GridFaceShares {
+  double rough = 0.0;           // of the edges facing an occupied cell (a wall face), the share
+                                // whose face does not continue straight: the two cells beside
+                                // this one, across the edge, are not both free with an occupied
+                                // cell beyond them
+  double unknown_border = 0.0;  // of all such edges, the share facing neither a free nor an
+                                // occupied cell (unexplored, or a gap)
+};
+// `free` and `occupied`: CV_8UC1 of one size, nonzero = free / occupied.
+[[nodiscard]] GridFaceShares MeasureGridFaces(const cv::Mat& free, const cv::Mat& occupied);
+
+// The grid's rough face share as read (free and occupied cells, before any cleaning): the
+// quantity layout_rough_face_share is compared with.
+[[nodiscard]] double GridRoughFaceShare(const OccupancyGrid& grid);
+
 // The options the layout pieces are cut with: every thin wall end continued across the building,
-// wide mouths and facades, small enclosed spaces their own pieces.
-[[nodiscard]] CutOptions LayoutPieceCut(const CutOptions& o);
+// wide mouths and facades, small enclosed spaces their own pieces; on a rough grid (its
+// GridRoughFaceShare above layout_rough_face_share) corners and caps as
+// layout_rough_corner_max_m and layout_rough_cap_max_m say.
+[[nodiscard]] CutOptions LayoutPieceCut(const CutOptions& o, bool rough_grid = false);
 
 // Free space cut into pieces, inside `box` (the bounding box of free space plus a border; every
 // image but free_cleaned and walls is of the box's size).

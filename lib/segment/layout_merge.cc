@@ -126,6 +126,7 @@ struct MapContext {
   double loose_occupied_share = 0.0;
   double rough_face_share = 0.0;
   double unknown_border_share = 0.0;
+  bool rough_cut = false;
 };
 
 constexpr double kSpeckMaxM = 0.25;  // map-level features (kLayoutFeatureNames)
@@ -152,47 +153,6 @@ void OccupiedComponents(const cv::Mat& occupied, double res, MapContext* map) {
   map->specks_per_100m2 = specks * per_100m2;
   map->blobs_per_100m2 = blobs * per_100m2;
   map->loose_occupied_share = loose / std::max(all, 1.0);
-}
-
-// The wall faces' part of MapContext, on the grid's own free cells (the pieces leave a rim of
-// free cells along the walls out): of the edges between a free cell and a cell that is not
-// free, the share facing an unknown cell (neither free nor occupied, or outside), and of those
-// facing an occupied cell (a wall face), the share whose face does not continue straight: the
-// two cells beside this one, across the edge, must be free with an occupied cell beyond them.
-void GridFaces(const cv::Mat& free, const cv::Mat& occupied, MapContext* map) {
-  const int rows = free.rows, cols = free.cols;
-  auto is_free = [&](int r, int c) {
-    return r >= 0 && c >= 0 && r < rows && c < cols && free.at<std::uint8_t>(r, c) != 0;
-  };
-  auto is_occ = [&](int r, int c) {
-    return r >= 0 && c >= 0 && r < rows && c < cols && occupied.at<std::uint8_t>(r, c) != 0;
-  };
-  constexpr int kDr[4] = {0, 1, 0, -1}, kDc[4] = {1, 0, -1, 0};
-  double border = 0, unknown = 0, faces = 0, straight = 0;
-  for (int r = 0; r < rows; ++r) {
-    const std::uint8_t* row = free.ptr<std::uint8_t>(r);
-    for (int c = 0; c < cols; ++c) {
-      if (row[c] == 0) continue;
-      for (int k = 0; k < 4; ++k) {
-        const int nr = r + kDr[k], nc = c + kDc[k];
-        if (is_free(nr, nc)) continue;
-        ++border;
-        if (!is_occ(nr, nc)) {
-          ++unknown;
-          continue;
-        }
-        ++faces;
-        bool on_run = true;
-        for (int side : {-1, 1}) {
-          const int sr = r + side * kDc[k], sc = c + side * kDr[k];
-          on_run = on_run && is_free(sr, sc) && is_occ(sr + kDr[k], sc + kDc[k]);
-        }
-        if (on_run) ++straight;
-      }
-    }
-  }
-  map->rough_face_share = 1.0 - straight / std::max(faces, 1.0);
-  map->unknown_border_share = unknown / std::max(border, 1.0);
 }
 
 std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb, const Contact& c,
@@ -257,7 +217,8 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       map.blobs_per_100m2,
       map.loose_occupied_share,
       map.rough_face_share,
-      map.unknown_border_share};
+      map.unknown_border_share,
+      map.rough_cut ? 1.0 : 0.0};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
@@ -383,7 +344,13 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
     }
     context.free_m2 = cells * res * res;
     OccupiedComponents(in.occupied, res, &context);
-    GridFaces(in.free.empty() ? cv::Mat(labels > 0) : in.free, in.occupied, &context);
+    // The wall faces on the grid's own free cells (the pieces leave a rim of free cells along
+    // the walls out) against the occupied cells no piece took.
+    const GridFaceShares faces =
+        MeasureGridFaces(in.free.empty() ? cv::Mat(labels > 0) : in.free, in.occupied);
+    context.rough_face_share = faces.rough;
+    context.unknown_border_share = faces.unknown_border;
+    context.rough_cut = in.rough_cut;
     context.rule_segment_m2 = rule_cells.empty()
                                   ? context.free_m2
                                   : context.free_m2 / static_cast<double>(rule_cells.size());

@@ -27,7 +27,7 @@ namespace zm {
 
 // The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
 // in metres, areas in m2. The order is the model's input order.
-inline constexpr int kLayoutFeatureCount = 40;
+inline constexpr int kLayoutFeatureCount = 41;
 // One feature, or one family, per line with its meaning.
 // clang-format off
 inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
@@ -66,6 +66,9 @@ inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureName
                              // whose face does not continue straight on both sides
     "map_unknown_border_share",  // share of the free cells' border edges that face neither
                                  // a free nor an occupied cell (unexplored, or a gap)
+    "map_rough_cut",  // (eighth round) 1 when the pieces were cut with the rough-grid options
+                      // (CutOptions::layout_rough_*), else 0: a model joined from a clean-plan
+                      // and a robot-grid half chooses its half by it (gate_layout_merge.py)
 };
 // clang-format on
 
@@ -133,6 +136,7 @@ struct LayoutMergeInputs {
   cv::Mat opening_kinds;        // CV_8UC1, labels' size, OpeningKind bits; may be empty
   cv::Mat free;                 // CV_8UC1, labels' size, nonzero = a free cell of the grid (the
                                 // wall-face and unknown-border features); empty: the pieces
+  bool rough_cut = false;       // the pieces were cut with the rough-grid options (a feature)
 };
 
 // Merges pieces greedily while the best pair's probability is >= threshold; returns the number

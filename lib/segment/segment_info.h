@@ -25,6 +25,8 @@ struct Segmentation {
   std::vector<SegmentInfo> segments;
   cv::Mat free_cleaned;         // CV_8UC1, 255 where the cleaned grid is free
   double wall_angle_rad = 0.0;  // dominant wall direction found by decluttering
+  double rough_face_share = 0.0;  // the grid's, as read (cut.h, GridRoughFaceShare)
+  bool rough_cut = false;  // the layout pieces were cut with the rough-grid options (cut.h)
   double runtime_ms = 0.0;
 };
 

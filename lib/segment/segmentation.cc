@@ -75,7 +75,20 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
     part.origin_m =
         grid.origin_m +
         Eigen::Vector2d(known.x, grid.cells.rows - known.y - known.height) * grid.resolution_m;
-    ZM_ASSIGN_OR_RETURN(Segmentation inner, SegmentRooms(part, options, model, trace));
+    // The trace's ground truth is the whole grid's: the part's cell (0, 0) is its cell at
+    // known.tl(). Without this view every pair of a cropped map was labelled from cells
+    // known.tl() away (c375483 until the eighth round: map15's and map17's training rows).
+    LayoutMergeTrace part_trace = trace;
+    cv::Mat gt_part;
+    if (trace.ground_truth != nullptr) {
+      // known.tl() >= (0, 0), so the overlap starts there unless it is empty.
+      const cv::Rect in_gt =
+          known & cv::Rect(0, 0, trace.ground_truth->cols, trace.ground_truth->rows);
+      gt_part = in_gt.area() > 0 ? (*trace.ground_truth)(in_gt)
+                                 : cv::Mat(0, 0, trace.ground_truth->type());
+      part_trace.ground_truth = &gt_part;
+    }
+    ZM_ASSIGN_OR_RETURN(Segmentation inner, SegmentRooms(part, options, model, part_trace));
     Segmentation whole = std::move(inner);
     cv::Mat labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
     cv::Mat free_cleaned = cv::Mat::zeros(grid.cells.size(), CV_8U);
@@ -96,7 +109,12 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
   const double res = grid.resolution_m;
   Segmentation seg;
   try {
-    Pieces pieces = CutPieces(grid, layout ? LayoutPieceCut(options.cut) : options.cut);
+    // A robot's grid is cut with fewer kinds of line than a clean plan (CutOptions::
+    // layout_rough_*); the model learns which cut made its pieces (the map_rough_cut feature).
+    seg.rough_face_share = GridRoughFaceShare(grid);
+    seg.rough_cut = layout && seg.rough_face_share > options.cut.layout_rough_face_share;
+    Pieces pieces = CutPieces(grid, layout ? LayoutPieceCut(options.cut, seg.rough_cut)
+                                           : options.cut);
     seg.free_cleaned = pieces.free_cleaned;
     seg.wall_angle_rad = pieces.walls.angle_rad;
     seg.labels = cv::Mat::zeros(grid.cells.size(), CV_32S);
@@ -124,6 +142,7 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       in.rule_labels = rules.labels(box).clone();
       in.doorways = pieces.walls.doorways(box);  // views: `pieces` outlives the merge
       in.opening_kinds = pieces.walls.opening_kinds(box);
+      in.rough_cut = seg.rough_cut;
       ZM_ASSIGN_OR_RETURN(
           const int merged,
           MergeLayoutPieces(in, model, options.learned.layout_merge_threshold, trace));

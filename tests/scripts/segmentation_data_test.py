@@ -218,6 +218,54 @@ check(zones_of(plan_png, "--merge-model", joined) == zones_of(plan_png),
 check(zones_of(robot_png, "--merge-model", joined) == zones_of(robot_png, "--merge-model", model),
       "gate_layout_merge.py: a robot-made grid gets the robot model's zones")
 
+# The eighth round's gate: a robot half trained on pieces cut with the rough-grid options
+# (CutOptions::layout_rough_*), joined under map_rough_cut. zonemap then cuts a rough grid
+# without caps and the robot half merges it; a clean plan is cut and merged as by default.
+rough = ["--param", "layout_rough_face_share=0.3", "--param", "layout_rough_cap_max_m=0"]
+rough_model = os.path.join(work, "rough_model.json")
+subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
+                os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
+                "--json", rough_model, "--learner", "hist"] + rough, check=True,
+               capture_output=True)
+cut = json.load(open(rough_model))["trained_with"]["cut"]
+check(cut["layout_rough_face_share"] == 0.3 and cut["layout_rough_cap_max_m"] == 0.0,
+      "train_layout_merge.py --param records the rough-grid options")
+rough_joined = os.path.join(work, "rough_joined.json")
+subprocess.run([sys.executable, os.path.join(scripts, "gate_layout_merge.py"),
+                os.path.join(project, "lib", "segment", "layout_merge_model.inc"), rough_model,
+                "--gate", "0.5", "--gate-feature", "map_rough_cut", "--json", rough_joined],
+               check=True, capture_output=True)
+check(json.load(open(rough_joined))["trained_with"] == json.load(open(rough_model))["trained_with"],
+      "gate_layout_merge.py --gate-feature map_rough_cut: the robot half's record is the model's")
+
+
+def report(map_png, *extra):
+    return json.loads(subprocess.run([zonemap, "zones", "segment", map_png, "--out", os.devnull,
+                                      "--json"] + list(extra), check=True, capture_output=True,
+                                     text=True).stdout)
+
+
+check(not report(plan_png, "--merge-model", rough_model, *rough)["rough_cut"] and
+      report(robot_png, "--merge-model", rough_model, *rough)["rough_cut"],
+      "a plan is below layout_rough_face_share 0.3 and a robot render above it")
+check(zones_of(plan_png, "--merge-model", rough_joined, *rough) == zones_of(plan_png),
+      "map_rough_cut gate: a clean plan gets the default's zones")
+check(zones_of(robot_png, "--merge-model", rough_joined, *rough) ==
+      zones_of(robot_png, "--merge-model", rough_model, *rough),
+      "map_rough_cut gate: a rough grid gets the robot half's zones, cut without caps")
+never_rough = json.load(open(rough_model))
+never_rough["trained_with"]["cut"]["layout_rough_face_share"] = 1.0
+never_rough_model = os.path.join(work, "never_rough.json")
+json.dump(never_rough, open(never_rough_model, "w"))
+for robot, gate, why in ((never_rough_model, "0.5", "no map would reach it"),
+                         (rough_model, "1", "between")):
+    bad = subprocess.run([sys.executable, os.path.join(scripts, "gate_layout_merge.py"),
+                          os.path.join(project, "lib", "segment", "layout_merge_model.inc"),
+                          robot, "--gate", gate, "--gate-feature", "map_rough_cut"],
+                         capture_output=True, text=True)
+    check(bad.returncode != 0 and why in bad.stderr and "Traceback" not in bad.stderr,
+          "gate_layout_merge.py refuses, in one line: " + why)
+
 # score_sets.py passes --param to zonemap; segmentation_border_probe.py's scorer agrees with
 # ScoreSegmentation (its no-merge row is score_sets.py's row) and a rule only merges.
 robot_dir = os.path.join(work, "a", "robot")

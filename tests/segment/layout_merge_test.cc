@@ -312,6 +312,12 @@ TEST_CASE("map-level features tell a clean grid from a noisy one") {
   CHECK(b.at("map_loose_occupied_share") > 0.0);
   CHECK(b.at("map_unknown_border_share") > 0.0);
   CHECK(b.at("map_rough_face_share") > a.at("map_rough_face_share"));
+
+  // Which cut made the pieces is the caller's to say (SegmentRooms: CutOptions::layout_rough_*).
+  CHECK(a.at("map_rough_cut") == 0.0);
+  LayoutMergeInputs rough = clean.Inputs();
+  rough.rough_cut = true;
+  CHECK(FirstRowFeatures(rough, clean.gt).at("map_rough_cut") == 1.0);
 }
 
 TEST_CASE("bad inputs to the layout merge are one clear error") {

@@ -947,5 +947,165 @@ TEST_CASE("an oracle trace runs with cut options the model was not trained with"
   CHECK_FALSE(first_row.empty());
 }
 
+// A model that merges nothing (p = sigmoid(-20)), recorded as trained with `o`: the layout pieces.
+LayoutMergeModel NeverMerges(const SegmentOptions& o) {
+  std::string names = "[";
+  for (std::size_t i = 0; i < kLayoutFeatureNames.size(); ++i) {
+    names += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[i] + "\"";
+  }
+  auto m = ParseLayoutMergeModel("{\"features\":" + names +
+                                 "],\"init\":-20,\"learning_rate\":1,\"trees\":[],"
+                                 "\"trained_with\":" +
+                                 LayoutMergeTrainedWithJson(o.cut, o.rules) + "}");
+  REQUIRE_MESSAGE(m.ok(), m.status().ToString());
+  return std::move(m).value();
+}
+
+TEST_CASE("wall faces: a walled room's are straight, a jagged wall's rough, gaps are unknown") {
+  cv::Mat free = cv::Mat::zeros(40, 60, CV_8U), occupied = cv::Mat::zeros(40, 60, CV_8U);
+  occupied(cv::Rect(5, 5, 50, 30)).setTo(255);
+  free(cv::Rect(6, 6, 48, 28)).setTo(255);
+  occupied(cv::Rect(6, 6, 48, 28)).setTo(0);
+  const GridFaceShares room = MeasureGridFaces(free, occupied);
+  // Only the faces at the four corners' cells do not continue on both sides: 8 of 152.
+  CHECK(room.rough == doctest::Approx(8.0 / 152.0));
+  CHECK(room.unknown_border == 0.0);
+  // Every other cell of the top face a notch: no face continues straight there.
+  cv::Mat jagged_free = free.clone(), jagged_occ = occupied.clone();
+  for (int c = 7; c < 53; c += 2) {
+    jagged_free.at<std::uint8_t>(6, c) = 0;
+    jagged_occ.at<std::uint8_t>(6, c) = 255;
+  }
+  CHECK(MeasureGridFaces(jagged_free, jagged_occ).rough > 0.3);
+  // A 10-cell gap in the bottom wall, unknown beyond (neither free nor occupied).
+  occupied(cv::Rect(20, 34, 10, 1)).setTo(0);
+  CHECK(MeasureGridFaces(free, occupied).unknown_border == doctest::Approx(10.0 / 152.0));
+}
+
+TEST_CASE("a rough grid's layout pieces are cut with the rough-grid options, a clean one's not") {
+  // The wardrobe floor: two 0.7 m side walls with free ends, which the layout cut caps across
+  // and continues past their corners (issue 16, sixth part).
+  Floor f(6.0, 5.0);
+  f.Room(1.0, 1.0, 5.0, 4.0, 1);
+  f.Fill(2.0, 1.0, 2.1, 1.7, kCellOccupied);
+  f.Fill(3.6, 1.0, 3.7, 1.7, kCellOccupied);
+  cv::rectangle(f.truth, Floor::R(2.1, 1.0, 3.6, 1.7), cv::Scalar(2), cv::FILLED);
+  const double share = GridRoughFaceShare(f.grid);
+  CHECK(share > 0.0);
+  CHECK(share < 0.2);  // a drawn plan: straight faces but at corners and wall ends
+
+  // The default: no grid is rough.
+  const SegmentOptions clean;
+  auto seg = SegmentRooms(f.grid, clean, NeverMerges(clean));
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  CHECK_FALSE(seg->rough_cut);
+  CHECK(seg->rough_face_share == share);
+
+  // Rough from just below this grid's share: the rough-grid lengths replace corners and caps.
+  SegmentOptions rough;
+  rough.cut.layout_rough_face_share = share - 1e-6;
+  rough.cut.layout_rough_corner_max_m = 0.0;
+  rough.cut.layout_rough_cap_max_m = 0.0;
+  auto rough_seg = SegmentRooms(f.grid, rough, NeverMerges(rough));
+  REQUIRE_MESSAGE(rough_seg.ok(), rough_seg.status().ToString());
+  CHECK(rough_seg->rough_cut);
+  SegmentOptions without;  // the same pieces as corners and caps turned off outright
+  without.cut.layout_corner_max_m = 0.0;
+  without.cut.layout_cap_max_m = 0.0;
+  auto without_seg = SegmentRooms(f.grid, without, NeverMerges(without));
+  REQUIRE(without_seg.ok());
+  CHECK(cv::countNonZero(rough_seg->labels != without_seg->labels) == 0);
+  CHECK(seg->segments.size() > rough_seg->segments.size());  // the caps' and corners' pieces
+
+  // At exactly its share the grid is not rough (rough means above), and the rule merges never
+  // use the layout cut.
+  rough.cut.layout_rough_face_share = share;
+  auto at = SegmentRooms(f.grid, rough, NeverMerges(rough));
+  REQUIRE(at.ok());
+  CHECK_FALSE(at->rough_cut);
+  CHECK(cv::countNonZero(at->labels != seg->labels) == 0);
+  SegmentOptions rules = Rules();
+  rules.cut.layout_rough_face_share = 0.0;
+  auto by_rules = SegmentRooms(f.grid, rules);
+  REQUIRE(by_rules.ok());
+  CHECK_FALSE(by_rules->rough_cut);
+
+  // The model is told which cut ran: map_rough_cut, the last feature of every trace row.
+  rough.cut.layout_rough_face_share = 0.0;
+  for (const bool is_rough : {false, true}) {
+    const SegmentOptions& o = is_rough ? rough : clean;
+    const auto dir = TempDir(is_rough ? "rough_cut" : "clean_cut");
+    const std::string csv_path = (dir / "trace.csv").string();
+    std::FILE* csv = std::fopen(csv_path.c_str(), "w");
+    REQUIRE(csv != nullptr);
+    LayoutMergeTrace trace;
+    trace.ground_truth = &f.truth;
+    trace.csv = csv;
+    REQUIRE(SegmentRooms(f.grid, o, NeverMerges(o), trace).ok());
+    std::fclose(csv);
+    std::ifstream in(csv_path);
+    std::string row;
+    REQUIRE(static_cast<bool>(std::getline(in, row)));
+    CHECK(row.substr(row.rfind(',') + 1) == (is_rough ? "1" : "0"));
+  }
+}
+
+// The trace of `grid` against `truth` (oracle merges), as text.
+std::string OracleTrace(const OccupancyGrid& grid, const cv::Mat& truth, const std::string& name) {
+  const auto dir = TempDir(name);
+  const std::string csv_path = (dir / "trace.csv").string();
+  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
+  REQUIRE(csv != nullptr);
+  LayoutMergeTrace trace;
+  trace.ground_truth = &truth;
+  trace.csv = csv;
+  trace.oracle = true;
+  const auto seg = SegmentRooms(grid, SegmentOptions{}, DefaultLayoutMergeModel(), trace);
+  std::fclose(csv);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  std::ifstream in(csv_path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+TEST_CASE("a cropped grid's trace is labelled from its own cells of the ground truth") {
+  // The floor inside 30 m of unknown on every side: only the known part (plus a 10 m rim) is
+  // segmented, and the ground truth must be read at the same cells.
+  cv::Mat truth;
+  const OccupancyGrid floor = SyntheticFloor(&truth);
+  constexpr int kPad = 600;  // 30 m at 0.05 m
+  OccupancyGrid padded = floor;
+  cv::copyMakeBorder(floor.cells, padded.cells, kPad, kPad, kPad, kPad, cv::BORDER_CONSTANT,
+                     cv::Scalar(kCellUnknown));
+  cv::Mat padded_truth;
+  cv::copyMakeBorder(truth, padded_truth, kPad, kPad, kPad, kPad, cv::BORDER_CONSTANT,
+                     cv::Scalar(0));
+  const std::string plain = OracleTrace(floor, truth, "trace_plain");
+  const std::string cropped = OracleTrace(padded, padded_truth, "trace_cropped");
+  CHECK_FALSE(plain.empty());
+  CHECK(cropped == plain);
+  // Labelled at all: some pair is one room (the oracle joins each room's pieces).
+  CHECK(plain.find(",1,") != std::string::npos);
+}
+
+TEST_CASE("rough-grid options out of range are one clear error") {
+  cv::Mat truth;
+  const OccupancyGrid grid = SyntheticFloor(&truth);
+  SegmentOptions o;
+  o.cut.layout_rough_face_share = 1.5;
+  auto r = SegmentRooms(grid, o);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("layout_rough_face_share is a share of wall faces: it must be "
+                                  "in [0, 1], got 1.5") != std::string::npos);
+  o.cut.layout_rough_face_share = 0.5;
+  o.cut.layout_rough_cap_max_m = -1.0;
+  r = SegmentRooms(grid, o);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("layout_* lengths and areas must be >= 0") !=
+        std::string::npos);
+}
+
+
 }  // namespace
 }  // namespace zm
