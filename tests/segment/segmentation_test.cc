@@ -175,6 +175,31 @@ Floor CorridorFloor() {
   return f;
 }
 
+// A 4 x 3 m room (1) with a 1.5 x 0.7 m wardrobe (2) against its top wall: two 0.7 m side
+// walls (stubs) whose free ends are aligned, nothing between them.
+Floor WardrobeFloor() {
+  Floor f(6.0, 5.0);
+  f.Room(1.0, 1.0, 5.0, 4.0, 1);
+  f.Fill(2.0, 1.0, 2.1, 1.7, kCellOccupied);
+  f.Fill(3.6, 1.0, 3.7, 1.7, kCellOccupied);
+  cv::rectangle(f.truth, Floor::R(2.1, 1.0, 3.6, 1.7), cv::Scalar(2), cv::FILLED);
+  return f;
+}
+
+// A model that merges nothing (p = sigmoid(-20)), recorded as trained with `o`: the layout pieces.
+LayoutMergeModel NeverMerges(const SegmentOptions& o) {
+  std::string names = "[";
+  for (std::size_t i = 0; i < kLayoutFeatureNames.size(); ++i) {
+    names += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[i] + "\"";
+  }
+  auto m = ParseLayoutMergeModel("{\"features\":" + names +
+                                 "],\"init\":-20,\"learning_rate\":1,\"trees\":[],"
+                                 "\"trained_with\":" +
+                                 LayoutMergeTrainedWithJson(o.cut, o.rules) + "}");
+  REQUIRE_MESSAGE(m.ok(), m.status().ToString());
+  return std::move(m).value();
+}
+
 // An L-shaped room (1; its reflex corner's walls continue across it to the outer walls) and a
 // 5 x 4 m room (2) with a 2 m long, 0.6 m deep cabinet against one wall and a 1.2 m desk against
 // another: their fronts are straight runs whose continuations cut nothing for good.
@@ -447,14 +472,8 @@ TEST_CASE("a balcony behind a full-width slider, protruding from the facade, is 
 }
 
 TEST_CASE("a wardrobe whose whole front is one door is a room of its own") {
-  // A 4 x 3 m room with a 1.5 x 0.7 m wardrobe against its top wall: two 0.7 m side walls
-  // (stubs) whose free ends are aligned, nothing between them. The mouth between the two ends
-  // closes it (round 4 of issue 16).
-  Floor f(6.0, 5.0);
-  f.Room(1.0, 1.0, 5.0, 4.0, 1);
-  f.Fill(2.0, 1.0, 2.1, 1.7, kCellOccupied);
-  f.Fill(3.6, 1.0, 3.7, 1.7, kCellOccupied);
-  cv::rectangle(f.truth, Floor::R(2.1, 1.0, 3.6, 1.7), cv::Scalar(2), cv::FILLED);
+  // The mouth between the two side walls' aligned free ends closes it (round 4 of issue 16).
+  const Floor f = WardrobeFloor();
   SegmentOptions off = Rules();
   off.cut.mouth_opening_max_width_m = 0.0;
   CheckOwnRoomOnlyWithRule(f, /*share=*/0.8, off);
@@ -520,19 +539,7 @@ TEST_CASE(
     "them all") {
   cv::Mat truth;
   const OccupancyGrid grid = SyntheticFloor(&truth);
-  auto never = ParseLayoutMergeModel(
-      "{\"features\":" +
-      [] {
-        std::string s = "[";
-        for (std::size_t i = 0; i < kLayoutFeatureNames.size(); ++i) {
-          s += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[i] + "\"";
-        }
-        return s + "]";
-      }() +
-      ",\"init\":-20,\"learning_rate\":1,\"trees\":[],\"trained_with\":" +
-      LayoutMergeTrainedWithJson(CutOptions{}, RuleMergeOptions{}) + "}");
-  REQUIRE(never.ok());
-  auto pieces = SegmentRooms(grid, SegmentOptions{}, *never);
+  auto pieces = SegmentRooms(grid, SegmentOptions{}, NeverMerges(SegmentOptions{}));
   auto merged = SegmentRooms(grid);
   auto rules = SegmentRooms(grid, Rules());
   REQUIRE(pieces.ok());
@@ -919,6 +926,29 @@ TEST_CASE("segments holding too many keyframes are split until each fits") {
 // Training a model for other cut options starts with an oracle trace cut with them: the oracle
 // merges by the ground truth, so the compiled-in model's options do not bind it; a run that
 // merges by the model is still refused (issue 28, third round).
+// SegmentRooms of `grid` with a trace against `truth` (merged by it with `oracle`), written to a
+// file of this test's directory `name`; the trace's text in `*rows`.
+Segmentation Traced(const OccupancyGrid& grid, const cv::Mat& truth, const SegmentOptions& o,
+                    const LayoutMergeModel& model, bool oracle, const std::string& name,
+                    std::string* rows) {
+  const auto dir = TempDir(name);
+  const std::string csv_path = (dir / "trace.csv").string();
+  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
+  REQUIRE(csv != nullptr);
+  LayoutMergeTrace trace;
+  trace.ground_truth = &truth;
+  trace.csv = csv;
+  trace.oracle = oracle;
+  auto seg = SegmentRooms(grid, o, model, trace);
+  std::fclose(csv);
+  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
+  std::ifstream in(csv_path);
+  std::stringstream text;
+  text << in.rdbuf();
+  *rows = text.str();
+  return std::move(seg).value();
+}
+
 TEST_CASE("an oracle trace runs with cut options the model was not trained with") {
   cv::Mat truth;
   const OccupancyGrid grid = SyntheticFloor(&truth);
@@ -928,37 +958,12 @@ TEST_CASE("an oracle trace runs with cut options the model was not trained with"
   REQUIRE_FALSE(refused.ok());
   CHECK(refused.status().message().find("layout_cap_max_m") != std::string::npos);
 
-  const auto dir = TempDir("oracle_other_cut");
-  const std::string csv_path = (dir / "trace.csv").string();
-  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
-  REQUIRE(csv != nullptr);
-  LayoutMergeTrace trace;
-  trace.ground_truth = &truth;
-  trace.csv = csv;
-  trace.oracle = true;
-  const auto traced = SegmentRooms(grid, other, DefaultLayoutMergeModel(), trace);
-  std::fclose(csv);
-  REQUIRE(traced.ok());
+  std::string rows;
+  const Segmentation traced =
+      Traced(grid, truth, other, DefaultLayoutMergeModel(), true, "oracle_other_cut", &rows);
   // The oracle joins the pieces of each room: the three rooms and the corridor.
-  CHECK(traced->segments.size() == 4);
-  std::ifstream in(csv_path);
-  std::string first_row;
-  CHECK(static_cast<bool>(std::getline(in, first_row)));  // the pairs it saw, with labels
-  CHECK_FALSE(first_row.empty());
-}
-
-// A model that merges nothing (p = sigmoid(-20)), recorded as trained with `o`: the layout pieces.
-LayoutMergeModel NeverMerges(const SegmentOptions& o) {
-  std::string names = "[";
-  for (std::size_t i = 0; i < kLayoutFeatureNames.size(); ++i) {
-    names += std::string(i ? "," : "") + "\"" + kLayoutFeatureNames[i] + "\"";
-  }
-  auto m = ParseLayoutMergeModel("{\"features\":" + names +
-                                 "],\"init\":-20,\"learning_rate\":1,\"trees\":[],"
-                                 "\"trained_with\":" +
-                                 LayoutMergeTrainedWithJson(o.cut, o.rules) + "}");
-  REQUIRE_MESSAGE(m.ok(), m.status().ToString());
-  return std::move(m).value();
+  CHECK(traced.segments.size() == 4);
+  CHECK_FALSE(rows.empty());  // the pairs it saw, with labels
 }
 
 TEST_CASE("wall faces: a walled room's are straight, a jagged wall's rough, gaps are unknown") {
@@ -985,11 +990,7 @@ TEST_CASE("wall faces: a walled room's are straight, a jagged wall's rough, gaps
 TEST_CASE("a rough grid's layout pieces are cut with the rough-grid options, a clean one's not") {
   // The wardrobe floor: two 0.7 m side walls with free ends, which the layout cut caps across
   // and continues past their corners (issue 16, sixth part).
-  Floor f(6.0, 5.0);
-  f.Room(1.0, 1.0, 5.0, 4.0, 1);
-  f.Fill(2.0, 1.0, 2.1, 1.7, kCellOccupied);
-  f.Fill(3.6, 1.0, 3.7, 1.7, kCellOccupied);
-  cv::rectangle(f.truth, Floor::R(2.1, 1.0, 3.6, 1.7), cv::Scalar(2), cv::FILLED);
+  const Floor f = WardrobeFloor();
   const double share = GridRoughFaceShare(f.grid);
   CHECK(share > 0.0);
   CHECK(share < 0.2);  // a drawn plan: straight faces but at corners and wall ends
@@ -1034,39 +1035,13 @@ TEST_CASE("a rough grid's layout pieces are cut with the rough-grid options, a c
   rough.cut.layout_rough_face_share = 0.0;
   for (const bool is_rough : {false, true}) {
     const SegmentOptions& o = is_rough ? rough : clean;
-    const auto dir = TempDir(is_rough ? "rough_cut" : "clean_cut");
-    const std::string csv_path = (dir / "trace.csv").string();
-    std::FILE* csv = std::fopen(csv_path.c_str(), "w");
-    REQUIRE(csv != nullptr);
-    LayoutMergeTrace trace;
-    trace.ground_truth = &f.truth;
-    trace.csv = csv;
-    REQUIRE(SegmentRooms(f.grid, o, NeverMerges(o), trace).ok());
-    std::fclose(csv);
-    std::ifstream in(csv_path);
-    std::string row;
-    REQUIRE(static_cast<bool>(std::getline(in, row)));
+    std::string rows;
+    Traced(f.grid, f.truth, o, NeverMerges(o), false, is_rough ? "rough_cut" : "clean_cut",
+           &rows);
+    const std::string row = rows.substr(0, rows.find('\n'));
+    REQUIRE_FALSE(row.empty());
     CHECK(row.substr(row.rfind(',') + 1) == (is_rough ? "1" : "0"));
   }
-}
-
-// The trace of `grid` against `truth` (oracle merges), as text.
-std::string OracleTrace(const OccupancyGrid& grid, const cv::Mat& truth, const std::string& name) {
-  const auto dir = TempDir(name);
-  const std::string csv_path = (dir / "trace.csv").string();
-  std::FILE* csv = std::fopen(csv_path.c_str(), "w");
-  REQUIRE(csv != nullptr);
-  LayoutMergeTrace trace;
-  trace.ground_truth = &truth;
-  trace.csv = csv;
-  trace.oracle = true;
-  const auto seg = SegmentRooms(grid, SegmentOptions{}, DefaultLayoutMergeModel(), trace);
-  std::fclose(csv);
-  REQUIRE_MESSAGE(seg.ok(), seg.status().ToString());
-  std::ifstream in(csv_path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
 }
 
 TEST_CASE("a cropped grid's trace is labelled from its own cells of the ground truth") {
@@ -1081,8 +1056,10 @@ TEST_CASE("a cropped grid's trace is labelled from its own cells of the ground t
   cv::Mat padded_truth;
   cv::copyMakeBorder(truth, padded_truth, kPad, kPad, kPad, kPad, cv::BORDER_CONSTANT,
                      cv::Scalar(0));
-  const std::string plain = OracleTrace(floor, truth, "trace_plain");
-  const std::string cropped = OracleTrace(padded, padded_truth, "trace_cropped");
+  std::string plain, cropped;
+  Traced(floor, truth, SegmentOptions{}, DefaultLayoutMergeModel(), true, "trace_plain", &plain);
+  Traced(padded, padded_truth, SegmentOptions{}, DefaultLayoutMergeModel(), true, "trace_cropped",
+         &cropped);
   CHECK_FALSE(plain.empty());
   CHECK(cropped == plain);
   // Labelled at all: some pair is one room (the oracle joins each room's pieces).
