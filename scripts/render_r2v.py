@@ -25,6 +25,15 @@ Two variants per plan:
          left unknown (dotted faces), and a coarser laser (0.25, 0.5 or 1 degree between rays:
          streaks of free cells with unknown between them at range). Its own generator, seeded
          by the plan's name and "laser"; robot/ is unchanged by it.
+  front/ (only with --fronts; issue 28, ninth round) laser/'s look of a world in which a share of
+         the rooms open onto a neighbour along their whole front: for each room, with
+         probability 0.3, the wall it shares with its front neighbour (of its neighbours larger
+         than itself, the one with the longest shared wall: a corridor, a hall, a living room)
+         is removed, doors and all, as in an office whose front towards the corridor is open or
+         glass. The ground truth keeps the two rooms (their border is the wall's line), so these
+         are borders with no wall along them that separate two rooms, which robot/ and laser/
+         hardly hold (the seventh round's reading of ubremen's and g4s_y2's offices). Its own
+         generator, seeded by the plan's name and "front"; the other variants are unchanged.
 
 Ground truth: every region enclosed by walls with doors closed is one room (R2V's room labels
 only mark a point in a room; enclosed regions of any label are rooms).
@@ -33,11 +42,12 @@ quartile of its door openings is 0.75 m (a single interior door; the wider openi
 balcony sliders and double doors), the only physical assumption made. It was fixed before any
 segmentation was scored on these plans.
 
-Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...] | --laser]
+Usage: scripts/render_r2v.py [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...] | --laser | --fronts]
 --robot-off renders robot/ only, with the named augmentations left out (glass, leaves, clutter,
 unexplored, range, noise, specks; issue 28's ablation). Every random number is still drawn, so
-the other augmentations are exactly those of the full render. --laser renders laser/ only.
-(robot_world and robot_scan are also scripts/render_sim.py's.)
+the other augmentations are exactly those of the full render. --laser renders laser/ only,
+--fronts front/ only. (robot_world, robot_scan, real_grid and open_fronts are also
+scripts/render_sim.py's.)
 """
 import collections
 import os
@@ -321,6 +331,46 @@ def real_grid(seen_free, seen_occ, rng):
     return free, occupied
 
 
+FRONT_SHARE = 0.3  # front/: the share of rooms whose front is opened
+FRONT_REACH = 4  # cells: a wall cell within this of both rooms lies between them (walls 3-4 wide)
+
+
+def open_fronts(free, occupied, rooms, n, rng, share=FRONT_SHARE, reach=FRONT_REACH):
+    """front/'s world: for each room, with probability `share`, the wall between it and its front
+    neighbour (of the rooms larger than it that it shares a wall with, the one with the longest
+    shared wall) becomes free, door cells and all. rooms labels the ground truth (0: no room);
+    it is not changed. Returns (free, occupied, opened), opened the number of fronts opened."""
+    free, occupied = free.copy(), occupied.copy()
+    area = np.bincount(rooms.ravel(), minlength=n + 1)
+    walls = occupied & (rooms == 0)  # walls (door openings are free already); not furniture
+    # Where a wall between two rooms meets an outer wall, the outer wall's cells are near both
+    # rooms too: the cells next to the outside (unknown, or the grid's edge) stay, so the
+    # building stays closed.
+    outside = np.pad(~free & ~occupied, 1, constant_values=True)
+    walls &= ~near(outside, 1)[1:-1, 1:-1]
+    near_room = [None] + [near(rooms == k, reach) if area[k] else None for k in range(1, n + 1)]
+    opened = 0
+    for k in range(1, n + 1):
+        # One draw per room, taken whether or not it has a larger neighbour, so one room's
+        # neighbours do not shift the others' draws.
+        if rng.random() >= share or near_room[k] is None:
+            continue
+        best, best_len = None, 0
+        for j in range(1, n + 1):
+            if j == k or near_room[j] is None or area[j] <= area[k]:
+                continue
+            shared = int((walls & near_room[k] & near_room[j]).sum())
+            if shared > best_len:
+                best, best_len = j, shared
+        if best is None:
+            continue
+        cut = walls & near_room[k] & near_room[best]
+        occupied &= ~cut
+        free |= cut
+        opened += 1
+    return free, occupied, opened
+
+
 def scan(free, occupied, viewpoints):
     """Cells a 360-degree laser sees from each viewpoint: (seen_free, seen_occupied)."""
     seen_free = np.zeros_like(free)
@@ -355,6 +405,9 @@ def main():
     laser = "--laser" in args
     if laser:
         args.remove("--laser")
+    fronts = "--fronts" in args
+    if fronts:
+        args.remove("--fronts")
     if "--robot-off" in args:
         i = args.index("--robot-off")
         off = tuple(k for k in args[i + 1].split(",") if k)
@@ -362,8 +415,8 @@ def main():
         bad = [k for k in off if k not in AUGMENTATIONS]
         if bad:
             sys.exit(f"--robot-off: unknown {bad}; known: {', '.join(AUGMENTATIONS)}")
-    if laser and off is not None:
-        sys.exit("--laser and --robot-off: one at a time")
+    if (laser, fronts, off is not None).count(True) > 1:
+        sys.exit("--laser, --fronts and --robot-off: one at a time")
     src = args[0] if len(args) == 2 else os.path.join(here, "..", "tests", "data",
                                                       "segmentation", "r2v")
     out = args[-1] if args else sys.exit(__doc__)
@@ -372,14 +425,18 @@ def main():
             continue
         name = "r2v_" + fname[:-4]
         free, occupied, rooms, n, views = render(parse(os.path.join(src, fname)))
-        if laser:
-            rng = np.random.default_rng(zlib.crc32((name + "/laser").encode()))
+        if laser or fronts:
+            kind = "front" if fronts else "laser"
+            rng = np.random.default_rng(zlib.crc32((name + "/" + kind).encode()))
+            opened = 0
+            if fronts:
+                free, occupied, opened = open_fronts(free, occupied, rooms, n, rng)
             world_free, world_occ = robot_world(parse(os.path.join(src, fname)), free, occupied,
                                                 rooms, n, rng)
             rays = int(rng.choice(LASER_RAYS))
             seen = robot_scan(world_free, world_occ, views, rng, rays=rays)
-            write(os.path.join(out, "laser"), name, *real_grid(*seen, rng), rooms, n)
-            print(f"{name}: laser/, {rays} rays")
+            write(os.path.join(out, kind), name, *real_grid(*seen, rng), rooms, n)
+            print(f"{name}: {kind}/, {rays} rays" + (f", {opened} fronts open" if fronts else ""))
             continue
         if off is None:
             write(os.path.join(out, "plan"), name, free, occupied, rooms, n)

@@ -18,8 +18,11 @@ docs/sim.md) are one room where they touch, as a building's corridor is one spac
 With --laser (issue 28, sixth round) the grid is render_r2v.py's laser/ instead: the same
 building, clutter and route, a laser of 360, 720 or 1440 rays, and real_grid's band of unknown
 cells at the returns and dotted faces, drawn from a second generator seeded by (SEED, 1).
+With --fronts (issue 28, ninth round) it is the --laser grid of a building in which a share of
+the rooms open onto their front neighbour (render_r2v.py's open_fronts: mostly the corridor),
+the fronts and the laser drawn from a generator seeded by (SEED, 2).
 
-Usage: scripts/render_sim.py ZONEMAP OUT_DIR SEED [SEED ...] [--laser]
+Usage: scripts/render_sim.py ZONEMAP OUT_DIR SEED [SEED ...] [--laser | --fronts]
 """
 import json
 import os
@@ -31,14 +34,15 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from render_r2v import LASER_RAYS, RES, components, real_grid, robot_scan, write  # noqa: E402
+from render_r2v import (LASER_RAYS, RES, components, open_fronts, real_grid,  # noqa: E402
+                        robot_scan, write)
 
 
 def read_pgm(path):
     return np.array(Image.open(path))
 
 
-def render(zonemap, seed, tmp, laser=False):
+def render(zonemap, seed, tmp, laser=False, fronts=False):
     rng = np.random.default_rng(seed)
     area = 400 + (seed * 7919) % 1201
     out = os.path.join(tmp, f"sim{seed}")
@@ -81,6 +85,9 @@ def render(zonemap, seed, tmp, laser=False):
     _, rooms = np.unique(rooms, return_inverse=True)
     rooms = rooms.reshape(h, w)
     n = int(rooms.max())
+    if fronts:
+        lrng = np.random.default_rng([seed, 2])
+        free, occupied, _ = open_fronts(free, occupied, rooms, n, lrng)
     # Clutter, as render_r2v.py's robot/ draws it (chairs, tables, carts).
     clutter = np.zeros_like(free)
     for room in range(1, n + 1):
@@ -100,8 +107,9 @@ def render(zonemap, seed, tmp, laser=False):
             if last is None or np.hypot(x - last[0], y - last[1]) >= 0.5:
                 views.append(px(x, y))
                 last = (x, y)
-    if laser:
-        lrng = np.random.default_rng([seed, 1])
+    if laser or fronts:
+        if not fronts:
+            lrng = np.random.default_rng([seed, 1])
         seen = robot_scan(world_free, world_occ, views, rng, rays=int(lrng.choice(LASER_RAYS)))
         seen_free, seen_occ = real_grid(*seen, lrng)
     else:
@@ -114,12 +122,17 @@ def main():
     laser = "--laser" in args
     if laser:
         args.remove("--laser")
+    fronts = "--fronts" in args
+    if fronts:
+        args.remove("--fronts")
+    if laser and fronts:
+        sys.exit("--laser and --fronts: one at a time")
     if len(args) < 3:
         sys.exit(__doc__)
     zonemap, out = args[0], args[1]
     with tempfile.TemporaryDirectory() as tmp:
         for seed in (int(s) for s in args[2:]):
-            seen_free, seen_occ, rooms, n, area, nv = render(zonemap, seed, tmp, laser)
+            seen_free, seen_occ, rooms, n, area, nv = render(zonemap, seed, tmp, laser, fronts)
             name = f"sim_hospital_{seed}"
             write(out, name, seen_free, seen_occ, rooms, n)
             print(f"{name}: {area} m2, {seen_free.shape[1]}x{seen_free.shape[0]} cells, "

@@ -3,6 +3,7 @@
 render_r2v.py's three variants share one ground truth and the robot/ variant is reproducible and
 holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves augmentations out,
 --laser's laser/ is reproducible and its unknown band and dotted faces only make cells unknown;
+--fronts's open_fronts removes only the wall between a room and its larger front neighbour;
 render_sim.py's grid and ground truth agree in size, its corridor segments are one room;
 train_layout_merge.py fits a model that zonemap runs, --bag joins bootstrap fits into one model
 zonemap runs, and --loo-models keeps the leave-one-out's models; score_sets.py passes --param
@@ -104,7 +105,49 @@ both = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), s
                       capture_output=True, text=True)
 check(both.returncode != 0, "--laser and --robot-off together are refused")
 sys.path.insert(0, scripts)
-from render_r2v import real_grid  # noqa: E402
+from render_r2v import open_fronts, real_grid  # noqa: E402
+
+# front/ (--fronts, issue 28's ninth round): written alone, the plan's ground truth, reproducible,
+# not laser/'s grid; refused together with --laser.
+for out in ("fa", "fb"):
+    subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                    os.path.join(work, out), "--fronts"], check=True, capture_output=True)
+front = load(os.path.join(work, "fa", "front", name + "_map.png"))
+check(not os.path.exists(os.path.join(work, "fa", "laser")), "--fronts writes front/ only")
+check((load(os.path.join(work, "fa", "front", name + "_gt.png")) == gts["plan"]).all(),
+      "front/ has the plan's ground truth")
+check((load(os.path.join(work, "fb", "front", name + "_map.png")) == front).all(),
+      "front/ is reproducible")
+check(set(np.unique(front)) <= {0, 128, 255}, "front/ is a trinary grid")
+both = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                       os.path.join(work, "fc"), "--laser", "--fronts"],
+                      capture_output=True, text=True)
+check(both.returncode != 0, "--laser and --fronts together are refused")
+
+# open_fronts on a drawn world (3-cell walls, unknown outside): a corridor (room 1, 486 cells)
+# above two offices (rooms 2 and 3, 396 and 429 cells), a closet (room 4, 198) behind office 3.
+walls = np.zeros((44, 64), bool)
+walls[2:42, 2:62] = True
+walls[5:39, 5:59] = False
+walls[14:17, 5:59] = True  # the corridor's wall towards the offices
+walls[17:39, 23:26] = True  # the wall between the two offices
+walls[30:33, 26:59] = True  # office 3's far wall, towards the closet
+lab = np.zeros(walls.shape, int)
+lab[5:14, 5:59], lab[17:39, 5:23], lab[17:30, 26:59], lab[33:39, 26:59] = 1, 2, 3, 4
+kept = walls.copy(), lab.copy()
+f1, o1, k1 = open_fronts(lab > 0, walls, lab, 4, np.random.default_rng(0), share=1.0)
+check(k1 == 3 and (walls == kept[0]).all() and (lab == kept[1]).all(),
+      "open_fronts: three fronts (the corridor has no larger neighbour); its inputs unchanged")
+check(f1[14:17, 5:59].all() and not o1[14:17, 5:59].any(),
+      "open_fronts: both offices' walls towards the corridor (their largest neighbour) are gone")
+check(o1[18:29, 23:26].all(), "open_fronts: the wall between the offices stays (each office's "
+      "front is the corridor; office 2 is smaller than office 3 but shares less wall with it)")
+check(f1[30:33, 26:59].all(), "open_fronts: the closet's front towards office 3 is gone")
+check(o1[2, 2:62].all() and o1[2:42, 2].all() and o1[2:42, 61].all() and o1[41, 2:62].all(),
+      "open_fronts: the outer wall's outside face stays closed")
+check(((f1 & ~(lab > 0)) <= walls).all(), "open_fronts: only wall cells become free")
+f0, o0, k0 = open_fronts(lab > 0, walls, lab, 4, np.random.default_rng(0), share=0.0)
+check(k0 == 0 and (o0 == walls).all(), "open_fronts at share 0: nothing opened")
 
 wall = np.zeros((40, 40), bool)
 wall[5, 5:35] = wall[34, 5:35] = wall[5:35, 5] = wall[5:35, 34] = True
@@ -146,6 +189,13 @@ subprocess.run([sys.executable, os.path.join(scripts, "render_sim.py"), zonemap,
 check((load(os.path.join(lsim, "sim_hospital_7_gt.png")) == gt).all() and
       not (load(os.path.join(lsim, "sim_hospital_7_map.png")) == grid).all(),
       "render_sim.py --laser: the same building and rooms, another grid")
+fsim = os.path.join(work, "fsim")
+subprocess.run([sys.executable, os.path.join(scripts, "render_sim.py"), zonemap, fsim, "7",
+                "--fronts"], check=True, capture_output=True)
+check((load(os.path.join(fsim, "sim_hospital_7_gt.png")) == gt).all() and
+      not (load(os.path.join(fsim, "sim_hospital_7_map.png")) ==
+           load(os.path.join(lsim, "sim_hospital_7_map.png"))).all(),
+      "render_sim.py --fronts: the same building and rooms, another grid than --laser")
 
 # A model fitted on these three maps runs in zonemap.
 model = os.path.join(work, "model.json")
