@@ -7,7 +7,10 @@ product share one definition of each. Training data, in two passes over every tr
      every step written with its label (one GT room or not);
   2. the model fitted on those is run (`--merge-model`), and every pair at every step of its own
      merges is written with its label (one round of DAgger: the model learns from the states its
-     own decisions lead to, not only the ones a perfect merge passes through).
+     own decisions lead to, not only the ones a perfect merge passes through); --dagger-passes N
+     repeats it N times, each pass running the model fitted on every row so far (issue 28,
+     ninth round: the merges are greedy, so a model meets states, such as two large chunks of
+     one hall, that only a model's own earlier merges produce).
 The model is scikit-learn's GradientBoostingClassifier (200 trees of depth 4, fixed seed) on
 both, as the shipped model was trained; --learner hist fits HistGradientBoostingClassifier with
 the same trees (learning rate 0.1, one thread: OMP_NUM_THREADS=1 is set here), which took a
@@ -24,7 +27,7 @@ cut with other options.
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
            [--weight DIR=W ...] [--loo DIR [--loo-models OUT_DIR]] [--param K=V ...]
-           [--learner exact|hist] [--bag K]
+           [--learner exact|hist] [--bag K] [--dagger-passes N]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
@@ -214,30 +217,33 @@ def check_export(model, clf, x_check, trained_with):
     return model
 
 
-def train(zonemap, pairs, dir_weight, dagger_threshold, params, bag=0):
+def train(zonemap, pairs, dir_weight, dagger_threshold, params, bag=0, passes=1):
     with tempfile.TemporaryDirectory() as tmp:
         x1, y1, w1, trained_with, o1 = collect(zonemap, pairs, tmp, ["--merge-oracle"] + params,
                                            dir_weight)
-        first = export(fit(x1, y1, w1), x1[:200], trained_with)
-        first_json = os.path.join(tmp, "first.json")
-        with open(first_json, "w") as f:
-            json.dump(first, f)
-        x2, y2, w2, _, o2 = collect(zonemap, pairs, tmp, ["--merge-model", first_json, "--param",
-                                                    f"layout_merge_threshold={dagger_threshold}"]
-                             + params, dir_weight)
-        x, y, w = np.concatenate([x1, x2]), np.concatenate([y1, y2]), np.concatenate([w1, w2])
+        x, y, w, owner = x1, y1, w1, o1
+        # DAgger: each pass runs the model fitted on every row so far and adds the rows of the
+        # states its own merges lead to (each pass with the same weight per DIR as the oracle's).
+        for _ in range(passes):
+            model_json = os.path.join(tmp, "dagger.json")
+            with open(model_json, "w") as f:
+                json.dump(export(fit(x, y, w), x[:200], trained_with), f)
+            x2, y2, w2, _, o2 = collect(zonemap, pairs, tmp, [
+                "--merge-model", model_json, "--param",
+                f"layout_merge_threshold={dagger_threshold}"] + params, dir_weight)
+            x, y = np.concatenate([x, x2]), np.concatenate([y, y2])
+            w, owner = np.concatenate([w, w2]), np.concatenate([owner, o2])
         if not bag:
-            return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y2), y.mean()
-        owner = np.concatenate([o1, o2])
+            return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y) - len(y1), y.mean()
         clfs = [fit(x, y, w * bootstrap_counts([d for _, _, d in pairs], s)[owner])
                 for s in range(1, bag + 1)]
         model = bag_models([export(c, x[:200], trained_with) for c in clfs])
         check_bag(model, clfs, x[:50])
-        return model, len(y1), len(y2), y.mean()
+        return model, len(y1), len(y) - len(y1), y.mean()
 
 
 def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshold, params,
-                  keep=None, bag=0):
+                  keep=None, bag=0, passes=1):
     """For each map of loo_dir (which is also a training DIR): train without it, score it."""
     print("| map | precision % | recall % | mean IoU % | segments |")
     print("|---|---:|---:|---:|---:|")
@@ -245,7 +251,7 @@ def leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, dagger_threshol
     for m, g, _ in maps([loo_dir], set()):
         name = os.path.basename(m)[: -len("_map.png")]
         model, _, _, _ = train(zonemap, list(maps(dirs, {name})), dir_weight, dagger_threshold,
-                               params, bag)
+                               params, bag, passes)
         with tempfile.TemporaryDirectory() as tmp:
             # The fold's model is written once: where --loo-models keeps it, else a scratch file.
             if keep:
@@ -291,7 +297,10 @@ def main(argv):
     ap.add_argument("--param", action="append", default=[], metavar="K=V")
     ap.add_argument("--learner", choices=["exact", "hist"], default="exact")
     ap.add_argument("--bag", type=int, default=0, metavar="K")
+    ap.add_argument("--dagger-passes", type=int, default=1, metavar="N")
     a = ap.parse_args(argv)
+    if a.dagger_passes < 1:
+        ap.error(f"--dagger-passes {a.dagger_passes}: at least 1")
     global LEARNER
     LEARNER = a.learner
     params = [x for p in a.param for x in ("--param", p)]
@@ -300,9 +309,10 @@ def main(argv):
     zonemap, dirs = a.zonemap, a.dirs
     if loo_dir:
         return leave_one_out(zonemap, dirs, loo_dir, dir_weight, threshold, a.dagger_threshold,
-                             params, a.loo_models, a.bag)
+                             params, a.loo_models, a.bag, a.dagger_passes)
     pairs = list(maps(dirs, exclude))
-    model, n1, n2, share = train(zonemap, pairs, dir_weight, a.dagger_threshold, params, a.bag)
+    model, n1, n2, share = train(zonemap, pairs, dir_weight, a.dagger_threshold, params, a.bag,
+                                 a.dagger_passes)
     print(f"{len(pairs)} maps, {n1} oracle + {n2} model-driven pair rows, "
           f"{100 * share:.0f} % one room", file=sys.stderr)
     text = json.dumps(model, separators=(",", ":"))
