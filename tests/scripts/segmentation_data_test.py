@@ -6,9 +6,9 @@ holds what a robot's grid holds (clutter, fewer walls seen), --robot-off leaves 
 --fronts's open_fronts removes only the wall between a room and its larger front neighbour;
 render_sim.py's grid and ground truth agree in size, its corridor segments are one room;
 train_layout_merge.py fits a model that zonemap runs, --bag joins bootstrap fits into one model
-zonemap runs, and --loo-models keeps the leave-one-out's models; score_sets.py passes --param
-on, segmentation_border_probe.py scores as zonemap does; segmentation_identical.py tells
-identical zones from moved ones.
+zonemap runs, --dagger-passes adds model-driven rows, and --loo-models keeps the leave-one-out's
+models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
+segmentation_identical.py tells identical zones from moved ones.
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
@@ -225,6 +225,29 @@ run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robo
                       "--out", os.devnull, "--merge-model", os.path.join(work, "bag_a.json"),
                       "--json"], capture_output=True, text=True)
 check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs a bagged model")
+
+# --dagger-passes 2: a second DAgger pass adds the rows of the states the second model's merges
+# lead to (more model-driven rows, the same oracle rows); zonemap runs the model; 0 is refused.
+def rows_of(*extra):
+    p = subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
+                        os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
+                        "--learner", "hist"] + list(extra), capture_output=True, text=True)
+    words = p.stderr.split()
+    return p, (int(words[2]), int(words[5])) if p.returncode == 0 and len(words) > 5 else None
+
+
+_, n1 = rows_of("--json", os.path.join(work, "d1.json"))
+_, n2 = rows_of("--json", os.path.join(work, "d2.json"), "--dagger-passes", "2")
+check(n1 is not None and n2 is not None and n2[0] == n1[0] and n2[1] > n1[1],
+      f"--dagger-passes 2: the same oracle rows, more model-driven rows ({n1} -> {n2})")
+run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
+                                                               name + "_map.png"),
+                      "--out", os.devnull, "--merge-model", os.path.join(work, "d2.json"),
+                      "--json"], capture_output=True, text=True)
+check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1,
+      "zonemap runs a model of two DAgger passes")
+bad, _ = rows_of("--dagger-passes", "0")
+check(bad.returncode != 0 and "--dagger-passes 0" in bad.stderr, "--dagger-passes 0 is refused")
 sys.path.insert(0, scripts)
 import train_layout_merge  # noqa: E402
 counts = train_layout_merge.bootstrap_counts(["a", "a", "a", "b", "b"], 1)
