@@ -87,42 +87,35 @@ bad = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), sr
                      text=True)
 check(bad.returncode != 0 and "paint" in bad.stderr, "--robot-off names an unknown augmentation")
 
-# laser/ (--laser, issue 28's sixth round): written alone, the plan's ground truth, reproducible,
-# trinary; real_grid only turns free cells and returns into unknown, and its band leaves fewer
-# free cells touching a return (free space meets unknown, as on the shared robot maps).
-for out in ("la", "lb"):
-    subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
-                    os.path.join(work, out), "--laser"], check=True, capture_output=True)
-laser = load(os.path.join(work, "la", "laser", name + "_map.png"))
-check(not os.path.exists(os.path.join(work, "la", "robot")), "--laser writes laser/ only")
-check((load(os.path.join(work, "la", "laser", name + "_gt.png")) == gts["plan"]).all(),
-      "laser/ has the plan's ground truth")
-check((load(os.path.join(work, "lb", "laser", name + "_map.png")) == laser).all(),
-      "laser/ is reproducible")
-check(set(np.unique(laser)) <= {0, 128, 255}, "laser/ is a trinary grid")
-both = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
-                       os.path.join(work, "lc"), "--laser", "--robot-off", "noise"],
-                      capture_output=True, text=True)
-check(both.returncode != 0, "--laser and --robot-off together are refused")
+
+def one_variant(flag, kind, refused_with):
+    """render_r2v.py FLAG twice: KIND/ written alone, with the plan's ground truth, reproducible
+    and trinary; FLAG with REFUSED_WITH is refused. Returns KIND/'s grid."""
+    for out in (kind + "_a", kind + "_b"):
+        subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                        os.path.join(work, out), flag], check=True, capture_output=True)
+    grid = load(os.path.join(work, kind + "_a", kind, name + "_map.png"))
+    check(os.listdir(os.path.join(work, kind + "_a")) == [kind], f"{flag} writes {kind}/ only")
+    check((load(os.path.join(work, kind + "_a", kind, name + "_gt.png")) == gts["plan"]).all(),
+          f"{kind}/ has the plan's ground truth")
+    check((load(os.path.join(work, kind + "_b", kind, name + "_map.png")) == grid).all(),
+          f"{kind}/ is reproducible")
+    check(set(np.unique(grid)) <= {0, 128, 255}, f"{kind}/ is a trinary grid")
+    both = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
+                           os.path.join(work, kind + "_c"), flag] + refused_with,
+                          capture_output=True, text=True)
+    check(both.returncode != 0, f"{flag} and {refused_with[0]} together are refused")
+    return grid
+
+
+# laser/ (--laser, issue 28's sixth round); real_grid only turns free cells and returns into
+# unknown, and its band leaves fewer free cells touching a return (free space meets unknown, as
+# on the shared robot maps). front/ (--fronts, ninth round): another grid than laser/'s.
+laser = one_variant("--laser", "laser", ["--robot-off", "noise"])
+front = one_variant("--fronts", "front", ["--laser"])
+check(not (front == laser).all(), "front/ is not laser/'s grid")
 sys.path.insert(0, scripts)
 from render_r2v import open_fronts, real_grid  # noqa: E402
-
-# front/ (--fronts, issue 28's ninth round): written alone, the plan's ground truth, reproducible,
-# not laser/'s grid; refused together with --laser.
-for out in ("fa", "fb"):
-    subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
-                    os.path.join(work, out), "--fronts"], check=True, capture_output=True)
-front = load(os.path.join(work, "fa", "front", name + "_map.png"))
-check(not os.path.exists(os.path.join(work, "fa", "laser")), "--fronts writes front/ only")
-check((load(os.path.join(work, "fa", "front", name + "_gt.png")) == gts["plan"]).all(),
-      "front/ has the plan's ground truth")
-check((load(os.path.join(work, "fb", "front", name + "_map.png")) == front).all(),
-      "front/ is reproducible")
-check(set(np.unique(front)) <= {0, 128, 255}, "front/ is a trinary grid")
-both = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), src,
-                       os.path.join(work, "fc"), "--laser", "--fronts"],
-                      capture_output=True, text=True)
-check(both.returncode != 0, "--laser and --fronts together are refused")
 
 # open_fronts on a drawn world (3-cell walls, unknown outside): a corridor (room 1, 486 cells)
 # above two offices (rooms 2 and 3, 396 and 429 cells), a closet (room 4, 198) behind office 3.
