@@ -355,16 +355,15 @@ def open_fronts(free, occupied, rooms, n, rng, share=FRONT_SHARE, reach=FRONT_RE
         # neighbours do not shift the others' draws.
         if rng.random() >= share or near_room[k] is None:
             continue
-        best, best_len = None, 0
+        cut = None  # the longest wall shared with a larger room, if any
         for j in range(1, n + 1):
             if j == k or near_room[j] is None or area[j] <= area[k]:
                 continue
-            shared = int((walls & near_room[k] & near_room[j]).sum())
-            if shared > best_len:
-                best, best_len = j, shared
-        if best is None:
+            shared = walls & near_room[k] & near_room[j]
+            if shared.sum() > (0 if cut is None else cut.sum()):
+                cut = shared
+        if cut is None:
             continue
-        cut = walls & near_room[k] & near_room[best]
         occupied &= ~cut
         free |= cut
         opened += 1
@@ -424,15 +423,15 @@ def main():
         if not fname.endswith(".txt"):
             continue
         name = "r2v_" + fname[:-4]
-        free, occupied, rooms, n, views = render(parse(os.path.join(src, fname)))
+        items = parse(os.path.join(src, fname))
+        free, occupied, rooms, n, views = render(items)
         if laser or fronts:
             kind = "front" if fronts else "laser"
             rng = np.random.default_rng(zlib.crc32((name + "/" + kind).encode()))
             opened = 0
             if fronts:
                 free, occupied, opened = open_fronts(free, occupied, rooms, n, rng)
-            world_free, world_occ = robot_world(parse(os.path.join(src, fname)), free, occupied,
-                                                rooms, n, rng)
+            world_free, world_occ = robot_world(items, free, occupied, rooms, n, rng)
             rays = int(rng.choice(LASER_RAYS))
             seen = robot_scan(world_free, world_occ, views, rng, rays=rays)
             write(os.path.join(out, kind), name, *real_grid(*seen, rng), rooms, n)
@@ -443,8 +442,8 @@ def main():
             seen_free, seen_occ = scan(free, occupied, views)
             write(os.path.join(out, "scan"), name, seen_free, seen_occ, rooms, n)
         rng = np.random.default_rng(zlib.crc32(name.encode()))
-        world_free, world_occ = robot_world(parse(os.path.join(src, fname)), free, occupied,
-                                            rooms, n, rng, off or ())
+        world_free, world_occ = robot_world(items, free, occupied, rooms, n, rng,
+                                            off or ())
         robot_free, robot_occ = robot_scan(world_free, world_occ, views, rng, off or ())
         write(os.path.join(out, "robot"), name, robot_free, robot_occ, rooms, n)
         print(f"{name}: {free.shape[1]}x{free.shape[0]} cells, {n} enclosed regions, "

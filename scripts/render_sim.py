@@ -85,8 +85,9 @@ def render(zonemap, seed, tmp, laser=False, fronts=False):
     _, rooms = np.unique(rooms, return_inverse=True)
     rooms = rooms.reshape(h, w)
     n = int(rooms.max())
+    # laser/'s generator (the fronts' too): its own stream, so the robot's route is --laser's.
+    lrng = np.random.default_rng([seed, 2 if fronts else 1])
     if fronts:
-        lrng = np.random.default_rng([seed, 2])
         free, occupied, _ = open_fronts(free, occupied, rooms, n, lrng)
     # Clutter, as render_r2v.py's robot/ draws it (chairs, tables, carts).
     clutter = np.zeros_like(free)
@@ -108,8 +109,6 @@ def render(zonemap, seed, tmp, laser=False, fronts=False):
                 views.append(px(x, y))
                 last = (x, y)
     if laser or fronts:
-        if not fronts:
-            lrng = np.random.default_rng([seed, 1])
         seen = robot_scan(world_free, world_occ, views, rng, rays=int(lrng.choice(LASER_RAYS)))
         seen_free, seen_occ = real_grid(*seen, lrng)
     else:
