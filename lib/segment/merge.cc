@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numeric>
 #include <span>
@@ -224,8 +225,13 @@ Status CheckLearnedMergeOptions(const LearnedMergeOptions& o) {
     return InvalidArgument(
         "segmentation option layout_merge_threshold must be in [0, 1] (0 = the rule merges)");
   }
-  if (o.layout_min_area_m2 < 0.0) {
-    return InvalidArgument("segmentation option the layout_* lengths and areas must be >= 0");
+  for (const OptionField<LearnedMergeOptions>& f : kLearnedMergeOptionFields) {
+    if (!(o.*f.field >= 0.0)) {
+      char got[32];
+      std::snprintf(got, sizeof got, "%g", o.*f.field);
+      return InvalidArgument(std::string("segmentation option ") + f.name + " must be >= 0, got " +
+                             got);
+    }
   }
   return Status::Ok();
 }
@@ -310,6 +316,60 @@ int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
     for (int c = 0; c < labels->cols; ++c) l[c] = final_label[Idx(l[c])];
   }
   return next;
+}
+
+int MergeCorridors(cv::Mat* labels, const cv::Mat& dt, int label_count, double res,
+                   const KindOptions& kinds, double border_ratio, double width_ratio) {
+  if (border_ratio <= 0.0) return label_count;
+  // Each pass can make a corridor of a piece that was not one (a stub joined to a corridor), so
+  // passes repeat until nothing merges.
+  for (;;) {
+    if (label_count < 2) return label_count;
+    const std::vector<SegmentInfo> info = DescribeSegments(*labels, dt, label_count, res, kinds);
+    const auto narrow = [&](int l) { return info[Idx(l - 1)].width_m <= kinds.corridor_max_width_m; };
+    const auto corridor = [&](int l) { return info[Idx(l - 1)].kind == "corridor"; };
+    std::map<std::pair<int, int>, int> border;  // (smaller label, larger) -> cell pairs
+    const auto count = [&](int a, int b) {
+      if (b != 0 && a != b && narrow(a) && narrow(b) && (corridor(a) || corridor(b))) {
+        ++border[std::minmax(a, b)];
+      }
+    };
+    for (int r = 0; r < labels->rows; ++r) {
+      const int* l = labels->ptr<int>(r);
+      const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
+      for (int c = 0; c < labels->cols; ++c) {
+        if (l[c] == 0) continue;
+        if (c + 1 < labels->cols) count(l[c], l[c + 1]);
+        if (below != nullptr) count(l[c], below[c]);
+      }
+    }
+    Roots roots(label_count);
+    bool merged = false;
+    for (const auto& [pair, cells] : border) {
+      const double narrower =
+          std::min(info[Idx(pair.first - 1)].width_m, info[Idx(pair.second - 1)].width_m);
+      const double wider =
+          std::max(info[Idx(pair.first - 1)].width_m, info[Idx(pair.second - 1)].width_m);
+      if (width_ratio > 0.0 && wider > width_ratio * narrower) continue;
+      if (cells * res < border_ratio * narrower) continue;
+      const int a = roots.Find(pair.first), b = roots.Find(pair.second);
+      if (a != b) roots.Join(a, b), merged = true;
+    }
+    if (!merged) return label_count;
+    // Every label to its root's, numbered densely 1..N in label order.
+    std::vector<int> dense(Idx(label_count) + 1, 0);
+    int next = 0;
+    for (int l = 1; l <= label_count; ++l) {
+      const int root = roots.Find(l);
+      if (dense[Idx(root)] == 0) dense[Idx(root)] = ++next;
+      dense[Idx(l)] = dense[Idx(root)];
+    }
+    for (int r = 0; r < labels->rows; ++r) {
+      int* l = labels->ptr<int>(r);
+      for (int c = 0; c < labels->cols; ++c) l[c] = dense[Idx(l[c])];
+    }
+    label_count = next;
+  }
 }
 
 std::vector<SegmentInfo> DescribeSegments(const cv::Mat& labels, const cv::Mat& dt, int count,

@@ -60,11 +60,20 @@ struct LearnedMergeOptions {
                                     // neighbour sharing the longest border (specks; 0.5 m2 as
                                     // the rule merges costs 1-5 IoU points on the apartments:
                                     // their closets are 0.5-1 m2)
+  // Corridor continuation (issue 28, tenth round; evaluated, not picked: docs/segmentation.md):
+  // after the merges above, two neighbours of which one is a corridor (KindOptions), both no
+  // wider than corridor_max_width_m, merge when their shared border is >= border_ratio x the
+  // narrower one's width (cut across, not a door) and the wider is <= width_ratio x the
+  // narrower (one corridor keeps its width); repeated until nothing merges. 0 = off.
+  double layout_corridor_border_ratio = 0.0;
+  double layout_corridor_width_ratio = 0.0;  // 0 = any widths
 };
 
 inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = {
     {"layout_merge_threshold", &LearnedMergeOptions::layout_merge_threshold},
     {"layout_min_area_m2", &LearnedMergeOptions::layout_min_area_m2},
+    {"layout_corridor_border_ratio", &LearnedMergeOptions::layout_corridor_border_ratio},
+    {"layout_corridor_width_ratio", &LearnedMergeOptions::layout_corridor_width_ratio},
 };
 
 // A segment's kind: corridor when long and narrow, else room.
@@ -89,6 +98,14 @@ inline constexpr OptionField<KindOptions> kKindOptionFields[] = {
 // Merges segments smaller than `min_area` cells into the neighbour sharing the longest border
 // (dropping isolated ones), then renumbers labels 1..N. Returns N.
 int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area);
+
+// Corridor continuation (LearnedMergeOptions::layout_corridor_*): merges neighbours of which one
+// is a corridor (DescribeSegments' kind over `dt`), both no wider than kinds.corridor_max_width_m,
+// whose shared border (4-neighbour cell pairs) is at least `border_ratio` x the narrower one's
+// width and whose wider is at most `width_ratio` x the narrower (0 = any), until nothing merges;
+// renumbers labels 1..N and returns N (`label_count` when border_ratio <= 0).
+int MergeCorridors(cv::Mat* labels, const cv::Mat& dt, int label_count, double resolution_m,
+                   const KindOptions& kinds, double border_ratio, double width_ratio);
 
 // Each segment's area, width and kind from `labels` (1..count) and its clearance `dt`.
 [[nodiscard]] std::vector<SegmentInfo> DescribeSegments(const cv::Mat& labels, const cv::Mat& dt,

@@ -150,6 +150,9 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       // of their own, as in the rule merges.
       count = MergeSmallSegments(
           &labels, merged, static_cast<int>(options.learned.layout_min_area_m2 / (res * res)));
+      count = MergeCorridors(&labels, pieces.dt, count, res, options.kinds,
+                             options.learned.layout_corridor_border_ratio,
+                             options.learned.layout_corridor_width_ratio);
     } else {
       count = MergeByRules(options.rules, options.cut.door_max_width_m, res, &pieces);
     }

@@ -26,6 +26,7 @@
 #include <string>
 
 #include "segment/grid_map.h"
+#include "segment/merge.h"
 #include "segment/score.h"
 #include "segment/split.h"
 #include "segment/write.h"
@@ -296,6 +297,53 @@ TEST_CASE("a corridor with rooms on both sides stays one corridor") {
   auto score = ScoreSegmentation(seg->labels, f.truth);
   REQUIRE(score.ok());
   CHECK(score->mean_iou > 0.95);
+}
+
+// Corridor continuation (LearnedMergeOptions::layout_corridor_*, evaluated in issue 28's tenth
+// round, off by default), at 0.1 m a cell with walls all round: a 1.4 m wide corridor of 12 m (1)
+// continued by a 4 m stub (2), a 4 m wide room behind a 0.9 m door (3), a 2 m wide room behind a
+// 0.6 m door (4), and a 3.4 m wide room open onto the corridor over its width, 1.4 m (5).
+TEST_CASE("corridor continuation joins a corridor's pieces cut across, not rooms behind doors") {
+  cv::Mat labels = cv::Mat::zeros(80, 175, CV_32S);
+  labels(cv::Rect(45, 5, 120, 14)).setTo(1);
+  labels(cv::Rect(5, 5, 40, 14)).setTo(2);
+  labels(cv::Rect(50, 24, 40, 40)).setTo(3);
+  labels(cv::Rect(65, 19, 9, 5)).setTo(3);
+  labels(cv::Rect(95, 24, 20, 30)).setTo(4);
+  labels(cv::Rect(101, 19, 6, 5)).setTo(4);
+  labels(cv::Rect(125, 24, 34, 34)).setTo(5);
+  labels(cv::Rect(135, 19, 14, 5)).setTo(5);
+  const cv::Mat free = labels != 0;
+  cv::Mat dt;
+  cv::distanceTransform(free, dt, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  const KindOptions kinds;
+  const auto kind_of = [&](const cv::Mat& l, int count, int label) {
+    return DescribeSegments(l, dt, count, 0.1, kinds)[static_cast<std::size_t>(label - 1)].kind;
+  };
+  REQUIRE(kind_of(labels, 5, 1) == "corridor");
+  REQUIRE(kind_of(labels, 5, 2) == "room");  // a stub: too short to be a corridor by itself
+  const auto corridor = [](const cv::Mat& l) { return l.at<int>(12, 100); };
+
+  SUBCASE("off: nothing changes") {
+    cv::Mat l = labels.clone();
+    CHECK(MergeCorridors(&l, dt, 5, 0.1, kinds, 0.0, 1.5) == 5);
+    CHECK(cv::countNonZero(l != labels) == 0);
+  }
+  SUBCASE("the stub joins its corridor; the doors and the wider room keep theirs apart") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeCorridors(&l, dt, 5, 0.1, kinds, 0.75, 1.5) == 4);
+    CHECK(l.at<int>(12, 20) == corridor(l));   // the stub
+    CHECK(l.at<int>(40, 70) != corridor(l));   // behind a 0.9 m door, 4 m wide
+    CHECK(l.at<int>(40, 105) != corridor(l));  // 2 m wide, but behind a 0.6 m door
+    CHECK(l.at<int>(40, 142) != corridor(l));  // open over 1.4 m, but over 1.5x as wide
+    CHECK(kind_of(l, 4, corridor(l)) == "corridor");
+  }
+  SUBCASE("with any widths allowed the room open over its width joins too") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeCorridors(&l, dt, 5, 0.1, kinds, 0.75, 0.0) == 3);
+    CHECK(l.at<int>(40, 142) == corridor(l));
+    CHECK(l.at<int>(40, 105) != corridor(l));
+  }
 }
 
 // The share of `truth` label `label`'s cells held by its best segment, and that segment.
@@ -1080,6 +1128,12 @@ TEST_CASE("rough-grid options out of range are one clear error") {
   r = SegmentRooms(grid, o);
   REQUIRE_FALSE(r.ok());
   CHECK(r.status().message().find("layout_* lengths and areas must be >= 0") !=
+        std::string::npos);
+  o.cut.layout_rough_cap_max_m = 1.0;
+  o.learned.layout_corridor_border_ratio = -0.5;
+  r = SegmentRooms(grid, o);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("layout_corridor_border_ratio must be >= 0, got -0.5") !=
         std::string::npos);
 }
 
