@@ -27,7 +27,7 @@ cut with other options.
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
            [--weight DIR=W ...] [--loo DIR [--loo-models OUT_DIR]] [--param K=V ...]
-           [--learner exact|hist] [--bag K] [--dagger-passes N]
+           [--learner exact|hist] [--bag K] [--dagger-passes N] [--features N]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
@@ -37,6 +37,10 @@ threshold, or trace the left-out map with its own model, without training again)
 --param K=V is passed to every `zones segment` run (SegmentOptions; the model records the
 cutting options they give, and is refused with any other). The DAgger pass merges at --dagger-threshold (0.6, as
 when the threshold was chosen); --loo scores at --threshold (the default's 0.4).
+--features N trains on the first N features only, in FEATURES' order (all by default): 35 is
+the shipped model's set, which predates the map-level features (issue 28's fifth and eighth
+rounds), so the shipped recipe and its leave-one-out (the floor of issue 28's rounds) are
+trained with --features 35.
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
 """
 import argparse
@@ -95,7 +99,7 @@ def _trace(zonemap, map_png, gt_png, csv, extra):
     if os.path.getsize(csv) == 0:  # a map of one piece: no pair
         return np.zeros((0, len(FEATURES)), np.float32), np.zeros(0), trained_with
     rows = np.loadtxt(csv, delimiter=",", ndmin=2)
-    return rows[:, 2:].astype(np.float32), rows[:, 1], trained_with
+    return rows[:, 2:2 + len(FEATURES)].astype(np.float32), rows[:, 1], trained_with
 
 
 def collect(zonemap, pairs, tmp, extra, dir_weight):
@@ -281,6 +285,7 @@ def write_inc(path, text):
 
 
 def main(argv):
+    global LEARNER, FEATURES
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog=__doc__)
@@ -298,11 +303,15 @@ def main(argv):
     ap.add_argument("--learner", choices=["exact", "hist"], default="exact")
     ap.add_argument("--bag", type=int, default=0, metavar="K")
     ap.add_argument("--dagger-passes", type=int, default=1, metavar="N")
+    ap.add_argument("--features", type=int, default=len(FEATURES), metavar="N")
     a = ap.parse_args(argv)
     if a.dagger_passes < 1:
         ap.error(f"--dagger-passes {a.dagger_passes}: at least 1")
-    global LEARNER
+    if not 1 <= a.features <= len(FEATURES):
+        ap.error(f"--features {a.features}: from 1 to {len(FEATURES)}, the features zonemap "
+                 "writes")
     LEARNER = a.learner
+    FEATURES = FEATURES[:a.features]
     params = [x for p in a.param for x in ("--param", p)]
     exclude, out_json, out_inc, threshold, loo_dir = set(a.exclude), a.json, a.inc, a.threshold, a.loo
     dir_weight = {d: float(w) for d, w in (x.rsplit("=", 1) for x in a.weight)}

@@ -190,16 +190,29 @@ check((load(os.path.join(fsim, "sim_hospital_7_gt.png")) == gt).all() and
            load(os.path.join(lsim, "sim_hospital_7_map.png"))).all(),
       "render_sim.py --fronts: the same building and rooms, another grid than --laser")
 
-# A model fitted on these three maps runs in zonemap.
+# A model fitted on these three maps runs in zonemap. rows_of trains one on them (hist learner)
+# with the arguments given, and returns the process and its (oracle, model-driven) row counts.
+def rows_of(*extra):
+    p = subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
+                        os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
+                        "--learner", "hist"] + list(extra), capture_output=True, text=True)
+    words = p.stderr.split()
+    return p, (int(words[2]), int(words[5])) if p.returncode == 0 and len(words) > 5 else None
+
+
+def runs_model(path):
+    """zonemap segments set 1's robot render with the model at `path`, into at least one zone."""
+    run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
+                                                                   name + "_map.png"),
+                          "--out", os.devnull, "--merge-model", path, "--json"],
+                         capture_output=True, text=True)
+    return run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1
+
+
 model = os.path.join(work, "model.json")
-subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
-                os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
-                "--json", model, "--learner", "hist"], check=True, capture_output=True)
-run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
-                                                               name + "_map.png"),
-                      "--out", os.devnull, "--merge-model", model, "--json"],
-                     capture_output=True, text=True)
-check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs the model")
+first, n1 = rows_of("--json", model)
+check(first.returncode == 0 and n1 is not None, "train_layout_merge.py fits the three maps")
+check(runs_model(model), "zonemap runs the model")
 
 # --bag 2: two fits on maps resampled within their DIR, joined into one model (twice the trees,
 # the learners' mean log-odds, checked inside the script), reproducible, run by zonemap.
@@ -213,34 +226,27 @@ for out in ("bag_a.json", "bag_b.json"):
 one, two = json.load(open(model)), json.loads(bags[0])
 check(bags[0] == bags[1] and len(two["trees"]) == 2 * len(one["trees"]) and
       two["trained_with"] == one["trained_with"], "--bag 2: two joined fits, reproducibly")
-run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
-                                                               name + "_map.png"),
-                      "--out", os.devnull, "--merge-model", os.path.join(work, "bag_a.json"),
-                      "--json"], capture_output=True, text=True)
-check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1, "zonemap runs a bagged model")
+check(runs_model(os.path.join(work, "bag_a.json")), "zonemap runs a bagged model")
 
 # --dagger-passes 2: a second DAgger pass adds the rows of the states the second model's merges
 # lead to (more model-driven rows, the same oracle rows); zonemap runs the model; 0 is refused.
-def rows_of(*extra):
-    p = subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
-                        os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
-                        "--learner", "hist"] + list(extra), capture_output=True, text=True)
-    words = p.stderr.split()
-    return p, (int(words[2]), int(words[5])) if p.returncode == 0 and len(words) > 5 else None
-
-
-_, n1 = rows_of("--json", os.path.join(work, "d1.json"))
 _, n2 = rows_of("--json", os.path.join(work, "d2.json"), "--dagger-passes", "2")
 check(n1 is not None and n2 is not None and n2[0] == n1[0] and n2[1] > n1[1],
       f"--dagger-passes 2: the same oracle rows, more model-driven rows ({n1} -> {n2})")
-run = subprocess.run([zonemap, "zones", "segment", os.path.join(work, "a", "robot",
-                                                               name + "_map.png"),
-                      "--out", os.devnull, "--merge-model", os.path.join(work, "d2.json"),
-                      "--json"], capture_output=True, text=True)
-check(run.returncode == 0 and json.loads(run.stdout)["zones"] >= 1,
-      "zonemap runs a model of two DAgger passes")
+check(runs_model(os.path.join(work, "d2.json")), "zonemap runs a model of two DAgger passes")
 bad, _ = rows_of("--dagger-passes", "0")
 check(bad.returncode != 0 and "--dagger-passes 0" in bad.stderr, "--dagger-passes 0 is refused")
+# --features 35: the shipped model's feature set (it predates the map-level features), as the
+# floor of issue 28's rounds is trained; zonemap runs it; a count beyond the trace's is refused.
+rows_of("--json", os.path.join(work, "f35.json"), "--features", "35")
+f35 = json.load(open(os.path.join(work, "f35.json")))
+all41 = json.load(open(model))["features"]
+check(len(all41) == 41 and f35["features"] == all41[:35] and
+      all(f < 35 for t in f35["trees"] for f in t["feature"]), "--features 35 trains on the first 35")
+check(runs_model(os.path.join(work, "f35.json")), "zonemap runs a model of 35 features")
+bad, _ = rows_of("--features", "42")
+check(bad.returncode != 0 and "--features 42: from 1 to 41" in bad.stderr,
+      "--features beyond the trace's is refused")
 sys.path.insert(0, scripts)
 import train_layout_merge  # noqa: E402
 counts = train_layout_merge.bootstrap_counts(["a", "a", "a", "b", "b"], 1)
