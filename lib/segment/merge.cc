@@ -44,6 +44,73 @@ class Roots {
   std::vector<int> parent_;
 };
 
+// Calls f(a, pa, b, pb) once for each pair of 4-neighbouring cells pa, pb (pb right of or below
+// pa) whose labels a, b are different and both non-zero: every merge below reads a segment's
+// borders from this one walk, in the same row-major order.
+template <class F>
+void ForEachBorderPair(const cv::Mat& labels, F&& f) {
+  for (int r = 0; r < labels.rows; ++r) {
+    const int* l = labels.ptr<int>(r);
+    const int* below = r + 1 < labels.rows ? labels.ptr<int>(r + 1) : nullptr;
+    for (int c = 0; c < labels.cols; ++c) {
+      if (l[c] == 0) continue;
+      if (c + 1 < labels.cols && l[c + 1] != 0 && l[c + 1] != l[c]) {
+        f(l[c], cv::Point(c, r), l[c + 1], cv::Point(c + 1, r));
+      }
+      if (below != nullptr && below[c] != 0 && below[c] != l[c]) {
+        f(l[c], cv::Point(c, r), below[c], cv::Point(c, r + 1));
+      }
+    }
+  }
+}
+
+// Each label's largest value of `dt` (index = label, 0 unused).
+std::vector<float> PeakPerLabel(const cv::Mat& labels, const cv::Mat& dt, int label_count) {
+  std::vector<float> peak(Idx(label_count) + 1, 0.0f);
+  for (int r = 0; r < labels.rows; ++r) {
+    const int* l = labels.ptr<int>(r);
+    const float* d = dt.ptr<float>(r);
+    for (int c = 0; c < labels.cols; ++c) {
+      if (l[c] != 0) peak[Idx(l[c])] = std::max(peak[Idx(l[c])], d[c]);
+    }
+  }
+  return peak;
+}
+
+// Cell pairs along each border (ForEachBorderPair), keyed (smaller label, larger).
+std::map<std::pair<int, int>, int> BorderLengths(const cv::Mat& labels) {
+  std::map<std::pair<int, int>, int> border;
+  ForEachBorderPair(labels,
+                    [&](int a, cv::Point, int b, cv::Point) { ++border[std::minmax(a, b)]; });
+  return border;
+}
+
+// Renumbers `labels` 1..N: label l takes the number of its representative rep(l) (0 drops its
+// cells), numbers handed out in label order; a representative none of whose labels has a cell
+// gets none, so N counts only segments that exist. Returns N.
+template <class Rep>
+int RelabelDense(cv::Mat* labels, int label_count, Rep rep) {
+  std::vector<int> final_label(Idx(label_count) + 1, 0);
+  std::vector<bool> has_cells(Idx(label_count) + 1, false);
+  for (int r = 0; r < labels->rows; ++r) {
+    const int* l = labels->ptr<int>(r);
+    for (int c = 0; c < labels->cols; ++c) has_cells[Idx(l[c])] = true;
+  }
+  int next = 0;
+  for (int l = 1; l <= label_count; ++l) {
+    if (!has_cells[Idx(l)]) continue;
+    const int t = rep(l);
+    if (t == 0) continue;
+    if (final_label[Idx(t)] == 0) final_label[Idx(t)] = ++next;
+    final_label[Idx(l)] = final_label[Idx(t)];
+  }
+  for (int r = 0; r < labels->rows; ++r) {
+    int* l = labels->ptr<int>(r);
+    for (int c = 0; c < labels->cols; ++c) l[c] = final_label[Idx(l[c])];
+  }
+  return next;
+}
+
 // Merges neighbouring segments whose shared border is not a constriction: the widest point of
 // the border (the largest clearance on it, `saddle`) is at least `ratio` of the smaller of the
 // two segments' own largest clearance (`peak`). Doors are narrow against both rooms; a split
@@ -51,29 +118,12 @@ class Roots {
 void MergeOpenBorders(cv::Mat* labels, const cv::Mat& dt, int label_count, double ratio,
                       float min_saddle, double no_constriction_ratio) {
   if ((ratio <= 0.0 && no_constriction_ratio <= 0.0) || label_count < 2) return;
-  std::vector<float> peak(Idx(label_count) + 1, 0.0f);
+  std::vector<float> peak = PeakPerLabel(*labels, dt, label_count);
   std::map<std::pair<int, int>, float> saddle;
-  auto note = [&](int a, int b, float d) {
-    if (a > b) std::swap(a, b);
-    float& s = saddle[{a, b}];
-    s = std::max(s, d);
-  };
-  for (int r = 0; r < labels->rows; ++r) {
-    const int* l = labels->ptr<int>(r);
-    const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
-    const float* d = dt.ptr<float>(r);
-    const float* dbelow = below != nullptr ? dt.ptr<float>(r + 1) : nullptr;
-    for (int c = 0; c < labels->cols; ++c) {
-      if (l[c] == 0) continue;
-      peak[Idx(l[c])] = std::max(peak[Idx(l[c])], d[c]);
-      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c]) {
-        note(l[c], l[c + 1], std::min(d[c], d[c + 1]));
-      }
-      if (below != nullptr && below[c] != 0 && below[c] != l[c]) {
-        note(l[c], below[c], std::min(d[c], dbelow[c]));
-      }
-    }
-  }
+  ForEachBorderPair(*labels, [&](int a, cv::Point pa, int b, cv::Point pb) {
+    float& s = saddle[std::minmax(a, b)];
+    s = std::max({s, std::min(dt.at<float>(pa), dt.at<float>(pb))});
+  });
   Roots roots(label_count);
   for (;;) {
     // The most open border first; recompute over current roots.
@@ -118,7 +168,6 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
                          std::span<const OpeningLine> lines, int label_count, double peak_ratio,
                          double local_ratio, float door_px) {
   if ((peak_ratio <= 0.0 && local_ratio <= 0.0) || label_count < 2) return;
-  std::vector<float> peak(Idx(label_count) + 1, 0.0f);
   std::map<std::pair<int, int>, float> saddle;
   // Border cells per opening id, per pair: the opening holding most of the border decides
   // (another opening's end touching the border at a corner must not: a wall continued past a
@@ -134,37 +183,16 @@ void MergeAcrossOpenings(cv::Mat* labels, const cv::Mat& dt_open, const cv::Mat&
     if (std::hypot(d.x, d.y) + 1.0f <= door_px) return 0.0;
     return line.Constriction();
   };
-  auto note = [&](int a, int b, float d, int id_a, int id_b) {
-    if (a > b) std::swap(a, b);
-    float& s = saddle[{a, b}];
-    s = std::max(s, d);
-    std::map<int, int>& v = votes[{a, b}];
-    if (id_a > 0) ++v[id_a];
-    if (id_b > 0) ++v[id_b];
-  };
-  for (int r = 0; r < labels->rows; ++r) {
-    const int* l = labels->ptr<int>(r);
-    const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
-    const float* d = dt_open.ptr<float>(r);
-    const float* dbelow = below != nullptr ? dt_open.ptr<float>(r + 1) : nullptr;
-    const float* dc = dt_closed.ptr<float>(r);
-    const std::uint8_t* op = openings.ptr<std::uint8_t>(r);
-    const std::uint8_t* opbelow = below != nullptr ? openings.ptr<std::uint8_t>(r + 1) : nullptr;
-    const int* id = opening_ids.ptr<int>(r);
-    const int* idbelow = below != nullptr ? opening_ids.ptr<int>(r + 1) : nullptr;
-    for (int c = 0; c < labels->cols; ++c) {
-      if (l[c] == 0) continue;
-      peak[Idx(l[c])] = std::max(peak[Idx(l[c])], dc[c]);
-      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c] &&
-          (op[c] != 0 || op[c + 1] != 0)) {
-        note(l[c], l[c + 1], std::min(d[c], d[c + 1]), id[c], id[c + 1]);
-      }
-      if (below != nullptr && below[c] != 0 && below[c] != l[c] &&
-          (op[c] != 0 || opbelow[c] != 0)) {
-        note(l[c], below[c], std::min(d[c], dbelow[c]), id[c], idbelow[c]);
-      }
-    }
-  }
+  std::vector<float> peak = PeakPerLabel(*labels, dt_closed, label_count);
+  ForEachBorderPair(*labels, [&](int a, cv::Point pa, int b, cv::Point pb) {
+    if (openings.at<std::uint8_t>(pa) == 0 && openings.at<std::uint8_t>(pb) == 0) return;
+    const std::pair<int, int> key = std::minmax(a, b);
+    float& s = saddle[key];
+    s = std::max({s, std::min(dt_open.at<float>(pa), dt_open.at<float>(pb))});
+    std::map<int, int>& v = votes[key];
+    if (const int id = opening_ids.at<int>(pa); id > 0) ++v[id];
+    if (const int id = opening_ids.at<int>(pb); id > 0) ++v[id];
+  });
   std::map<std::pair<int, int>, double> local;  // Constriction() of the border's main opening
   for (const auto& [key, v] : votes) {
     int main_id = 0, most = 0;
@@ -249,22 +277,14 @@ int MergeByRules(const RuleMergeOptions& o, double door_max_width_m, double res,
 
 int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
   std::vector<int> area(Idx(label_count) + 1, 0);
-  std::vector<std::map<int, int>> border(Idx(label_count) + 1);
   for (int r = 0; r < labels->rows; ++r) {
     const int* l = labels->ptr<int>(r);
-    const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
-    for (int c = 0; c < labels->cols; ++c) {
-      if (l[c] == 0) continue;
-      ++area[Idx(l[c])];
-      if (c + 1 < labels->cols && l[c + 1] != 0 && l[c + 1] != l[c]) {
-        ++border[Idx(l[c])][l[c + 1]];
-        ++border[Idx(l[c + 1])][l[c]];
-      }
-      if (below != nullptr && below[c] != 0 && below[c] != l[c]) {
-        ++border[Idx(l[c])][below[c]];
-        ++border[Idx(below[c])][l[c]];
-      }
-    }
+    for (int c = 0; c < labels->cols; ++c) ++area[Idx(l[c])];
+  }
+  std::vector<std::map<int, int>> border(Idx(label_count) + 1);
+  for (const auto& [pair, len] : BorderLengths(*labels)) {
+    border[Idx(pair.first)][pair.second] = len;
+    border[Idx(pair.second)][pair.first] = len;
   }
   std::vector<int> target(Idx(label_count) + 1);
   std::iota(target.begin(), target.end(), 0);
@@ -295,27 +315,11 @@ int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area) {
     }
     border[Idx(smallest)].clear();
   }
-  // Resolve chains of merges and renumber densely.
-  std::vector<int> final_label(Idx(label_count) + 1, 0);
-  int next = 0;
-  for (int l = 1; l <= label_count; ++l) {
-    int t = l;
-    while (t != 0 && !alive[Idx(t)]) {
-      if (target[Idx(t)] == t) {
-        t = 0;
-        break;
-      }
-      t = target[Idx(t)];
-    }
-    if (t == 0) continue;
-    if (final_label[Idx(t)] == 0) final_label[Idx(t)] = ++next;
-    final_label[Idx(l)] = final_label[Idx(t)];
-  }
-  for (int r = 0; r < labels->rows; ++r) {
-    int* l = labels->ptr<int>(r);
-    for (int c = 0; c < labels->cols; ++c) l[c] = final_label[Idx(l[c])];
-  }
-  return next;
+  // Each label to the end of its chain of merges (0 when a link was dropped).
+  return RelabelDense(labels, label_count, [&](int l) {
+    while (l != 0 && !alive[Idx(l)]) l = target[Idx(l)];
+    return l;
+  });
 }
 
 int MergeCorridors(cv::Mat* labels, const cv::Mat& dt, int label_count, double res,
@@ -326,70 +330,40 @@ int MergeCorridors(cv::Mat* labels, const cv::Mat& dt, int label_count, double r
   for (;;) {
     if (label_count < 2) return label_count;
     const std::vector<SegmentInfo> info = DescribeSegments(*labels, dt, label_count, res, kinds);
-    const auto narrow = [&](int l) { return info[Idx(l - 1)].width_m <= kinds.corridor_max_width_m; };
+    const auto width = [&](int l) { return info[Idx(l - 1)].width_m; };
+    const auto narrow = [&](int l) { return width(l) <= kinds.corridor_max_width_m; };
     const auto corridor = [&](int l) { return info[Idx(l - 1)].kind == "corridor"; };
-    std::map<std::pair<int, int>, int> border;  // (smaller label, larger) -> cell pairs
-    const auto count = [&](int a, int b) {
-      if (b != 0 && a != b && narrow(a) && narrow(b) && (corridor(a) || corridor(b))) {
-        ++border[std::minmax(a, b)];
-      }
-    };
-    for (int r = 0; r < labels->rows; ++r) {
-      const int* l = labels->ptr<int>(r);
-      const int* below = r + 1 < labels->rows ? labels->ptr<int>(r + 1) : nullptr;
-      for (int c = 0; c < labels->cols; ++c) {
-        if (l[c] == 0) continue;
-        if (c + 1 < labels->cols) count(l[c], l[c + 1]);
-        if (below != nullptr) count(l[c], below[c]);
-      }
-    }
     Roots roots(label_count);
     bool merged = false;
-    for (const auto& [pair, cells] : border) {
-      const double narrower =
-          std::min(info[Idx(pair.first - 1)].width_m, info[Idx(pair.second - 1)].width_m);
-      const double wider =
-          std::max(info[Idx(pair.first - 1)].width_m, info[Idx(pair.second - 1)].width_m);
-      if (width_ratio > 0.0 && wider > width_ratio * narrower) continue;
+    for (const auto& [pair, cells] : BorderLengths(*labels)) {
+      const auto [a, b] = pair;
+      if (!narrow(a) || !narrow(b) || !(corridor(a) || corridor(b))) continue;
+      const double narrower = std::min(width(a), width(b));
+      if (width_ratio > 0.0 && std::max(width(a), width(b)) > width_ratio * narrower) continue;
       if (cells * res < border_ratio * narrower) continue;
-      const int a = roots.Find(pair.first), b = roots.Find(pair.second);
-      if (a != b) roots.Join(a, b), merged = true;
+      const int ra = roots.Find(a), rb = roots.Find(b);
+      if (ra != rb) roots.Join(ra, rb), merged = true;
     }
     if (!merged) return label_count;
-    // Every label to its root's, numbered densely 1..N in label order.
-    std::vector<int> dense(Idx(label_count) + 1, 0);
-    int next = 0;
-    for (int l = 1; l <= label_count; ++l) {
-      const int root = roots.Find(l);
-      if (dense[Idx(root)] == 0) dense[Idx(root)] = ++next;
-      dense[Idx(l)] = dense[Idx(root)];
-    }
-    for (int r = 0; r < labels->rows; ++r) {
-      int* l = labels->ptr<int>(r);
-      for (int c = 0; c < labels->cols; ++c) l[c] = dense[Idx(l[c])];
-    }
-    label_count = next;
+    label_count = RelabelDense(labels, label_count, [&](int l) { return roots.Find(l); });
   }
 }
 
 std::vector<SegmentInfo> DescribeSegments(const cv::Mat& labels, const cv::Mat& dt, int count,
                                           double res, const KindOptions& o) {
   std::vector<SegmentInfo> segments(Idx(count));
-  std::vector<float> max_dt(Idx(count), 0.0f);
+  const std::vector<float> max_dt = PeakPerLabel(labels, dt, count);
   for (int r = 0; r < labels.rows; ++r) {
     const int* l = labels.ptr<int>(r);
-    const float* d = dt.ptr<float>(r);
     for (int c = 0; c < labels.cols; ++c) {
-      if (l[c] == 0) continue;
-      ++segments[Idx(l[c] - 1)].area_cells;
-      max_dt[Idx(l[c] - 1)] = std::max(max_dt[Idx(l[c] - 1)], d[c]);
+      if (l[c] != 0) ++segments[Idx(l[c] - 1)].area_cells;
     }
   }
   for (int i = 0; i < count; ++i) {
     SegmentInfo& s = segments[Idx(i)];
     s.label = i + 1;
     s.area_m2 = s.area_cells * res * res;
-    s.width_m = 2.0 * static_cast<double>(max_dt[Idx(i)]) * res;
+    s.width_m = 2.0 * static_cast<double>(max_dt[Idx(i) + 1]) * res;
     s.elongation = s.width_m > 0.0 ? s.area_m2 / (s.width_m * s.width_m) : 0.0;
     s.kind = (s.elongation >= o.corridor_elongation && s.width_m <= o.corridor_max_width_m)
                  ? "corridor"

@@ -96,7 +96,8 @@ inline constexpr OptionField<KindOptions> kKindOptionFields[] = {
                                double resolution_m, Pieces* pieces);
 
 // Merges segments smaller than `min_area` cells into the neighbour sharing the longest border
-// (dropping isolated ones), then renumbers labels 1..N. Returns N.
+// (dropping isolated ones), then renumbers labels 1..N, leaving out labels with no cells (so
+// with `min_area` 0 it only numbers the segments densely). Returns N.
 int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area);
 
 // Corridor continuation (LearnedMergeOptions::layout_corridor_*): merges neighbours of which one

@@ -346,6 +346,38 @@ TEST_CASE("corridor continuation joins a corridor's pieces cut across, not rooms
   }
 }
 
+// MergeSmallSegments numbers what is left 1..N in label order: a speck joins the neighbour it
+// shares most border with, an isolated speck is dropped, and labels with no cells (left by the
+// merges before it) get no number, also with min_area 0, where it only renumbers.
+TEST_CASE("small segments merge into their longest neighbour and labels end dense") {
+  cv::Mat labels = cv::Mat::zeros(20, 40, CV_32S);
+  labels(cv::Rect(0, 0, 10, 10)).setTo(2);    // 100 cells
+  labels(cv::Rect(10, 0, 10, 10)).setTo(5);   // 100 cells
+  labels(cv::Rect(10, 10, 2, 3)).setTo(6);    // a speck: 2 cells of border with 5, 3 with 7
+  labels(cv::Rect(12, 10, 8, 10)).setTo(7);   // 80 cells
+  labels(cv::Rect(30, 15, 2, 2)).setTo(8);    // an isolated speck
+  // labels 1, 3 and 4 have no cells
+  SUBCASE("min_area 0: renumbered densely, nothing merged") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeSmallSegments(&l, 8, 0) == 5);
+    CHECK(l.at<int>(0, 0) == 1);
+    CHECK(l.at<int>(0, 10) == 2);
+    CHECK(l.at<int>(10, 10) == 3);
+    CHECK(l.at<int>(10, 12) == 4);
+    CHECK(l.at<int>(15, 30) == 5);
+  }
+  SUBCASE("min_area 10: the speck joins its longest border, the isolated one is dropped") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeSmallSegments(&l, 8, 10) == 3);
+    CHECK(l.at<int>(10, 10) == l.at<int>(10, 12));  // 3 cells of border with 7 against 2 with 5
+    CHECK(l.at<int>(10, 12) == 3);
+    CHECK(l.at<int>(15, 30) == 0);
+    double max_label = 0.0;
+    cv::minMaxLoc(l, nullptr, &max_label);
+    CHECK(max_label == 3.0);
+  }
+}
+
 // The share of `truth` label `label`'s cells held by its best segment, and that segment.
 double BestShare(const Segmentation& seg, const cv::Mat& truth, int label, int* best_label) {
   std::map<int, int> count;
