@@ -400,6 +400,9 @@ def write(out_dir, name, free, occupied, rooms, n):
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     args = sys.argv[1:]
+    if "-h" in args or "--help" in args:
+        print(__doc__)
+        return
     off = None
     laser = "--laser" in args
     if laser:
@@ -409,6 +412,8 @@ def main():
         args.remove("--fronts")
     if "--robot-off" in args:
         i = args.index("--robot-off")
+        if i + 1 == len(args):
+            sys.exit("--robot-off: needs KIND[,KIND...] (an empty string for none)")
         off = tuple(k for k in args[i + 1].split(",") if k)
         del args[i:i + 2]
         bad = [k for k in off if k not in AUGMENTATIONS]
@@ -416,6 +421,11 @@ def main():
             sys.exit(f"--robot-off: unknown {bad}; known: {', '.join(AUGMENTATIONS)}")
     if (laser, fronts, off is not None).count(True) > 1:
         sys.exit("--laser, --fronts and --robot-off: one at a time")
+    # An unknown option would otherwise be taken for a directory (and written to).
+    unknown = [a for a in args if a.startswith("-")]
+    if unknown or len(args) > 2:
+        sys.exit(f"render_r2v.py: unknown option or extra argument {(unknown or args[2:])[0]!r}; "
+                 "usage: [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...] | --laser | --fronts]")
     src = args[0] if len(args) == 2 else os.path.join(here, "..", "tests", "data",
                                                       "segmentation", "r2v")
     out = args[-1] if args else sys.exit(__doc__)

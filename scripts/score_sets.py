@@ -7,15 +7,19 @@ mean IoU over the GT rooms the map shows (from 200 free cells; a room the robot 
 left out, where mean IoU counts it 0: docs/segmentation.md, issue 28, second round).
 --merge-model runs another layout merge model than the compiled-in one (docs/segmentation.md,
 issue 28); --param K=V (repeatable) passes a segmentation option to every run, as
-`zones segment --param` does (the probes of issue 28's second and third rounds).
+`zones segment --param` does (the probes of issue 28's second and third rounds). --oracle merges
+the layout pieces by the ground truth instead of by a model (`zones segment --merge-oracle`): the
+best any merge of the cut's pieces can score, so what is left below it is the cut's (issue 28,
+eleventh round).
 
-Usage: scripts/score_sets.py ZONEMAP DIR [DIR ...] [--per-map] [--merge-model MODEL.json]
-           [--param K=V ...]
+Usage: scripts/score_sets.py ZONEMAP DIR [DIR ...] [--per-map]
+           [--merge-model MODEL.json | --oracle] [--param K=V ...]
 """
 import argparse
 import json
 import os
 import subprocess
+import tempfile
 
 
 def score(zonemap, map_png, gt_png, extra):
@@ -35,8 +39,14 @@ def main():
     ap.add_argument("--per-map", action="store_true")
     ap.add_argument("--merge-model")
     ap.add_argument("--param", action="append", default=[], metavar="K=V")
+    ap.add_argument("--oracle", action="store_true")
     a = ap.parse_args()
+    if a.oracle and a.merge_model:
+        ap.error("--oracle merges by the ground truth: no --merge-model with it")
     extra = ["--merge-model", a.merge_model] if a.merge_model else []
+    trace_dir = tempfile.TemporaryDirectory() if a.oracle else None
+    if trace_dir:  # the oracle runs only as a trace's; the rows are not wanted here
+        extra += ["--merge-oracle", "--merge-trace", os.path.join(trace_dir.name, "pairs.csv")]
     for kv in a.param:
         extra += ["--param", kv]
     if a.per_map:

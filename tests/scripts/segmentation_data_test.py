@@ -86,6 +86,18 @@ bad = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), sr
                       os.path.join(work, "bad"), "--robot-off", "paint"], capture_output=True,
                      text=True)
 check(bad.returncode != 0 and "paint" in bad.stderr, "--robot-off names an unknown augmentation")
+# An unknown option is refused, not taken for the output directory; --help writes nothing.
+for argv, named in (([os.path.join(work, "bogus"), "--bogus"], "'--bogus'"),
+                    ([src, os.path.join(work, "bogus"), "extra"], "'extra'"),
+                    ([src, os.path.join(work, "bogus"), "--robot-off"], "--robot-off: needs"),
+                    (["--help"], None)):
+    p = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py")] + argv, cwd=work,
+                       capture_output=True, text=True)
+    check((p.returncode == 0 and "Usage" in p.stdout) if named is None else
+          (p.returncode != 0 and named in p.stderr and "Traceback" not in p.stderr),
+          f"render_r2v.py {' '.join(argv[-1:])}: " + ("usage" if named is None else "refused"))
+check(not os.path.exists(os.path.join(work, "bogus")) and
+      not os.path.exists(os.path.join(work, "--help")), "render_r2v.py: nothing written for them")
 
 
 def one_variant(flag, kind, refused_with):
@@ -349,6 +361,18 @@ bad = subprocess.run([sys.executable, os.path.join(scripts, "score_sets.py"), zo
                       "--param", "no_such_option=1"], capture_output=True, text=True)
 check(bad.returncode != 0 and "no_such_option" in bad.stderr,
       "score_sets.py --param reaches zonemap (an unknown option is refused by name)")
+# --oracle: the pieces merged by the ground truth, the best any merge of them can do; on the
+# hospital it joins what the model leaves cut (at least the model's recall, nearly all precision).
+oracle = subprocess.run([sys.executable, os.path.join(scripts, "score_sets.py"), zonemap, sim,
+                         "--oracle"], check=True, capture_output=True, text=True).stdout
+best = [[float(x) for x in r.split("|")[3:7]] for r in oracle.splitlines() if r.startswith("| /")]
+check(len(best) == 1 and best[0][1] >= rows[sim][1] and best[0][0] >= 95.0,
+      f"score_sets.py --oracle: recall {best[0][1] if best else None} >= the model's "
+      f"{rows[sim][1]}, precision >= 95")
+bad = subprocess.run([sys.executable, os.path.join(scripts, "score_sets.py"), zonemap, sim,
+                      "--oracle", "--merge-model", model], capture_output=True, text=True)
+check(bad.returncode != 0 and "--oracle" in bad.stderr and "Traceback" not in bad.stderr,
+      "score_sets.py --oracle with --merge-model is refused")
 probe = subprocess.run([sys.executable, os.path.join(scripts, "segmentation_border_probe.py"),
                         zonemap, os.path.join(work, "labels"), robot_dir, sim],
                        capture_output=True, text=True)
