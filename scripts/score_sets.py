@@ -43,6 +43,10 @@ def main():
     a = ap.parse_args()
     if a.oracle and a.merge_model:
         ap.error("--oracle merges by the ground truth: no --merge-model with it")
+    for d in a.dirs:
+        if not os.path.isdir(d) or not any(f.endswith("_map.png") for f in os.listdir(d)):
+            ap.error(f"{d}: no <name>_map.png in it (render_r2v.py writes plan/, scan/, robot/ "
+                     "under its OUT_DIR)")
     extra = ["--merge-model", a.merge_model] if a.merge_model else []
     trace_dir = tempfile.TemporaryDirectory() if a.oracle else None
     if trace_dir:  # the oracle runs only as a trace's; the rows are not wanted here

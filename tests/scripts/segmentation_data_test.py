@@ -373,6 +373,10 @@ bad = subprocess.run([sys.executable, os.path.join(scripts, "score_sets.py"), zo
                       "--oracle", "--merge-model", model], capture_output=True, text=True)
 check(bad.returncode != 0 and "--oracle" in bad.stderr and "Traceback" not in bad.stderr,
       "score_sets.py --oracle with --merge-model is refused")
+bad = subprocess.run([sys.executable, os.path.join(scripts, "score_sets.py"), zonemap,
+                      os.path.join(work, "a")], capture_output=True, text=True)
+check(bad.returncode != 0 and "no <name>_map.png" in bad.stderr and bad.stdout == "" and
+      "Traceback" not in bad.stderr, "score_sets.py refuses a DIR with no maps, before any row")
 probe = subprocess.run([sys.executable, os.path.join(scripts, "segmentation_border_probe.py"),
                         zonemap, os.path.join(work, "labels"), robot_dir, sim],
                        capture_output=True, text=True)
