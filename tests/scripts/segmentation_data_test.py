@@ -227,17 +227,21 @@ check(first.returncode == 0 and n1 is not None, "train_layout_merge.py fits the 
 check(runs_model(model), "zonemap runs the model")
 
 # --bag 2: two fits on maps resampled within their DIR, joined into one model (twice the trees,
-# the learners' mean log-odds, checked inside the script), reproducible, run by zonemap.
+# the learners' mean log-odds, checked inside the script), reproducible, run by zonemap. The
+# second run traces two maps at once (--jobs 2): the same bytes.
 bags = []
-for out in ("bag_a.json", "bag_b.json"):
+for out, jobs in (("bag_a.json", "1"), ("bag_b.json", "2")):
     subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
                     os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
-                    "--json", os.path.join(work, out), "--learner", "hist", "--bag", "2"],
-                   check=True, capture_output=True)
+                    "--json", os.path.join(work, out), "--learner", "hist", "--bag", "2",
+                    "--jobs", jobs], check=True, capture_output=True)
     bags.append(open(os.path.join(work, out)).read())
 one, two = json.load(open(model)), json.loads(bags[0])
 check(bags[0] == bags[1] and len(two["trees"]) == 2 * len(one["trees"]) and
-      two["trained_with"] == one["trained_with"], "--bag 2: two joined fits, reproducibly")
+      two["trained_with"] == one["trained_with"],
+      "--bag 2: two joined fits, reproducibly, and the same with --jobs 2")
+bad, _ = rows_of("--jobs", "0")
+check(bad.returncode != 0 and "--jobs 0" in bad.stderr, "--jobs 0 is refused")
 check(runs_model(os.path.join(work, "bag_a.json")), "zonemap runs a bagged model")
 
 # --dagger-passes 2: a second DAgger pass adds the rows of the states the second model's merges
