@@ -351,11 +351,11 @@ TEST_CASE("corridor continuation joins a corridor's pieces cut across, not rooms
 // merges before it) get no number, also with min_area 0, where it only renumbers.
 TEST_CASE("small segments merge into their longest neighbour and labels end dense") {
   cv::Mat labels = cv::Mat::zeros(20, 40, CV_32S);
-  labels(cv::Rect(0, 0, 10, 10)).setTo(2);    // 100 cells
-  labels(cv::Rect(10, 0, 10, 10)).setTo(5);   // 100 cells
-  labels(cv::Rect(10, 10, 2, 3)).setTo(6);    // a speck: 2 cells of border with 5, 3 with 7
-  labels(cv::Rect(12, 10, 8, 10)).setTo(7);   // 80 cells
-  labels(cv::Rect(30, 15, 2, 2)).setTo(8);    // an isolated speck
+  labels(cv::Rect(0, 0, 10, 10)).setTo(2);   // 100 cells
+  labels(cv::Rect(10, 0, 10, 10)).setTo(5);  // 100 cells
+  labels(cv::Rect(10, 10, 2, 3)).setTo(6);   // a speck: 2 cells of border with 5, 3 with 7
+  labels(cv::Rect(12, 10, 8, 10)).setTo(7);  // 80 cells
+  labels(cv::Rect(30, 15, 2, 2)).setTo(8);   // an isolated speck
   // labels 1, 3 and 4 have no cells
   SUBCASE("min_area 0: renumbered densely, nothing merged") {
     cv::Mat l = labels.clone();
