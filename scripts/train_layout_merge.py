@@ -41,8 +41,8 @@ when the threshold was chosen); --loo scores at --threshold (the default's 0.4).
 the shipped model's set, which predates the map-level features (issue 28's fifth and eighth
 rounds), so the shipped recipe and its leave-one-out (the floor of issue 28's rounds) are
 trained with --features 35.
---jobs N runs N zonemap traces at once (the maps are independent; the fits stay on one core):
-the same model, byte for byte, in less time on a machine with N cores to spare.
+--jobs N runs N zonemap traces at once (the maps are independent), and N of --bag's K fits: the
+same model, byte for byte, in less time on a machine with N cores to spare.
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
 """
 import argparse
@@ -256,8 +256,16 @@ def train(zonemap, pairs, dir_weight, dagger_threshold, params, bag=0, passes=1)
             w, owner = np.concatenate([w, w2]), np.concatenate([owner, o2])
         if not bag:
             return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y) - len(y1), y.mean()
-        clfs = [fit(x, y, w * bootstrap_counts([d for _, _, d in pairs], s)[owner])
-                for s in range(1, bag + 1)]
+        def one(s):
+            return fit(x, y, w * bootstrap_counts([d for _, _, d in pairs], s)[owner])
+
+        # The K fits are independent (each its own seed and learner; scikit-learn builds trees
+        # without the GIL): --jobs runs that many at once, the bag joined in seed order.
+        if JOBS > 1:
+            with ThreadPoolExecutor(max_workers=JOBS) as pool:
+                clfs = list(pool.map(one, range(1, bag + 1)))
+        else:
+            clfs = [one(s) for s in range(1, bag + 1)]
         model = bag_models([export(c, x[:200], trained_with) for c in clfs])
         check_bag(model, clfs, x[:50])
         return model, len(y1), len(y) - len(y1), y.mean()
