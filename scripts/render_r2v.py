@@ -49,9 +49,9 @@ the other augmentations are exactly those of the full render. --laser renders la
 --fronts front/ only. (robot_world, robot_scan, real_grid and open_fronts are also
 scripts/render_sim.py's.)
 """
+import argparse
 import collections
 import os
-import sys
 import zlib
 
 import numpy as np
@@ -399,36 +399,27 @@ def write(out_dir, name, free, occupied, rooms, n):
 
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
-    args = sys.argv[1:]
-    if "-h" in args or "--help" in args:
-        print(__doc__)
-        return
+    ap = argparse.ArgumentParser(
+        usage="%(prog)s [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...] | --laser | --fronts]",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("dirs", nargs="+", metavar="DIR", help="[SRC_DIR] OUT_DIR")
+    kind = ap.add_mutually_exclusive_group()
+    kind.add_argument("--robot-off", metavar="KIND[,KIND...]")
+    kind.add_argument("--laser", action="store_true")
+    kind.add_argument("--fronts", action="store_true")
+    a = ap.parse_args()
+    if len(a.dirs) > 2:
+        ap.error(f"unrecognized arguments: {' '.join(a.dirs[2:])}")
+    laser, fronts = a.laser, a.fronts
     off = None
-    laser = "--laser" in args
-    if laser:
-        args.remove("--laser")
-    fronts = "--fronts" in args
-    if fronts:
-        args.remove("--fronts")
-    if "--robot-off" in args:
-        i = args.index("--robot-off")
-        if i + 1 == len(args):
-            sys.exit("--robot-off: needs KIND[,KIND...] (an empty string for none)")
-        off = tuple(k for k in args[i + 1].split(",") if k)
-        del args[i:i + 2]
+    if a.robot_off is not None:
+        off = tuple(k for k in a.robot_off.split(",") if k)
         bad = [k for k in off if k not in AUGMENTATIONS]
         if bad:
-            sys.exit(f"--robot-off: unknown {bad}; known: {', '.join(AUGMENTATIONS)}")
-    if (laser, fronts, off is not None).count(True) > 1:
-        sys.exit("--laser, --fronts and --robot-off: one at a time")
-    # An unknown option would otherwise be taken for a directory (and written to).
-    unknown = [a for a in args if a.startswith("-")]
-    if unknown or len(args) > 2:
-        sys.exit(f"render_r2v.py: unknown option or extra argument {(unknown or args[2:])[0]!r}; "
-                 "usage: [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...] | --laser | --fronts]")
-    src = args[0] if len(args) == 2 else os.path.join(here, "..", "tests", "data",
-                                                      "segmentation", "r2v")
-    out = args[-1] if args else sys.exit(__doc__)
+            ap.error(f"--robot-off: unknown {bad}; known: {', '.join(AUGMENTATIONS)}")
+    src = a.dirs[0] if len(a.dirs) == 2 else os.path.join(here, "..", "tests", "data",
+                                                          "segmentation", "r2v")
+    out = a.dirs[-1]
     for fname in sorted(os.listdir(src)):
         if not fname.endswith(".txt"):
             continue

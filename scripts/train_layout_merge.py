@@ -119,13 +119,7 @@ def collect(zonemap, pairs, tmp, extra, dir_weight):
         m, g, _ = pairs[i]
         return trace(zonemap, m, g, os.path.join(tmp, f"trace_{i}.csv"), extra)
 
-    # The maps' zonemap runs are independent: --jobs runs that many at once, and the rows are
-    # joined in the maps' order whatever finishes first, so the model is the same bytes.
-    if JOBS > 1:
-        with ThreadPoolExecutor(max_workers=JOBS) as pool:
-            traces = list(pool.map(one, range(len(pairs))))
-    else:
-        traces = [one(i) for i in range(len(pairs))]
+    traces = run_all(one, range(len(pairs)))
     for i, (_, _, d) in enumerate(pairs):
         x, y, trained_with = traces[i]
         xs.append(x)
@@ -170,6 +164,16 @@ def check_bag(model, clfs, x_check):
 
 LEARNER = "exact"  # --learner
 JOBS = 1  # --jobs
+
+
+def run_all(fn, items):
+    """[fn(i) for i in items], JOBS at a time: the items are independent (zonemap runs, or fits
+    that build their trees without the GIL) and the results come back in the items' order, so
+    what is made of them does not depend on JOBS."""
+    if JOBS == 1:
+        return [fn(i) for i in items]
+    with ThreadPoolExecutor(max_workers=JOBS) as pool:
+        return list(pool.map(fn, items))
 
 
 def fit(x, y, w):
@@ -256,16 +260,8 @@ def train(zonemap, pairs, dir_weight, dagger_threshold, params, bag=0, passes=1)
             w, owner = np.concatenate([w, w2]), np.concatenate([owner, o2])
         if not bag:
             return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y) - len(y1), y.mean()
-        def one(s):
-            return fit(x, y, w * bootstrap_counts([d for _, _, d in pairs], s)[owner])
-
-        # The K fits are independent (each its own seed and learner; scikit-learn builds trees
-        # without the GIL): --jobs runs that many at once, the bag joined in seed order.
-        if JOBS > 1:
-            with ThreadPoolExecutor(max_workers=JOBS) as pool:
-                clfs = list(pool.map(one, range(1, bag + 1)))
-        else:
-            clfs = [one(s) for s in range(1, bag + 1)]
+        clfs = run_all(lambda s: fit(x, y, w * bootstrap_counts([d for _, _, d in pairs],
+                                                                s)[owner]), range(1, bag + 1))
         model = bag_models([export(c, x[:200], trained_with) for c in clfs])
         check_bag(model, clfs, x[:50])
         return model, len(y1), len(y) - len(y1), y.mean()

@@ -87,9 +87,9 @@ bad = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py"), sr
                      text=True)
 check(bad.returncode != 0 and "paint" in bad.stderr, "--robot-off names an unknown augmentation")
 # An unknown option is refused, not taken for the output directory; --help writes nothing.
-for argv, named in (([os.path.join(work, "bogus"), "--bogus"], "'--bogus'"),
-                    ([src, os.path.join(work, "bogus"), "extra"], "'extra'"),
-                    ([src, os.path.join(work, "bogus"), "--robot-off"], "--robot-off: needs"),
+for argv, named in (([os.path.join(work, "bogus"), "--bogus"], "arguments: --bogus"),
+                    ([src, os.path.join(work, "bogus"), "extra"], "arguments: extra"),
+                    ([src, os.path.join(work, "bogus"), "--robot-off"], "--robot-off: expected"),
                     (["--help"], None)):
     p = subprocess.run([sys.executable, os.path.join(scripts, "render_r2v.py")] + argv, cwd=work,
                        capture_output=True, text=True)
