@@ -692,17 +692,19 @@ TEST_CASE("regression floor: map15 with the rule merges") {
   CHECK(score->predicted_segments <= 40);
 }
 
-// SCORING REGRESSION FLOOR for the default (the learned layout merge, issue 16 sixth part: corner
-// openings, end caps, border kinds): map15 measured 93.1 / 94.1 / 88.5 % with 27 segments (fifth
-// part 94.3 / 81.7 / 81.4 %, 32). The compiled-in model saw map15 in training, so this is a
-// floor, not an evaluation; the leave-one-out figures are in docs/segmentation.md.
+// SCORING REGRESSION FLOOR for the default (the learned layout merge). map15 is a robot-made grid
+// (above the model's gate, map_rough_face_share 0.3), so since issue 28's twelfth round the
+// robot half (L bag5) merges it: measured 87.5 / 93.9 / 81.6 % with 24 segments (the shipped
+// trees alone, issue 16 sixth part: 93.1 / 94.1 / 88.5 %, 27). The compiled-in model saw map15 in
+// training, so this is a floor, not an evaluation; the leave-one-out figures (75.7 % under the
+// robot half, 72.4 under the shipped trees) are in docs/segmentation.md.
 TEST_CASE("regression floor: map15 with the default options (the layout merge)") {
   const auto score = Map15Score(SegmentOptions{});
   if (!score) return;
   CHECK(score->gt_rooms == 20);
-  CHECK(score->precision >= 0.90);
-  CHECK(score->recall >= 0.88);
-  CHECK(score->mean_iou >= 0.84);
+  CHECK(score->precision >= 0.84);
+  CHECK(score->recall >= 0.90);
+  CHECK(score->mean_iou >= 0.78);
   CHECK(score->predicted_segments >= 20);
   CHECK(score->predicted_segments <= 50);
 }
