@@ -402,14 +402,15 @@ def main():
     ap = argparse.ArgumentParser(
         usage="%(prog)s [SRC_DIR] OUT_DIR [--robot-off KIND[,KIND...] | --laser | --fronts]",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("dirs", nargs="+", metavar="DIR", help="[SRC_DIR] OUT_DIR")
+    # argparse matches the two positionals together: one argument is OUT_DIR, a third is refused.
+    ap.add_argument("src", nargs="?", metavar="SRC_DIR",
+                    default=os.path.join(here, "..", "tests", "data", "segmentation", "r2v"))
+    ap.add_argument("out", metavar="OUT_DIR")
     kind = ap.add_mutually_exclusive_group()
     kind.add_argument("--robot-off", metavar="KIND[,KIND...]")
     kind.add_argument("--laser", action="store_true")
     kind.add_argument("--fronts", action="store_true")
     a = ap.parse_args()
-    if len(a.dirs) > 2:
-        ap.error(f"unrecognized arguments: {' '.join(a.dirs[2:])}")
     laser, fronts = a.laser, a.fronts
     off = None
     if a.robot_off is not None:
@@ -417,9 +418,7 @@ def main():
         bad = [k for k in off if k not in AUGMENTATIONS]
         if bad:
             ap.error(f"--robot-off: unknown {bad}; known: {', '.join(AUGMENTATIONS)}")
-    src = a.dirs[0] if len(a.dirs) == 2 else os.path.join(here, "..", "tests", "data",
-                                                          "segmentation", "r2v")
-    out = a.dirs[-1]
+    src, out = a.src, a.out
     for fname in sorted(os.listdir(src)):
         if not fname.endswith(".txt"):
             continue
