@@ -349,6 +349,108 @@ int MergeCorridors(cv::Mat* labels, const cv::Mat& dt, int label_count, double r
   }
 }
 
+namespace {
+
+// MergeChannels' fixed shape tests (issue 28, fifteenth round's plan).
+constexpr double kChannelStraightCells = 3.0;  // a border's cells across its line, at most
+constexpr double kChannelPresence = 0.7;       // share of its length with a cell pair on it
+constexpr double kChannelSteps = 0.8;          // share of the steps along the normal that pass
+constexpr double kChannelEndProbeM = 0.25;     // how far beyond a border's end a wall may be
+
+// One border between two segments: where its cell pairs meet (cell-pair midpoints) and the sum
+// of the steps from the smaller label's cell to the larger's (which way the larger lies).
+struct ChannelBorder {
+  std::vector<cv::Point2f> mid;
+  cv::Point2f toward_second{0.0f, 0.0f};
+};
+
+bool FreeAt(const cv::Mat& free, cv::Point2f p) {
+  const int c = static_cast<int>(std::lround(p.x)), r = static_cast<int>(std::lround(p.y));
+  return r >= 0 && c >= 0 && r < free.rows && c < free.cols && free.at<uchar>(r, c) != 0;
+}
+
+// Whether a channel runs on from the border [end_a, end_b] along unit `d` for `steps` cells:
+// the centre line free and, within `probe` cells beyond each end (along the border's direction
+// `t`, away from the border), some cell not free.
+bool RunsOn(const cv::Mat& free, cv::Point2f end_a, cv::Point2f end_b, cv::Point2f t,
+            cv::Point2f d, int steps, int probe) {
+  const cv::Point2f centre = 0.5f * (end_a + end_b);
+  int pass = 0;
+  for (int v = 1; v <= steps; ++v) {
+    const cv::Point2f along = d * static_cast<float>(v);
+    if (!FreeAt(free, centre + along)) continue;
+    bool wall_a = false, wall_b = false;
+    for (int k = 1; k <= probe && !(wall_a && wall_b); ++k) {
+      const cv::Point2f out = t * static_cast<float>(k);
+      wall_a = wall_a || !FreeAt(free, end_a + along - out);
+      wall_b = wall_b || !FreeAt(free, end_b + along + out);
+    }
+    if (wall_a && wall_b) ++pass;
+  }
+  return pass >= kChannelSteps * steps;
+}
+
+}  // namespace
+
+int MergeChannels(cv::Mat* labels, const cv::Mat& free, int label_count, double res,
+                  double depth_m, double min_width_m) {
+  if (depth_m <= 0.0 || label_count < 2) return label_count;
+  std::map<std::pair<int, int>, ChannelBorder> borders;
+  ForEachBorderPair(*labels, [&](int a, cv::Point pa, int b, cv::Point pb) {
+    ChannelBorder& border = borders[std::minmax(a, b)];
+    border.mid.emplace_back(0.5f * (cv::Point2f(pa) + cv::Point2f(pb)));
+    border.toward_second += a < b ? cv::Point2f(pb - pa) : cv::Point2f(pa - pb);
+  });
+  const int steps = std::max(1, static_cast<int>(std::lround(depth_m / res)));
+  const int probe = std::max(1, static_cast<int>(std::lround(kChannelEndProbeM / res)));
+  Roots roots(label_count);
+  bool merged = false;
+  for (const auto& [pair, border] : borders) {
+    const std::vector<cv::Point2f>& m = border.mid;
+    if (m.size() < 2) continue;
+    // The border's line: its cells' principal direction t and normal n (toward the second).
+    cv::Point2f mean(0.0f, 0.0f);
+    for (const cv::Point2f& p : m) mean += p;
+    mean *= 1.0f / static_cast<float>(m.size());
+    double sxx = 0.0, sxy = 0.0, syy = 0.0;
+    for (const cv::Point2f& p : m) {
+      const double qx = static_cast<double>(p.x - mean.x), qy = static_cast<double>(p.y - mean.y);
+      sxx += qx * qx, sxy += qx * qy, syy += qy * qy;
+    }
+    const double angle = 0.5 * std::atan2(2.0 * sxy, sxx - syy);
+    const cv::Point2f t(static_cast<float>(std::cos(angle)), static_cast<float>(std::sin(angle)));
+    cv::Point2f n(-t.y, t.x);
+    if (n.dot(border.toward_second) < 0.0f) n = -n;
+    float umin = 0.0f, umax = 0.0f, wmin = 0.0f, wmax = 0.0f;
+    for (const cv::Point2f& p : m) {
+      const float u = (p - mean).dot(t), w = (p - mean).dot(n);
+      umin = std::min(umin, u), umax = std::max(umax, u);
+      wmin = std::min(wmin, w), wmax = std::max(wmax, w);
+    }
+    if (static_cast<double>(wmax - wmin) > kChannelStraightCells) continue;
+    const double length_cells = static_cast<double>(umax - umin) + 1.0;
+    const double width_m = length_cells * res;
+    if (width_m < min_width_m || width_m > kMaxChannelWidthM) continue;
+    std::vector<bool> present(static_cast<std::size_t>(length_cells) + 1, false);
+    for (const cv::Point2f& p : m) {
+      present[static_cast<std::size_t>((p - mean).dot(t) - umin)] = true;
+    }
+    const auto cells_present = std::count(present.begin(), present.end(), true);
+    if (static_cast<double>(cells_present) < kChannelPresence * length_cells) {
+      continue;
+    }
+    const cv::Point2f end_a = mean + t * umin, end_b = mean + t * umax;
+    if (!RunsOn(free, end_a, end_b, t, n, steps, probe) &&
+        !RunsOn(free, end_a, end_b, t, -n, steps, probe)) {
+      continue;
+    }
+    const int ra = roots.Find(pair.first), rb = roots.Find(pair.second);
+    if (ra != rb) roots.Join(ra, rb), merged = true;
+  }
+  if (!merged) return label_count;
+  return RelabelDense(labels, label_count, [&](int l) { return roots.Find(l); });
+}
+
 std::vector<SegmentInfo> DescribeSegments(const cv::Mat& labels, const cv::Mat& dt, int count,
                                           double res, const KindOptions& o) {
   std::vector<SegmentInfo> segments(Idx(count));

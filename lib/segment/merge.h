@@ -67,6 +67,12 @@ struct LearnedMergeOptions {
   // narrower (one corridor keeps its width); repeated until nothing merges. 0 = off.
   double layout_corridor_border_ratio = 0.0;
   double layout_corridor_width_ratio = 0.0;  // 0 = any widths
+  // Channel joins (issue 28, fifteenth round: MergeChannels), on grids above the model's gate:
+  // two neighbours join across a straight border kMaxChannelWidthM or narrower and at least
+  // layout_channel_min_width_m wide when, on one side, a channel (walls beside both of the
+  // border's ends, its middle free) runs on for layout_channel_depth_m. 0 = off.
+  double layout_channel_depth_m = 0.0;
+  double layout_channel_min_width_m = 1.2;  // narrower borders are doors
 };
 
 inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = {
@@ -74,6 +80,8 @@ inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = 
     {"layout_min_area_m2", &LearnedMergeOptions::layout_min_area_m2},
     {"layout_corridor_border_ratio", &LearnedMergeOptions::layout_corridor_border_ratio},
     {"layout_corridor_width_ratio", &LearnedMergeOptions::layout_corridor_width_ratio},
+    {"layout_channel_depth_m", &LearnedMergeOptions::layout_channel_depth_m},
+    {"layout_channel_min_width_m", &LearnedMergeOptions::layout_channel_min_width_m},
 };
 
 // A segment's kind: corridor when long and narrow, else room.
@@ -107,6 +115,20 @@ int MergeSmallSegments(cv::Mat* labels, int label_count, int min_area);
 // renumbers labels 1..N and returns N (`label_count` when border_ratio <= 0).
 int MergeCorridors(cv::Mat* labels, const cv::Mat& dt, int label_count, double resolution_m,
                    const KindOptions& kinds, double border_ratio, double width_ratio);
+
+// Channel joins (LearnedMergeOptions::layout_channel_*): merges two neighbouring segments when
+// their shared border is one straight cut (its cell pairs within kChannelStraightCells of a line,
+// kChannelPresence of its length present) between `min_width_m` and kMaxChannelWidthM long, and
+// on at least one side a channel runs on from it: at kChannelSteps of the steps up to `depth_m`
+// along the border's normal, the cell on its centre line is free in `free` and, within
+// kChannelEndProbeM beyond each of its two ends, some cell is not (a wall or unknown; outside
+// `free` counts as not free). A door's jambs are a wall's thickness deep; a corridor cut across,
+// a branch meeting its spine or a corridor opening into a hall runs on. Joins are transitive
+// (one pass over the borders as they are); renumbers labels 1..N and returns N (`label_count`
+// when depth_m <= 0). `free` is CV_8UC1 of `labels`' size, nonzero = a free cell of the grid.
+inline constexpr double kMaxChannelWidthM = 3.0;
+int MergeChannels(cv::Mat* labels, const cv::Mat& free, int label_count, double resolution_m,
+                  double depth_m, double min_width_m);
 
 // Each segment's area, width and kind from `labels` (1..count) and its clearance `dt`.
 [[nodiscard]] std::vector<SegmentInfo> DescribeSegments(const cv::Mat& labels, const cv::Mat& dt,

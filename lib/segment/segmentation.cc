@@ -10,6 +10,13 @@
 #include <string>
 
 namespace zm {
+namespace {
+
+// The compiled-in model's gate (scripts/gate_layout_merge.py --gate 0.3): grids whose wall faces
+// are rougher than this are merged by its robot half, and only they get MergeChannels.
+constexpr double kChannelRoughFaceShare = 0.3;
+
+}  // namespace
 
 Status CheckSegmentOptions(const SegmentOptions& o) {
   ZM_RETURN_IF_ERROR(CheckCutOptions(o.cut));
@@ -153,6 +160,14 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       count = MergeCorridors(&labels, pieces.dt, count, res, options.kinds,
                              options.learned.layout_corridor_border_ratio,
                              options.learned.layout_corridor_width_ratio);
+      // A corridor's pieces, joined where it runs on: for the grids the robot half merges
+      // (above the compiled-in model's gate, gate_layout_merge.py --gate 0.3), whose corridors
+      // the cut crosses at every door jamb; plans and scans keep the plan trees' zones.
+      if (seg.rough_face_share > kChannelRoughFaceShare) {
+        count = MergeChannels(&labels, in.free, count, res,
+                              options.learned.layout_channel_depth_m,
+                              options.learned.layout_channel_min_width_m);
+      }
     } else {
       count = MergeByRules(options.rules, options.cut.door_max_width_m, res, &pieces);
     }

@@ -346,6 +346,51 @@ TEST_CASE("corridor continuation joins a corridor's pieces cut across, not rooms
   }
 }
 
+// Channel joins (LearnedMergeOptions::layout_channel_*, issue 28's fifteenth round), at 0.1 m a
+// cell with walls all round: a 2 m wide corridor cut across into a west (1) and an east piece
+// (2); a 4 m room behind a 0.9 m door (3); a 4 m room behind a 1.5 m opening in a 0.3 m wall (4);
+// a 2 m branch meeting the corridor from the south (5); a 4 m office open onto the corridor over
+// its whole front (6).
+TEST_CASE("channel joins: a corridor cut across and its branch join; doors and open fronts not") {
+  cv::Mat labels = cv::Mat::zeros(80, 215, CV_32S);
+  labels(cv::Rect(5, 5, 60, 20)).setTo(1);
+  labels(cv::Rect(65, 5, 145, 20)).setTo(2);
+  labels(cv::Rect(20, 28, 40, 40)).setTo(3);
+  labels(cv::Rect(35, 25, 9, 3)).setTo(3);
+  labels(cv::Rect(70, 28, 40, 40)).setTo(4);
+  labels(cv::Rect(80, 25, 15, 3)).setTo(4);
+  labels(cv::Rect(125, 25, 20, 50)).setTo(5);
+  labels(cv::Rect(160, 25, 40, 40)).setTo(6);
+  const cv::Mat free = labels != 0;
+  const auto at = [](const cv::Mat& l, int x, int y) { return l.at<int>(y, x); };
+
+  SUBCASE("off: nothing changes") {
+    cv::Mat l = labels.clone();
+    CHECK(MergeChannels(&l, free, 6, 0.1, 0.0, 1.2) == 6);
+    CHECK(cv::countNonZero(l != labels) == 0);
+  }
+  SUBCASE("the corridor's two pieces and its branch become one; the rooms keep theirs") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeChannels(&l, free, 6, 0.1, 1.0, 1.2) == 4);
+    const int corridor = at(l, 100, 15);
+    CHECK(at(l, 20, 15) == corridor);   // the west piece, across the cut
+    CHECK(at(l, 135, 60) == corridor);  // the branch, across the T
+    CHECK(at(l, 40, 50) != corridor);   // behind a 0.9 m door: narrower than a corridor
+    CHECK(at(l, 90, 50) != corridor);   // behind a 1.5 m opening: the room opens sideways
+    CHECK(at(l, 180, 50) != corridor);  // open over 4 m: wider than a corridor
+    CHECK(at(l, 40, 50) != at(l, 90, 50));
+  }
+  SUBCASE("a depth within the wall's thickness takes the opening for a channel") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeChannels(&l, free, 6, 0.1, 0.2, 1.2) == 3);
+    CHECK(at(l, 90, 50) == at(l, 100, 15));
+  }
+  SUBCASE("a branch narrower than the minimum width is a door") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeChannels(&l, free, 6, 0.1, 1.0, 2.5) == 6);
+  }
+}
+
 // MergeSmallSegments numbers what is left 1..N in label order: a speck joins the neighbour it
 // shares most border with, an isolated speck is dropped, and labels with no cells (left by the
 // merges before it) get no number, also with min_area 0, where it only renumbers.
@@ -602,6 +647,25 @@ TEST_CASE("the default layout merge: a corridor crossed by aligned walls stays o
   }
   CHECK(room_labels.size() == 10);
   CHECK(room_labels.count(corridor_label) == 0);
+}
+
+TEST_CASE("channel joins leave a drawn plan's zones alone: they are for rough grids only") {
+  // The corridor floor's pieces with a model that merges none: its corridor is cut across where
+  // the rooms' walls meet it, cuts the channel rule joins when called on them...
+  const Floor f = CorridorFloor();
+  REQUIRE(GridRoughFaceShare(f.grid) <= 0.3);  // the compiled-in model's gate
+  const SegmentOptions off;
+  SegmentOptions on;
+  on.learned.layout_channel_depth_m = 1.0;
+  auto pieces_off = SegmentRooms(f.grid, off, NeverMerges(off));
+  auto pieces_on = SegmentRooms(f.grid, on, NeverMerges(on));
+  REQUIRE_MESSAGE(pieces_off.ok(), pieces_off.status().ToString());
+  REQUIRE_MESSAGE(pieces_on.ok(), pieces_on.status().ToString());
+  cv::Mat l = pieces_off->labels.clone();
+  const int n = static_cast<int>(pieces_off->segments.size());
+  CHECK(MergeChannels(&l, f.grid.cells == kCellFree, n, 0.05, 1.0, 1.2) < n);
+  // ...but not in SegmentRooms: the grid is a drawn plan, below the gate.
+  CHECK(cv::countNonZero(pieces_on->labels != pieces_off->labels) == 0);
 }
 
 TEST_CASE("the default layout merge: an L-shaped room stays whole") {
@@ -1168,6 +1232,12 @@ TEST_CASE("rough-grid options out of range are one clear error") {
   r = SegmentRooms(grid, o);
   REQUIRE_FALSE(r.ok());
   CHECK(r.status().message().find("layout_corridor_border_ratio must be >= 0, got -0.5") !=
+        std::string::npos);
+  o.learned.layout_corridor_border_ratio = 0.0;
+  o.learned.layout_channel_depth_m = -1.0;
+  r = SegmentRooms(grid, o);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("layout_channel_depth_m must be >= 0, got -1") !=
         std::string::npos);
 }
 
