@@ -253,6 +253,14 @@ Status CheckLearnedMergeOptions(const LearnedMergeOptions& o) {
     return InvalidArgument(
         "segmentation option layout_merge_threshold must be in [0, 1] (0 = the rule merges)");
   }
+  if (o.layout_channel_before_model != 0.0 && o.layout_channel_before_model != 1.0) {
+    char got[32];
+    std::snprintf(got, sizeof got, "%g", o.layout_channel_before_model);
+    return InvalidArgument(
+        std::string("segmentation option layout_channel_before_model must be 0 (after the "
+                    "model) or 1 (before it), got ") +
+        got);
+  }
   for (const OptionField<LearnedMergeOptions>& f : kLearnedMergeOptionFields) {
     if (!(o.*f.field >= 0.0)) {
       char got[32];

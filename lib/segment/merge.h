@@ -73,6 +73,9 @@ struct LearnedMergeOptions {
   // border's ends, its middle free) runs on for layout_channel_depth_m. 0 = off.
   double layout_channel_depth_m = 0.0;
   double layout_channel_min_width_m = 1.2;  // narrower borders are doors
+  // 1: the channel joins act on the cut's pieces, before the model merges them (issue 28,
+  // sixteenth round: while a corridor's pieces hold no room yet); 0: after the model.
+  double layout_channel_before_model = 0.0;
 };
 
 inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = {
@@ -82,6 +85,7 @@ inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = 
     {"layout_corridor_width_ratio", &LearnedMergeOptions::layout_corridor_width_ratio},
     {"layout_channel_depth_m", &LearnedMergeOptions::layout_channel_depth_m},
     {"layout_channel_min_width_m", &LearnedMergeOptions::layout_channel_min_width_m},
+    {"layout_channel_before_model", &LearnedMergeOptions::layout_channel_before_model},
 };
 
 // A segment's kind: corridor when long and narrow, else room.

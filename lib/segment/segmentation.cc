@@ -138,6 +138,17 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       in.count = MergeSmallSegments(&labels, pieces.count, 0);  // numbers pieces densely
       in.occupied = (grid.cells(box) == kCellOccupied) & (labels == 0);
       in.free = grid.cells(box) == kCellFree;
+      // A corridor's pieces, joined where it runs on: for the grids the robot half merges
+      // (above the compiled-in model's gate), whose corridors the cut crosses at every door
+      // jamb; plans and scans keep the plan trees' zones. Before the model, a corridor's pieces
+      // hold no room yet; after it, some do (issue 28, fifteenth and sixteenth rounds).
+      const bool channels = seg.rough_face_share > kChannelRoughFaceShare;
+      const bool channels_first = options.learned.layout_channel_before_model == 1.0;
+      if (channels && channels_first) {
+        in.count = MergeChannels(&labels, in.free, in.count, res,
+                                 options.learned.layout_channel_depth_m,
+                                 options.learned.layout_channel_min_width_m);
+      }
       in.resolution_m = res;
       in.wall_angle_rad = pieces.walls.angle_rad;
       in.offset = box.tl();
@@ -160,10 +171,7 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       count = MergeCorridors(&labels, pieces.dt, count, res, options.kinds,
                              options.learned.layout_corridor_border_ratio,
                              options.learned.layout_corridor_width_ratio);
-      // A corridor's pieces, joined where it runs on: for the grids the robot half merges
-      // (above the compiled-in model's gate, gate_layout_merge.py --gate 0.3), whose corridors
-      // the cut crosses at every door jamb; plans and scans keep the plan trees' zones.
-      if (seg.rough_face_share > kChannelRoughFaceShare) {
+      if (channels && !channels_first) {
         count = MergeChannels(&labels, in.free, count, res,
                               options.learned.layout_channel_depth_m,
                               options.learned.layout_channel_min_width_m);

@@ -664,8 +664,13 @@ TEST_CASE("channel joins leave a drawn plan's zones alone: they are for rough gr
   cv::Mat l = pieces_off->labels.clone();
   const int n = static_cast<int>(pieces_off->segments.size());
   CHECK(MergeChannels(&l, f.grid.cells == kCellFree, n, 0.05, 1.0, 1.2) < n);
-  // ...but not in SegmentRooms: the grid is a drawn plan, below the gate.
+  // ...but not in SegmentRooms: the grid is a drawn plan, below the gate, before the model or
+  // after it.
   CHECK(cv::countNonZero(pieces_on->labels != pieces_off->labels) == 0);
+  on.learned.layout_channel_before_model = 1.0;
+  auto first = SegmentRooms(f.grid, on, NeverMerges(on));
+  REQUIRE_MESSAGE(first.ok(), first.status().ToString());
+  CHECK(cv::countNonZero(first->labels != pieces_off->labels) == 0);
 }
 
 TEST_CASE("the default layout merge: an L-shaped room stays whole") {
@@ -1239,6 +1244,12 @@ TEST_CASE("rough-grid options out of range are one clear error") {
   REQUIRE_FALSE(r.ok());
   CHECK(r.status().message().find("layout_channel_depth_m must be >= 0, got -1") !=
         std::string::npos);
+  o.learned.layout_channel_depth_m = 0.0;
+  o.learned.layout_channel_before_model = 0.5;
+  r = SegmentRooms(grid, o);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("layout_channel_before_model must be 0 (after the model) or 1 "
+                                  "(before it), got 0.5") != std::string::npos);
 }
 
 
