@@ -398,10 +398,36 @@ bool RunsOn(const cv::Mat& free, cv::Point2f end_a, cv::Point2f end_b, cv::Point
   return pass >= kChannelSteps * steps;
 }
 
+// Whether the free space keeps the border's width along unit `d` for `steps` cells: the median
+// over the steps of the free run across `t` through the centre line (0 where the centre is not
+// free; a run stops at `cap` cells each way) within [kChannelMinWidthRatio, max_ratio] x the
+// border's `length` in cells.
+bool KeepsWidth(const cv::Mat& free, cv::Point2f end_a, cv::Point2f end_b, cv::Point2f t,
+                cv::Point2f d, int steps, double length, double max_ratio) {
+  const cv::Point2f centre = 0.5f * (end_a + end_b);
+  const int cap = static_cast<int>(std::ceil(max_ratio * length)) + 1;
+  std::vector<int> widths;
+  widths.reserve(static_cast<std::size_t>(steps));
+  for (int v = 1; v <= steps; ++v) {
+    const cv::Point2f p = centre + d * static_cast<float>(v);
+    int width = 0;
+    if (FreeAt(free, p)) {
+      width = 1;
+      for (int k = 1; k <= cap && FreeAt(free, p + t * static_cast<float>(k)); ++k) ++width;
+      for (int k = 1; k <= cap && FreeAt(free, p - t * static_cast<float>(k)); ++k) ++width;
+    }
+    widths.push_back(width);
+  }
+  const auto mid = widths.begin() + static_cast<std::ptrdiff_t>(widths.size() / 2);
+  std::nth_element(widths.begin(), mid, widths.end());
+  const double median = *mid;
+  return median >= kChannelMinWidthRatio * length && median <= max_ratio * length;
+}
+
 }  // namespace
 
 int MergeChannels(cv::Mat* labels, const cv::Mat& free, int label_count, double res,
-                  double depth_m, double min_width_m) {
+                  double depth_m, double min_width_m, double median_width_ratio) {
   if (depth_m <= 0.0 || label_count < 2) return label_count;
   std::map<std::pair<int, int>, ChannelBorder> borders;
   ForEachBorderPair(*labels, [&](int a, cv::Point pa, int b, cv::Point pb) {
@@ -448,10 +474,12 @@ int MergeChannels(cv::Mat* labels, const cv::Mat& free, int label_count, double 
       continue;
     }
     const cv::Point2f end_a = mean + t * umin, end_b = mean + t * umax;
-    if (!RunsOn(free, end_a, end_b, t, n, steps, probe) &&
-        !RunsOn(free, end_a, end_b, t, -n, steps, probe)) {
-      continue;
-    }
+    const auto channel = [&](cv::Point2f d) {
+      return median_width_ratio > 0.0
+                 ? KeepsWidth(free, end_a, end_b, t, d, steps, length_cells, median_width_ratio)
+                 : RunsOn(free, end_a, end_b, t, d, steps, probe);
+    };
+    if (!channel(n) && !channel(-n)) continue;
     const int ra = roots.Find(pair.first), rb = roots.Find(pair.second);
     if (ra != rb) roots.Join(ra, rb), merged = true;
   }

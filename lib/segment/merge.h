@@ -76,6 +76,11 @@ struct LearnedMergeOptions {
   // 1: the channel joins act on the cut's pieces, before the model merges them (issue 28,
   // sixteenth round: while a corridor's pieces hold no room yet); 0: after the model.
   double layout_channel_before_model = 0.0;
+  // > 0: a side is a channel when the median, over the steps, of the free run across the normal
+  // through the centre line is within [kChannelMinWidthRatio, this] x the border's length (issue
+  // 28, seventeenth round: an office corridor's walls are broken by open doors, which the walls
+  // test below fails on and a median passes over). 0: walls beside both ends (fifteenth round).
+  double layout_channel_median_width_ratio = 0.0;
 };
 
 inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = {
@@ -86,6 +91,8 @@ inline constexpr OptionField<LearnedMergeOptions> kLearnedMergeOptionFields[] = 
     {"layout_channel_depth_m", &LearnedMergeOptions::layout_channel_depth_m},
     {"layout_channel_min_width_m", &LearnedMergeOptions::layout_channel_min_width_m},
     {"layout_channel_before_model", &LearnedMergeOptions::layout_channel_before_model},
+    {"layout_channel_median_width_ratio",
+     &LearnedMergeOptions::layout_channel_median_width_ratio},
 };
 
 // A segment's kind: corridor when long and narrow, else room.
@@ -130,9 +137,15 @@ int MergeCorridors(cv::Mat* labels, const cv::Mat& dt, int label_count, double r
 // a branch meeting its spine or a corridor opening into a hall runs on. Joins are transitive
 // (one pass over the borders as they are); renumbers labels 1..N and returns N (`label_count`
 // when depth_m <= 0). `free` is CV_8UC1 of `labels`' size, nonzero = a free cell of the grid.
+// With `median_width_ratio` > 0 a side is a channel instead when, over the steps up to
+// `depth_m`, the median free run across the normal through the centre line (a step whose centre
+// is not free counts 0) is within [kChannelMinWidthRatio, median_width_ratio] x the border's
+// length: a corridor keeps its width past the doors that open its walls; a room behind a door,
+// or the corridor beside one, is wider than the door.
 inline constexpr double kMaxChannelWidthM = 3.0;
+inline constexpr double kChannelMinWidthRatio = 0.7;
 int MergeChannels(cv::Mat* labels, const cv::Mat& free, int label_count, double resolution_m,
-                  double depth_m, double min_width_m);
+                  double depth_m, double min_width_m, double median_width_ratio = 0.0);
 
 // Each segment's area, width and kind from `labels` (1..count) and its clearance `dt`.
 [[nodiscard]] std::vector<SegmentInfo> DescribeSegments(const cv::Mat& labels, const cv::Mat& dt,

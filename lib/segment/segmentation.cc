@@ -147,7 +147,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       if (channels && channels_first) {
         in.count = MergeChannels(&labels, in.free, in.count, res,
                                  options.learned.layout_channel_depth_m,
-                                 options.learned.layout_channel_min_width_m);
+                                 options.learned.layout_channel_min_width_m,
+                                 options.learned.layout_channel_median_width_ratio);
       }
       in.resolution_m = res;
       in.wall_angle_rad = pieces.walls.angle_rad;
@@ -174,7 +175,8 @@ Result<Segmentation> SegmentRooms(const OccupancyGrid& grid, const SegmentOption
       if (channels && !channels_first) {
         count = MergeChannels(&labels, in.free, count, res,
                               options.learned.layout_channel_depth_m,
-                              options.learned.layout_channel_min_width_m);
+                              options.learned.layout_channel_min_width_m,
+                              options.learned.layout_channel_median_width_ratio);
       }
     } else {
       count = MergeByRules(options.rules, options.cut.door_max_width_m, res, &pieces);

@@ -385,6 +385,14 @@ TEST_CASE("channel joins: a corridor cut across and its branch join; doors and o
     REQUIRE(MergeChannels(&l, free, 6, 0.1, 0.2, 1.2) == 3);
     CHECK(at(l, 90, 50) == at(l, 100, 15));
   }
+  SUBCASE("the median width test joins the same: doors and rooms are wider past the border") {
+    cv::Mat l = labels.clone();
+    REQUIRE(MergeChannels(&l, free, 6, 0.1, 1.0, 1.2, 1.5) == 4);
+    const int corridor = at(l, 100, 15);
+    CHECK(at(l, 20, 15) == corridor);
+    CHECK(at(l, 135, 60) == corridor);
+    CHECK(at(l, 90, 50) != corridor);
+  }
   SUBCASE("a branch narrower than the minimum width is a door") {
     cv::Mat l = labels.clone();
     REQUIRE(MergeChannels(&l, free, 6, 0.1, 1.0, 2.5) == 6);
@@ -647,6 +655,29 @@ TEST_CASE("the default layout merge: a corridor crossed by aligned walls stays o
   }
   CHECK(room_labels.size() == 10);
   CHECK(room_labels.count(corridor_label) == 0);
+}
+
+// The median width test (layout_channel_median_width_ratio, issue 28's seventeenth round), at
+// 0.1 m a cell: a 2 m wide corridor cut across into a west (1) and an east piece (2), an open
+// 0.8 m door in its south wall just west of the cut into a room (3) and one in its north wall
+// just east of it into another (4). The doors break the walls beside the cut's ends for 8 of
+// 20 steps each way: the walls test fails; the corridor keeps its width at the other 12.
+TEST_CASE("channel joins: the median width passes over open doors the walls test fails on") {
+  cv::Mat labels = cv::Mat::zeros(60, 140, CV_32S);
+  labels(cv::Rect(5, 20, 60, 20)).setTo(1);
+  labels(cv::Rect(65, 20, 60, 20)).setTo(2);
+  labels(cv::Rect(40, 43, 40, 17)).setTo(3);
+  labels(cv::Rect(52, 40, 8, 3)).setTo(3);
+  labels(cv::Rect(60, 0, 40, 17)).setTo(4);
+  labels(cv::Rect(70, 17, 8, 3)).setTo(4);
+  const cv::Mat free = labels != 0;
+  cv::Mat walls = labels.clone();
+  CHECK(MergeChannels(&walls, free, 4, 0.1, 2.0, 1.2) == 4);
+  cv::Mat median = labels.clone();
+  REQUIRE(MergeChannels(&median, free, 4, 0.1, 2.0, 1.2, 1.5) == 3);
+  CHECK(median.at<int>(30, 20) == median.at<int>(30, 110));  // the corridor is one
+  CHECK(median.at<int>(50, 60) != median.at<int>(30, 20));   // behind a door: narrower
+  CHECK(median.at<int>(8, 80) != median.at<int>(30, 20));
 }
 
 TEST_CASE("channel joins leave a drawn plan's zones alone: they are for rough grids only") {
