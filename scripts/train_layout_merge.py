@@ -68,7 +68,7 @@ FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "
             "free_end_share", "corner_share", "mouth_share", "facade_share",
             "cap_share", "map_specks_per_100m2", "map_blobs_per_100m2",
             "map_loose_occupied_share", "map_rough_face_share", "map_unknown_border_share",
-            "map_rough_cut"]
+            "map_rough_cut", "channel_width_near", "channel_width_far"]
 
 
 def maps(dirs, exclude):

@@ -73,11 +73,15 @@ double Rectangularity(double area, double du, double dv) {
   return static_cast<double>(area) / std::max(1.0, (du + 1.0) * (dv + 1.0));
 }
 
-// Share of the kEndSupportCells steps beyond each end of the border, along its line, where some
-// cell within kEndSupportHalfWidth across the line is occupied: (min, max, straightness cells).
-std::array<double, 3> EndSupport(const std::vector<int>& cells, const cv::Mat& occupied,
-                                 const Frame& f) {
-  const int cols = occupied.cols;
+// A border's line in the walls' frame: along u or v, its two ends and its median offset across.
+struct BorderLine {
+  bool along_u = true;
+  double lo_end = 0.0, hi_end = 0.0;  // along the line
+  double mid = 0.0;                   // across it
+  double straightness = 0.0;          // its thickness across, cells
+};
+
+BorderLine LineOf(const std::vector<int>& cells, int cols, const Frame& f) {
   std::vector<double> us, vs;
   us.reserve(cells.size());
   vs.reserve(cells.size());
@@ -87,14 +91,26 @@ std::array<double, 3> EndSupport(const std::vector<int>& cells, const cv::Mat& o
   }
   const auto [umin, umax] = std::minmax_element(us.begin(), us.end());
   const auto [vmin, vmax] = std::minmax_element(vs.begin(), vs.end());
-  const bool along_u = (*vmax - *vmin) <= (*umax - *umin);
-  std::vector<double>& across = along_u ? vs : us;
-  const double lo_end = along_u ? *umin : *vmin;
-  const double hi_end = along_u ? *umax : *vmax;
-  const double straightness = (along_u ? *vmax - *vmin : *umax - *umin) + 1.0;
+  BorderLine line;
+  line.along_u = (*vmax - *vmin) <= (*umax - *umin);
+  line.lo_end = line.along_u ? *umin : *vmin;
+  line.hi_end = line.along_u ? *umax : *vmax;
+  line.straightness = (line.along_u ? *vmax - *vmin : *umax - *umin) + 1.0;
+  std::vector<double>& across = line.along_u ? vs : us;
   std::nth_element(across.begin(), across.begin() + static_cast<long>(across.size() / 2),
                    across.end());
-  const double mid = across[across.size() / 2];
+  line.mid = across[across.size() / 2];
+  return line;
+}
+
+// Share of the kEndSupportCells steps beyond each end of the border, along its line, where some
+// cell within kEndSupportHalfWidth across the line is occupied: (min, max, straightness cells).
+std::array<double, 3> EndSupport(const std::vector<int>& cells, const cv::Mat& occupied,
+                                 const Frame& f) {
+  const BorderLine line = LineOf(cells, occupied.cols, f);
+  const bool along_u = line.along_u;
+  const double lo_end = line.lo_end, hi_end = line.hi_end, mid = line.mid;
+  const double straightness = line.straightness;
   auto occupied_at = [&](double along, double off) {
     const cv::Point p = along_u ? f.Cell(along, mid + off) : f.Cell(mid + off, along);
     return p.x >= 0 && p.y >= 0 && p.x < occupied.cols && p.y < occupied.rows &&
@@ -115,6 +131,48 @@ std::array<double, 3> EndSupport(const std::vector<int>& cells, const cv::Mat& o
     support[side] = static_cast<double>(hits) / kEndSupportCells;
   }
   return {std::min(support[0], support[1]), std::max(support[0], support[1]), straightness};
+}
+
+constexpr double kChannelDepthM = 2.0;   // how far past the border the channel features look
+constexpr double kChannelStepM = 0.1;    // ...at this spacing
+constexpr double kChannelRatioCap = 4.0;  // a free run stops at this x the border's length
+
+// channel_width_near / _far (kLayoutFeatureNames): on each side of the border, the median over
+// the steps of the free run along its line through its centre, over its length.
+std::array<double, 2> ChannelWidths(const std::vector<int>& cells, const cv::Mat& free,
+                                    const Frame& f, double res) {
+  const BorderLine line = LineOf(cells, free.cols, f);
+  const double length = line.hi_end - line.lo_end + 1.0;
+  const double centre = 0.5 * (line.lo_end + line.hi_end);
+  const int cap = static_cast<int>(std::ceil(kChannelRatioCap * length));
+  const int steps = std::max(1, static_cast<int>(std::lround(kChannelDepthM / kChannelStepM)));
+  const double stride = kChannelStepM / res;
+  auto free_at = [&](double along, double across) {
+    const cv::Point p = line.along_u ? f.Cell(along, across) : f.Cell(across, along);
+    return p.x >= 0 && p.y >= 0 && p.x < free.cols && p.y < free.rows &&
+           free.at<std::uint8_t>(p.y, p.x) != 0;
+  };
+  std::array<double, 2> ratio{};
+  std::vector<int> widths(static_cast<std::size_t>(steps));
+  for (int side = 0; side < 2; ++side) {
+    const double sign = side == 0 ? -1.0 : 1.0;
+    for (int i = 0; i < steps; ++i) {
+      const double across = line.mid + sign * stride * (i + 1);
+      int w = 0;
+      if (free_at(centre, across)) {
+        w = 1;
+        for (int k = 1; k <= cap && free_at(centre + k, across); ++k) ++w;
+        for (int k = 1; k <= cap && free_at(centre - k, across); ++k) ++w;
+      }
+      widths[static_cast<std::size_t>(i)] = w;
+    }
+    const auto median = widths.begin() + static_cast<std::ptrdiff_t>(widths.size() / 2);
+    std::nth_element(widths.begin(), median, widths.end());
+    ratio[static_cast<std::size_t>(side)] = std::min(*median / length, kChannelRatioCap);
+  }
+  const auto off_one = [](double r) { return r > 0.0 ? std::abs(std::log(r)) : 1e9; };
+  if (off_one(ratio[0]) > off_one(ratio[1])) std::swap(ratio[0], ratio[1]);
+  return ratio;
 }
 
 // Features of the whole map, the same for every pair.
@@ -156,7 +214,8 @@ void OccupiedComponents(const cv::Mat& occupied, double res, MapContext* map) {
 }
 
 std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb, const Contact& c,
-                                                const cv::Mat& occupied, const Frame& f, double res,
+                                                const cv::Mat& occupied, const cv::Mat& free,
+                                                const Frame& f, double res,
                                                 const MapContext& map) {
   const bool a_small = pa.area <= pb.area;
   const Piece& s = a_small ? pa : pb;
@@ -176,6 +235,7 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
   const double dv_u = std::max(s.vmax, l.vmax) - std::min(s.vmin, l.vmin);
   const double rect_u = Rectangularity(s.area + l.area, du_u, dv_u);
   const auto ends = EndSupport(c.cells, occupied, f);
+  const auto channel = ChannelWidths(c.cells, free, f, res);
   auto per_edge = [&](double n) { return n / std::max(c.edges, 1.0); };
   const double values[kLayoutFeatureCount] = {
       open,
@@ -218,7 +278,9 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       map.loose_occupied_share,
       map.rough_face_share,
       map.unknown_border_share,
-      map.rough_cut ? 1.0 : 0.0};
+      map.rough_cut ? 1.0 : 0.0,
+      channel[0],
+      channel[1]};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
@@ -334,6 +396,8 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
       }
     }
   }
+  // The grid's free cells (the pieces and the rim they leave along the walls), or the pieces.
+  const cv::Mat free = in.free.empty() ? cv::Mat(labels > 0) : in.free;
   MapContext context;
   {
     double cells = 0.0;
@@ -347,7 +411,7 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
     // The wall faces on the grid's own free cells (the pieces leave a rim of free cells along
     // the walls out) against the occupied cells no piece took.
     const GridFaceShares faces =
-        MeasureGridFaces(in.free.empty() ? cv::Mat(labels > 0) : in.free, in.occupied);
+        MeasureGridFaces(free, in.occupied);
     context.rough_face_share = faces.rough;
     context.unknown_border_share = faces.unknown_border;
     context.rough_cut = in.rough_cut;
@@ -360,7 +424,7 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
     it = it->second.edges == 0.0 ? pairs.erase(it) : std::next(it);
   }
   auto features = [&](const PairKey& k, const Contact& c) {
-    return Features(pieces[Idx(k.first)], pieces[Idx(k.second)], c, in.occupied, frame, res,
+    return Features(pieces[Idx(k.first)], pieces[Idx(k.second)], c, in.occupied, free, frame, res,
                     context);
   };
   for (auto& [k, c] : pairs) c.probability = model.Probability(features(k, c));

@@ -27,7 +27,7 @@ namespace zm {
 
 // The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
 // in metres, areas in m2. The order is the model's input order.
-inline constexpr int kLayoutFeatureCount = 41;
+inline constexpr int kLayoutFeatureCount = 43;
 // One feature, or one family, per line with its meaning.
 // clang-format off
 inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
@@ -69,6 +69,14 @@ inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureName
     "map_rough_cut",  // (eighth round) 1 when the pieces were cut with the rough-grid options
                       // (CutOptions::layout_rough_*), else 0: a model joined from a clean-plan
                       // and a robot-grid half chooses its half by it (gate_layout_merge.py)
+    // Whether a corridor runs on through the border (issue 28, eighteenth round): on each side,
+    // the median over kChannelDepthM of the free run along the border's line through the
+    // centre (0 where the centre is not free) over the border's length, capped at
+    // kChannelRatioCap. A corridor cut across keeps about 1 on both sides, a branch meeting its
+    // spine on one, a door opens wider on both; open doors in a corridor's walls move a median
+    // less than they break a wall test (the seventeenth round's).
+    "channel_width_near",  // the side whose ratio is nearer 1
+    "channel_width_far",   // the other side
 };
 // clang-format on
 

@@ -256,12 +256,12 @@ check(bad.returncode != 0 and "--dagger-passes 0" in bad.stderr, "--dagger-passe
 # floor of issue 28's rounds is trained; zonemap runs it; a count beyond the trace's is refused.
 rows_of("--json", os.path.join(work, "f35.json"), "--features", "35")
 f35 = json.load(open(os.path.join(work, "f35.json")))
-all41 = json.load(open(model))["features"]
-check(len(all41) == 41 and f35["features"] == all41[:35] and
+all43 = json.load(open(model))["features"]
+check(len(all43) == 43 and f35["features"] == all43[:35] and
       all(f < 35 for t in f35["trees"] for f in t["feature"]), "--features 35 trains on the first 35")
 check(runs_model(os.path.join(work, "f35.json")), "zonemap runs a model of 35 features")
-bad, _ = rows_of("--features", "42")
-check(bad.returncode != 0 and "--features 42: from 1 to 41" in bad.stderr,
+bad, _ = rows_of("--features", "44")
+check(bad.returncode != 0 and "--features 44: from 1 to 43" in bad.stderr,
       "--features beyond the trace's is refused")
 sys.path.insert(0, scripts)
 import train_layout_merge  # noqa: E402

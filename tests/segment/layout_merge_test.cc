@@ -259,6 +259,13 @@ TEST_CASE("the border's doorway and opening-kind shares are features") {
     CHECK(feature(0, name) == 0.0);
     CHECK(feature(1, name) == 0.0);
   }
+  // The channel widths: room A cut across its whole width keeps the border's width on both
+  // sides (1, as a corridor cut across would); past the 0.9 m door both rooms are far wider
+  // (the cap, 4).
+  CHECK(feature(1, "channel_width_near") == doctest::Approx(1.0).epsilon(0.02));
+  CHECK(feature(1, "channel_width_far") == doctest::Approx(1.0).epsilon(0.02));
+  CHECK(feature(0, "channel_width_near") == doctest::Approx(4.0));
+  CHECK(feature(0, "channel_width_far") == doctest::Approx(4.0));
   // Of the wrong type: one clear error.
   in.doorways = cv::Mat::zeros(s.labels.size(), CV_32S);
   auto bad = MergeLayoutPieces(in, LayoutMergeModel{}, 0.99);
