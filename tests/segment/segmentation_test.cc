@@ -24,6 +24,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "segment/grid_map.h"
 #include "segment/merge.h"
@@ -1213,16 +1214,21 @@ TEST_CASE("a rough grid's layout pieces are cut with the rough-grid options, a c
   REQUIRE(by_rules.ok());
   CHECK_FALSE(by_rules->rough_cut);
 
-  // The model is told which cut ran: map_rough_cut, the last feature of every trace row.
+  // The model is told which cut ran: map_rough_cut, a feature of every trace row (its column
+  // found by name: the step and the label come first).
+  std::size_t column = 2;
+  while (std::string(kLayoutFeatureNames[column - 2]) != "map_rough_cut") ++column;
   rough.cut.layout_rough_face_share = 0.0;
   for (const bool is_rough : {false, true}) {
     const SegmentOptions& o = is_rough ? rough : clean;
     std::string rows;
     Traced(f.grid, f.truth, o, NeverMerges(o), false, is_rough ? "rough_cut" : "clean_cut",
            &rows);
-    const std::string row = rows.substr(0, rows.find('\n'));
-    REQUIRE_FALSE(row.empty());
-    CHECK(row.substr(row.rfind(',') + 1) == (is_rough ? "1" : "0"));
+    std::stringstream row(rows.substr(0, rows.find('\n')));
+    std::vector<std::string> fields;
+    for (std::string field; std::getline(row, field, ',');) fields.push_back(field);
+    REQUIRE(fields.size() == 2 + kLayoutFeatureNames.size());
+    CHECK(fields[column] == (is_rough ? "1" : "0"));
   }
 }
 
