@@ -5,6 +5,7 @@
 #include <sqlite3.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -375,4 +376,29 @@ Result<OccupancyGrid> LoadOccupancyGrid(const std::string& path, double resoluti
   return LoadGridImage(path, resolution_m > 0.0 ? resolution_m : kDefaultGridResolutionM);
 }
 
+namespace segment_detail {
+
+bool FreeAt(const cv::Mat& free, cv::Point2d p) {
+  const long c = std::lround(p.x), r = std::lround(p.y);
+  return r >= 0 && c >= 0 && r < free.rows && c < free.cols &&
+         free.at<std::uint8_t>(static_cast<int>(r), static_cast<int>(c)) != 0;
+}
+
+int MedianFreeRun(const cv::Mat& free, cv::Point2d centre, cv::Point2d along, cv::Point2d step,
+                  int steps, int cap) {
+  std::vector<int> widths(Idx(std::max(steps, 1)), 0);
+  for (int i = 0; i < steps; ++i) {
+    const cv::Point2d p = centre + step * (i + 1);
+    if (!FreeAt(free, p)) continue;
+    int w = 1;
+    for (int k = 1; k <= cap && FreeAt(free, p + along * k); ++k) ++w;
+    for (int k = 1; k <= cap && FreeAt(free, p - along * k); ++k) ++w;
+    widths[Idx(i)] = w;
+  }
+  const auto median = widths.begin() + static_cast<std::ptrdiff_t>(widths.size() / 2);
+  std::nth_element(widths.begin(), median, widths.end());
+  return *median;
+}
+
+}  // namespace segment_detail
 }  // namespace zm

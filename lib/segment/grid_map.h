@@ -16,6 +16,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <opencv2/core/mat.hpp>
+#include <opencv2/core/types.hpp>
 #include <string>
 
 #include "common/status.h"
@@ -32,6 +33,18 @@ namespace segment_detail {
 // A label, row or column (never negative where it indexes) as an index into the vectors the
 // stages keep per label: one cast, named once for every stage.
 [[nodiscard]] constexpr std::size_t Idx(int v) { return static_cast<std::size_t>(v); }
+
+// Whether the cell at the rounded point p (x = column, y = row) is nonzero in `free` (CV_8UC1);
+// outside it, not.
+[[nodiscard]] bool FreeAt(const cv::Mat& free, cv::Point2d p);
+
+// How wide free space stays past a border (issue 28: MergeChannels' median width test and the
+// layout merge's channel_width_* features): the median, over the points centre + i x step
+// (i = 1..steps), of the run of nonzero cells of `free` (CV_8UC1) along +-`along` through each
+// point: 1 + the run each way, at most `cap` cells each way, 0 where the point itself is not
+// free. Points are (x = column, y = row), taken at the rounded cell; outside `free` is not free.
+[[nodiscard]] int MedianFreeRun(const cv::Mat& free, cv::Point2d centre, cv::Point2d along,
+                                cv::Point2d step, int steps, int cap);
 }  // namespace segment_detail
 
 struct OccupancyGrid {

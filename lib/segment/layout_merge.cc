@@ -137,8 +137,9 @@ constexpr double kChannelDepthM = 2.0;   // how far past the border the channel 
 constexpr double kChannelStepM = 0.1;    // ...at this spacing
 constexpr double kChannelRatioCap = 4.0;  // a free run stops at this x the border's length
 
-// channel_width_near / _far (kLayoutFeatureNames): on each side of the border, the median over
-// the steps of the free run along its line through its centre, over its length.
+// channel_width_near / _far (kLayoutFeatureNames): on each side of the border, the median
+// (segment_detail::MedianFreeRun) over the steps of the free run along its line through its
+// centre, over its length.
 std::array<double, 2> ChannelWidths(const std::vector<int>& cells, const cv::Mat& free,
                                     const Frame& f, double res) {
   const BorderLine line = LineOf(cells, free.cols, f);
@@ -147,28 +148,20 @@ std::array<double, 2> ChannelWidths(const std::vector<int>& cells, const cv::Mat
   const int cap = static_cast<int>(std::ceil(kChannelRatioCap * length));
   const int steps = std::max(1, static_cast<int>(std::lround(kChannelDepthM / kChannelStepM)));
   const double stride = kChannelStepM / res;
-  auto free_at = [&](double along, double across) {
-    const cv::Point p = line.along_u ? f.Cell(along, across) : f.Cell(across, along);
-    return p.x >= 0 && p.y >= 0 && p.x < free.cols && p.y < free.rows &&
-           free.at<std::uint8_t>(p.y, p.x) != 0;
+  // The frame's (u, v) as image points: the border's centre, its line and its normal.
+  const auto image = [&](double along, double across) {
+    return line.along_u ? cv::Point2d(along * f.cos_a - across * f.sin_a,
+                                      along * f.sin_a + across * f.cos_a)
+                        : cv::Point2d(across * f.cos_a - along * f.sin_a,
+                                      across * f.sin_a + along * f.cos_a);
   };
+  const cv::Point2d mid = image(centre, line.mid);
+  const cv::Point2d along = image(1.0, 0.0), normal = image(0.0, stride);
   std::array<double, 2> ratio{};
-  std::vector<int> widths(static_cast<std::size_t>(steps));
-  for (int side = 0; side < 2; ++side) {
-    const double sign = side == 0 ? -1.0 : 1.0;
-    for (int i = 0; i < steps; ++i) {
-      const double across = line.mid + sign * stride * (i + 1);
-      int w = 0;
-      if (free_at(centre, across)) {
-        w = 1;
-        for (int k = 1; k <= cap && free_at(centre + k, across); ++k) ++w;
-        for (int k = 1; k <= cap && free_at(centre - k, across); ++k) ++w;
-      }
-      widths[static_cast<std::size_t>(i)] = w;
-    }
-    const auto median = widths.begin() + static_cast<std::ptrdiff_t>(widths.size() / 2);
-    std::nth_element(widths.begin(), median, widths.end());
-    ratio[static_cast<std::size_t>(side)] = std::min(*median / length, kChannelRatioCap);
+  for (std::size_t side = 0; side < 2; ++side) {
+    const cv::Point2d step = side == 0 ? -normal : normal;
+    const int median = segment_detail::MedianFreeRun(free, mid, along, step, steps, cap);
+    ratio[side] = std::min(median / length, kChannelRatioCap);
   }
   const auto off_one = [](double r) { return r > 0.0 ? std::abs(std::log(r)) : 1e9; };
   if (off_one(ratio[0]) > off_one(ratio[1])) std::swap(ratio[0], ratio[1]);

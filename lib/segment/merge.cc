@@ -17,6 +17,7 @@
 namespace zm {
 namespace {
 
+using segment_detail::FreeAt;
 using segment_detail::Idx;
 
 // Merged labels 1..count as a forest (path halving): each merge hangs one root under another,
@@ -372,11 +373,6 @@ struct ChannelBorder {
   cv::Point2f toward_second{0.0f, 0.0f};
 };
 
-bool FreeAt(const cv::Mat& free, cv::Point2f p) {
-  const int c = static_cast<int>(std::lround(p.x)), r = static_cast<int>(std::lround(p.y));
-  return r >= 0 && c >= 0 && r < free.rows && c < free.cols && free.at<uchar>(r, c) != 0;
-}
-
 // Whether a channel runs on from the border [end_a, end_b] along unit `d` for `steps` cells:
 // the centre line free and, within `probe` cells beyond each end (along the border's direction
 // `t`, away from the border), some cell not free.
@@ -398,29 +394,14 @@ bool RunsOn(const cv::Mat& free, cv::Point2f end_a, cv::Point2f end_b, cv::Point
   return pass >= kChannelSteps * steps;
 }
 
-// Whether the free space keeps the border's width along unit `d` for `steps` cells: the median
-// over the steps of the free run across `t` through the centre line (0 where the centre is not
-// free; a run stops at `cap` cells each way) within [kChannelMinWidthRatio, max_ratio] x the
-// border's `length` in cells.
+// Whether the free space keeps the border's width along unit `d` for `steps` cells: its median
+// free run across `t` (segment_detail::MedianFreeRun, at most `max_ratio` x the border's length
+// each way) within [kChannelMinWidthRatio, max_ratio] x that length in cells.
 bool KeepsWidth(const cv::Mat& free, cv::Point2f end_a, cv::Point2f end_b, cv::Point2f t,
                 cv::Point2f d, int steps, double length, double max_ratio) {
   const cv::Point2f centre = 0.5f * (end_a + end_b);
   const int cap = static_cast<int>(std::ceil(max_ratio * length)) + 1;
-  std::vector<int> widths;
-  widths.reserve(static_cast<std::size_t>(steps));
-  for (int v = 1; v <= steps; ++v) {
-    const cv::Point2f p = centre + d * static_cast<float>(v);
-    int width = 0;
-    if (FreeAt(free, p)) {
-      width = 1;
-      for (int k = 1; k <= cap && FreeAt(free, p + t * static_cast<float>(k)); ++k) ++width;
-      for (int k = 1; k <= cap && FreeAt(free, p - t * static_cast<float>(k)); ++k) ++width;
-    }
-    widths.push_back(width);
-  }
-  const auto mid = widths.begin() + static_cast<std::ptrdiff_t>(widths.size() / 2);
-  std::nth_element(widths.begin(), mid, widths.end());
-  const double median = *mid;
+  const double median = segment_detail::MedianFreeRun(free, centre, t, d, steps, cap);
   return median >= kChannelMinWidthRatio * length && median <= max_ratio * length;
 }
 
