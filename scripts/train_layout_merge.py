@@ -27,7 +27,8 @@ cut with other options.
 Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--inc OUT.inc]
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
            [--weight DIR=W ...] [--loo DIR [--loo-models OUT_DIR]] [--param K=V ...]
-           [--learner exact|hist] [--bag K] [--dagger-passes N] [--features N] [--jobs N]
+           [--learner exact|hist] [--bag K] [--dagger-passes N] [--features N]
+           [--drop NAME ...] [--jobs N]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
@@ -41,6 +42,9 @@ when the threshold was chosen); --loo scores at --threshold (the default's 0.4).
 the shipped model's set, which predates the map-level features (issue 28's fifth and eighth
 rounds), so the shipped recipe and its leave-one-out (the floor of issue 28's rounds) are
 trained with --features 35.
+--drop NAME (repeatable) trains without that feature, which need not be at the end: its column
+is set to 0 in every row, so no tree splits on it, and the model still lists the first N names
+(issue 28's twentieth round: the end extents without the eighteenth round's channel widths).
 --jobs N runs N zonemap traces at once (the maps are independent), and N of --bag's K fits: the
 same model, byte for byte, in less time on a machine with N cores to spare.
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
@@ -68,7 +72,8 @@ FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "
             "free_end_share", "corner_share", "mouth_share", "facade_share",
             "cap_share", "map_specks_per_100m2", "map_blobs_per_100m2",
             "map_loose_occupied_share", "map_rough_face_share", "map_unknown_border_share",
-            "map_rough_cut", "channel_width_near", "channel_width_far"]
+            "map_rough_cut", "channel_width_near", "channel_width_far",
+            "end_extent_min_m", "end_extent_max_m"]
 
 
 def maps(dirs, exclude):
@@ -103,7 +108,9 @@ def _trace(zonemap, map_png, gt_png, csv, extra):
         return np.zeros((0, len(FEATURES)), np.float32), np.zeros(0), trained_with
     rows = np.loadtxt(csv, delimiter=",", ndmin=2)
     os.remove(csv)  # one per map under --jobs: large maps' traces are megabytes
-    return rows[:, 2:2 + len(FEATURES)].astype(np.float32), rows[:, 1], trained_with
+    x = rows[:, 2:2 + len(FEATURES)].astype(np.float32)
+    x[:, DROPPED] = 0.0  # a constant column: no tree splits on it
+    return x, rows[:, 1], trained_with
 
 
 def collect(zonemap, pairs, tmp, extra, dir_weight):
@@ -164,6 +171,7 @@ def check_bag(model, clfs, x_check):
 
 LEARNER = "exact"  # --learner
 JOBS = 1  # --jobs
+DROPPED = []  # --drop: column indices set to 0
 
 
 def run_all(fn, items):
@@ -306,7 +314,7 @@ def write_inc(path, text):
 
 
 def main(argv):
-    global LEARNER, FEATURES, JOBS
+    global LEARNER, FEATURES, JOBS, DROPPED
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog=__doc__)
@@ -325,6 +333,7 @@ def main(argv):
     ap.add_argument("--bag", type=int, default=0, metavar="K")
     ap.add_argument("--dagger-passes", type=int, default=1, metavar="N")
     ap.add_argument("--features", type=int, default=len(FEATURES), metavar="N")
+    ap.add_argument("--drop", action="append", default=[], metavar="NAME")
     ap.add_argument("--jobs", type=int, default=1, metavar="N")
     a = ap.parse_args(argv)
     if a.jobs < 1:
@@ -336,6 +345,10 @@ def main(argv):
                  "writes")
     LEARNER, JOBS = a.learner, a.jobs
     FEATURES = FEATURES[:a.features]
+    for name in a.drop:
+        if name not in FEATURES:
+            ap.error(f"--drop {name}: not one of the {len(FEATURES)} features trained on")
+    DROPPED = [FEATURES.index(name) for name in a.drop]
     params = [x for p in a.param for x in ("--param", p)]
     exclude, out_json, out_inc, threshold, loo_dir = set(a.exclude), a.json, a.inc, a.threshold, a.loo
     dir_weight = {d: float(w) for d, w in (x.rsplit("=", 1) for x in a.weight)}

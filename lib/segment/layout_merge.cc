@@ -103,34 +103,49 @@ BorderLine LineOf(const std::vector<int>& cells, int cols, const Frame& f) {
   return line;
 }
 
-// Share of the kEndSupportCells steps beyond each end of the border, along its line, where some
-// cell within kEndSupportHalfWidth across the line is occupied: (min, max, straightness cells).
-std::array<double, 3> EndSupport(const std::vector<int>& cells, const cv::Mat& occupied,
-                                 const Frame& f) {
+// What lies beyond each end of a border, along its line.
+struct BorderEnds {
+  double support[2] = {0.0, 0.0};  // share of the kEndSupportCells steps where some cell within
+                                   // kEndSupportHalfWidth across the line is occupied
+  cv::Point first[2];              // the first such cell (nearest step, then nearest the line)
+  bool found[2] = {false, false};
+  double straightness = 0.0;  // the border's thickness across its line, cells
+};
+
+BorderEnds EndsOf(const std::vector<int>& cells, const cv::Mat& occupied, const Frame& f) {
   const BorderLine line = LineOf(cells, occupied.cols, f);
   const bool along_u = line.along_u;
   const double lo_end = line.lo_end, hi_end = line.hi_end, mid = line.mid;
-  const double straightness = line.straightness;
-  auto occupied_at = [&](double along, double off) {
-    const cv::Point p = along_u ? f.Cell(along, mid + off) : f.Cell(mid + off, along);
+  auto cell_at = [&](double along, double off) {
+    return along_u ? f.Cell(along, mid + off) : f.Cell(mid + off, along);
+  };
+  auto occupied_at = [&](cv::Point p) {
     return p.x >= 0 && p.y >= 0 && p.x < occupied.cols && p.y < occupied.rows &&
            occupied.at<std::uint8_t>(p.y, p.x) != 0;
   };
-  double support[2] = {0.0, 0.0};
+  BorderEnds ends;
+  ends.straightness = line.straightness;
   for (int side = 0; side < 2; ++side) {
     int hits = 0;
     for (int k = 1; k <= kEndSupportCells; ++k) {
       const double along = side == 0 ? lo_end - k : hi_end + k;
-      for (int off = -kEndSupportHalfWidth; off <= kEndSupportHalfWidth; ++off) {
-        if (occupied_at(along, off)) {
+      // Nearest the line first: 0, -1, +1, -2, +2.
+      for (int i = 0; i <= 2 * kEndSupportHalfWidth; ++i) {
+        const int off = (i % 2 == 1) ? -(i + 1) / 2 : i / 2;
+        const cv::Point p = cell_at(along, off);
+        if (occupied_at(p)) {
           ++hits;
+          if (!ends.found[side]) {
+            ends.found[side] = true;
+            ends.first[side] = p;
+          }
           break;
         }
       }
     }
-    support[side] = static_cast<double>(hits) / kEndSupportCells;
+    ends.support[side] = static_cast<double>(hits) / kEndSupportCells;
   }
-  return {std::min(support[0], support[1]), std::max(support[0], support[1]), straightness};
+  return ends;
 }
 
 constexpr double kChannelDepthM = 2.0;   // how far past the border the channel features look
@@ -183,14 +198,26 @@ struct MapContext {
 constexpr double kSpeckMaxM = 0.25;  // map-level features (kLayoutFeatureNames)
 constexpr double kBlobMaxM = 1.5;
 
-// The occupied components' part of MapContext (one labelling per map).
-void OccupiedComponents(const cv::Mat& occupied, double res, MapContext* map) {
-  cv::Mat comp, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(occupied != 0, comp, stats, centroids, 8, CV_32S);
+constexpr double kEndExtentCapM = 8.0;  // end_extent_* (kLayoutFeatureNames)
+
+// The grid's occupied cells as 8-connected components, each with its extent (the larger side of
+// its bounding box, metres): labelled once per map, for MapContext and the end_extent features.
+struct OccupiedParts {
+  cv::Mat component;            // CV_32SC1, 0 = not occupied
+  std::vector<double> extent_m;  // per component label
+};
+
+OccupiedParts LabelOccupied(const cv::Mat& occupied, double res, MapContext* map) {
+  OccupiedParts parts;
+  cv::Mat stats, centroids;
+  const int n = cv::connectedComponentsWithStats(occupied != 0, parts.component, stats, centroids,
+                                                 8, CV_32S);
+  parts.extent_m.assign(Idx(std::max(n, 1)), 0.0);
   double specks = 0, blobs = 0, loose = 0, all = 0;
   for (int i = 1; i < n; ++i) {
     const double extent =
         std::max(stats.at<int>(i, cv::CC_STAT_WIDTH), stats.at<int>(i, cv::CC_STAT_HEIGHT)) * res;
+    parts.extent_m[Idx(i)] = extent;
     const double cells = stats.at<int>(i, cv::CC_STAT_AREA);
     all += cells;
     if (extent <= kSpeckMaxM + 1e-9) {
@@ -204,12 +231,27 @@ void OccupiedComponents(const cv::Mat& occupied, double res, MapContext* map) {
   map->specks_per_100m2 = specks * per_100m2;
   map->blobs_per_100m2 = blobs * per_100m2;
   map->loose_occupied_share = loose / std::max(all, 1.0);
+  return parts;
+}
+
+// end_extent_min_m / _max_m: the extent of the occupied component at each end of the border
+// (its first occupied cell, EndsOf), capped; 0 where nothing is occupied beyond an end.
+std::array<double, 2> EndExtents(const BorderEnds& ends, const OccupiedParts& parts) {
+  std::array<double, 2> e{};
+  for (int side = 0; side < 2; ++side) {
+    if (!ends.found[side]) continue;
+    const int label = parts.component.at<int>(ends.first[side].y, ends.first[side].x);
+    e[Idx(side)] = std::min(parts.extent_m[Idx(label)], kEndExtentCapM);
+  }
+  if (e[0] > e[1]) std::swap(e[0], e[1]);
+  return e;
 }
 
 std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb, const Contact& c,
                                                 const cv::Mat& occupied, const cv::Mat& free,
                                                 const Frame& f, double res,
-                                                const MapContext& map) {
+                                                const MapContext& map,
+                                                const OccupiedParts& parts) {
   const bool a_small = pa.area <= pb.area;
   const Piece& s = a_small ? pa : pb;
   const Piece& l = a_small ? pb : pa;
@@ -227,7 +269,8 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
   const double du_u = std::max(s.umax, l.umax) - std::min(s.umin, l.umin);
   const double dv_u = std::max(s.vmax, l.vmax) - std::min(s.vmin, l.vmin);
   const double rect_u = Rectangularity(s.area + l.area, du_u, dv_u);
-  const auto ends = EndSupport(c.cells, occupied, f);
+  const BorderEnds ends = EndsOf(c.cells, occupied, f);
+  const auto extents = EndExtents(ends, parts);
   const auto channel = ChannelWidths(c.cells, free, f, res);
   auto per_edge = [&](double n) { return n / std::max(c.edges, 1.0); };
   const double values[kLayoutFeatureCount] = {
@@ -250,9 +293,9 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       rect_l,
       rect_u,
       rect_u - std::max(rect_s, rect_l),
-      ends[0],
-      ends[1],
-      ends[2] * res,
+      std::min(ends.support[0], ends.support[1]),
+      std::max(ends.support[0], ends.support[1]),
+      ends.straightness * res,
       Elongation(du_s, dv_s),
       Elongation(l.umax - l.umin, l.vmax - l.vmin),
       Elongation(du_u, dv_u),
@@ -273,7 +316,9 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       map.unknown_border_share,
       map.rough_cut ? 1.0 : 0.0,
       channel[0],
-      channel[1]};
+      channel[1],
+      extents[0],
+      extents[1]};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
@@ -392,6 +437,7 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
   // The grid's free cells (the pieces and the rim they leave along the walls), or the pieces.
   const cv::Mat free = in.free.empty() ? cv::Mat(labels > 0) : in.free;
   MapContext context;
+  OccupiedParts parts;
   {
     double cells = 0.0;
     std::unordered_map<int, long> rule_cells;
@@ -400,7 +446,7 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
       for (const auto& [seg, k] : p.rule) rule_cells[seg] += k;
     }
     context.free_m2 = cells * res * res;
-    OccupiedComponents(in.occupied, res, &context);
+    parts = LabelOccupied(in.occupied, res, &context);
     // The wall faces on the grid's own free cells (the pieces leave a rim of free cells along
     // the walls out) against the occupied cells no piece took.
     const GridFaceShares faces =
@@ -418,7 +464,7 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
   }
   auto features = [&](const PairKey& k, const Contact& c) {
     return Features(pieces[Idx(k.first)], pieces[Idx(k.second)], c, in.occupied, free, frame, res,
-                    context);
+                    context, parts);
   };
   for (auto& [k, c] : pairs) c.probability = model.Probability(features(k, c));
 

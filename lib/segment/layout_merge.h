@@ -27,7 +27,7 @@ namespace zm {
 
 // The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
 // in metres, areas in m2. The order is the model's input order.
-inline constexpr int kLayoutFeatureCount = 43;
+inline constexpr int kLayoutFeatureCount = 45;
 // One feature, or one family, per line with its meaning.
 // clang-format off
 inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
@@ -77,6 +77,12 @@ inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureName
     // less than they break a wall test (the seventeenth round's).
     "channel_width_near",  // the side whose ratio is nearer 1
     "channel_width_far",   // the other side
+    // What the border ends at (issue 28, twentieth round): at each end, the extent (larger side
+    // of the bounding box) of the 8-connected occupied component of the first occupied cell
+    // end_support_* finds, capped at 8 m; 0 where nothing is occupied there. A door's jambs
+    // are walls that run on for metres; in a robot's grid of a flat, a gap beside a table, a
+    // cabinet or a sofa ends at about a metre of furniture.
+    "end_extent_min_m", "end_extent_max_m",
 };
 // clang-format on
 

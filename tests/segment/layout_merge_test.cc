@@ -327,6 +327,41 @@ TEST_CASE("map-level features tell a clean grid from a noisy one") {
   CHECK(FirstRowFeatures(rough, clean.gt).at("map_rough_cut") == 1.0);
 }
 
+TEST_CASE("a border's end extents tell a door's jambs from a gap beside furniture") {
+  // A door in a wall: both ends of the border are the inner wall, one component with the outer
+  // one (10 m across): the cap on both sides.
+  Scene door;
+  LayoutMergeInputs in = door.Inputs();
+  in.labels->setTo(0);
+  in.labels->operator()(cv::Rect(80, 40, 20, 18)).setTo(1);   // in front of the door, in A
+  in.labels->operator()(cv::Rect(100, 40, 23, 18)).setTo(2);  // the door and beyond, in B
+  in.count = 2;
+  const auto d = FirstRowFeatures(in, door.gt);
+  CHECK(d.at("end_extent_min_m") == doctest::Approx(8.0));
+  CHECK(d.at("end_extent_max_m") == doctest::Approx(8.0));
+  CHECK(d.at("end_support_min") == doctest::Approx(1.0));
+
+  // Two pieces of one room that touch through a 1.45 m gap between the outer wall and a
+  // free-standing table (1.0 x 0.5 m): one end is the wall, the other the table.
+  Scene room;
+  cv::Mat labels = cv::Mat::zeros(100, 200, CV_32S);
+  labels(cv::Rect(30, 1, 20, 29)).setTo(1);
+  labels(cv::Rect(50, 1, 20, 29)).setTo(2);
+  room.occupied(cv::Rect(45, 30, 10, 20)).setTo(255);  // the table, below the gap
+  LayoutMergeInputs gap = room.Inputs();
+  gap.labels = &labels;
+  gap.count = 2;
+  const auto g = FirstRowFeatures(gap, room.gt);
+  CHECK(g.at("end_extent_min_m") == doctest::Approx(1.0));  // the table's 20 cells
+  CHECK(g.at("end_extent_max_m") == doctest::Approx(8.0));  // the outer wall, capped
+
+  // Nothing occupied within 0.4 m beyond an end: 0 there.
+  room.occupied(cv::Rect(45, 30, 10, 20)).setTo(0);
+  const auto open = FirstRowFeatures(gap, room.gt);
+  CHECK(open.at("end_extent_min_m") == 0.0);
+  CHECK(open.at("end_extent_max_m") == doctest::Approx(8.0));
+}
+
 TEST_CASE("bad inputs to the layout merge are one clear error") {
   Scene s;
   LayoutMergeInputs in = s.Inputs();
