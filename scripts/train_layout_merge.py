@@ -17,7 +17,8 @@ the same trees (learning rate 0.1, one thread: OMP_NUM_THREADS=1 is set here), w
 minute per fit where the exact learner took half an hour on issue 28's 403 training maps on a
 shared machine (issue 28's models and leave-one-out); it is written as JSON (--json) and as lib/segment/layout_merge_model.inc (--inc), which is
 compiled in. --bag K makes the final fit K times on the same rows, each with the maps resampled
-with replacement within their DIR (a stratified bootstrap, seeds 1..K), and joins the K into one
+with replacement within their DIR (a stratified bootstrap, seeds 1..K, or S..S+K-1 with
+--bag-seed S), and joins the K into one
 model whose log-odds is the mean of theirs (the compiled-in format sums trees, so it holds a bag
 as it holds one model; issue 28, seventh round: one fit's variance moved single maps' IoU by
 points). The model records the options its pieces were cut with ("trained_with": the cut
@@ -28,7 +29,7 @@ Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
            [--weight DIR=W ...] [--loo DIR [--loo-models OUT_DIR]] [--param K=V ...]
            [--learner exact|hist] [--bag K] [--dagger-passes N] [--features N]
-           [--drop NAME ...] [--jobs N]
+           [--drop NAME ...] [--bag-seed S] [--jobs N]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
@@ -172,6 +173,7 @@ def check_bag(model, clfs, x_check):
 LEARNER = "exact"  # --learner
 JOBS = 1  # --jobs
 DROPPED = []  # --drop: column indices set to 0
+BAG_SEED = 1  # --bag-seed: the first bootstrap seed of --bag
 
 
 def run_all(fn, items):
@@ -268,8 +270,9 @@ def train(zonemap, pairs, dir_weight, dagger_threshold, params, bag=0, passes=1)
             w, owner = np.concatenate([w, w2]), np.concatenate([owner, o2])
         if not bag:
             return export(fit(x, y, w), x[:200], trained_with), len(y1), len(y) - len(y1), y.mean()
+        seeds = range(BAG_SEED, BAG_SEED + bag)
         clfs = run_all(lambda s: fit(x, y, w * bootstrap_counts([d for _, _, d in pairs],
-                                                                s)[owner]), range(1, bag + 1))
+                                                                s)[owner]), seeds)
         model = bag_models([export(c, x[:200], trained_with) for c in clfs])
         check_bag(model, clfs, x[:50])
         return model, len(y1), len(y) - len(y1), y.mean()
@@ -314,7 +317,7 @@ def write_inc(path, text):
 
 
 def main(argv):
-    global LEARNER, FEATURES, JOBS, DROPPED
+    global LEARNER, FEATURES, JOBS, DROPPED, BAG_SEED
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog=__doc__)
@@ -331,6 +334,7 @@ def main(argv):
     ap.add_argument("--param", action="append", default=[], metavar="K=V")
     ap.add_argument("--learner", choices=["exact", "hist"], default="exact")
     ap.add_argument("--bag", type=int, default=0, metavar="K")
+    ap.add_argument("--bag-seed", type=int, default=1, metavar="S")
     ap.add_argument("--dagger-passes", type=int, default=1, metavar="N")
     ap.add_argument("--features", type=int, default=len(FEATURES), metavar="N")
     ap.add_argument("--drop", action="append", default=[], metavar="NAME")
@@ -343,7 +347,9 @@ def main(argv):
     if not 1 <= a.features <= len(FEATURES):
         ap.error(f"--features {a.features}: from 1 to {len(FEATURES)}, the features zonemap "
                  "writes")
-    LEARNER, JOBS = a.learner, a.jobs
+    if a.bag_seed < 1:
+        ap.error(f"--bag-seed {a.bag_seed}: at least 1")
+    LEARNER, JOBS, BAG_SEED = a.learner, a.jobs, a.bag_seed
     FEATURES = FEATURES[:a.features]
     for name in a.drop:
         if name not in FEATURES:

@@ -240,6 +240,15 @@ one, two = json.load(open(model)), json.loads(bags[0])
 check(bags[0] == bags[1] and len(two["trees"]) == 2 * len(one["trees"]) and
       two["trained_with"] == one["trained_with"],
       "--bag 2: two joined fits, reproducibly, and the same with --jobs 2")
+# --bag-seed S draws the bootstrap from seeds S.. (another draw of the same recipe); 1 is the
+# default's draw, byte for byte; below 1 is refused.
+subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
+                os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
+                "--json", os.path.join(work, "bag_s1.json"), "--learner", "hist", "--bag", "2",
+                "--bag-seed", "1"], check=True, capture_output=True)
+check(open(os.path.join(work, "bag_s1.json")).read() == bags[0], "--bag-seed 1 is the default's draw")
+bad, _ = rows_of("--bag", "2", "--bag-seed", "0")
+check(bad.returncode != 0 and "--bag-seed 0" in bad.stderr, "--bag-seed 0 is refused")
 bad, _ = rows_of("--jobs", "0")
 check(bad.returncode != 0 and "--jobs 0" in bad.stderr, "--jobs 0 is refused")
 check(runs_model(os.path.join(work, "bag_a.json")), "zonemap runs a bagged model")
