@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <unordered_map>
@@ -107,8 +108,8 @@ BorderLine LineOf(const std::vector<int>& cells, int cols, const Frame& f) {
 struct BorderEnds {
   double support[2] = {0.0, 0.0};  // share of the kEndSupportCells steps where some cell within
                                    // kEndSupportHalfWidth across the line is occupied
-  cv::Point first[2];              // the first such cell (nearest step, then nearest the line)
-  bool found[2] = {false, false};
+  // The first such cell (nearest step, then nearest the line); none where there is none.
+  std::array<std::optional<cv::Point>, 2> first;
   double straightness = 0.0;  // the border's thickness across its line, cells
 };
 
@@ -135,10 +136,7 @@ BorderEnds EndsOf(const std::vector<int>& cells, const cv::Mat& occupied, const 
         const cv::Point p = cell_at(along, off);
         if (occupied_at(p)) {
           ++hits;
-          if (!ends.found[side]) {
-            ends.found[side] = true;
-            ends.first[side] = p;
-          }
+          if (!ends.first[Idx(side)]) ends.first[Idx(side)] = p;
           break;
         }
       }
@@ -239,8 +237,9 @@ OccupiedParts LabelOccupied(const cv::Mat& occupied, double res, MapContext* map
 std::array<double, 2> EndExtents(const BorderEnds& ends, const OccupiedParts& parts) {
   std::array<double, 2> e{};
   for (int side = 0; side < 2; ++side) {
-    if (!ends.found[side]) continue;
-    const int label = parts.component.at<int>(ends.first[side].y, ends.first[side].x);
+    const std::optional<cv::Point>& p = ends.first[Idx(side)];
+    if (!p) continue;
+    const int label = parts.component.at<int>(*p);
     e[Idx(side)] = std::min(parts.extent_m[Idx(label)], kEndExtentCapM);
   }
   if (e[0] > e[1]) std::swap(e[0], e[1]);

@@ -229,12 +229,14 @@ check(runs_model(model), "zonemap runs the model")
 # --bag 2: two fits on maps resampled within their DIR, joined into one model (twice the trees,
 # the learners' mean log-odds, checked inside the script), reproducible, run by zonemap. The
 # second run traces two maps at once (--jobs 2): the same bytes.
+# A third run names --bag-seed 1, the default's first seed: the same draw.
 bags = []
-for out, jobs in (("bag_a.json", "1"), ("bag_b.json", "2")):
+for out, extra in (("bag_a.json", ["--jobs", "1"]), ("bag_b.json", ["--jobs", "2"]),
+                   ("bag_s1.json", ["--bag-seed", "1"])):
     subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
                     os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
-                    "--json", os.path.join(work, out), "--learner", "hist", "--bag", "2",
-                    "--jobs", jobs], check=True, capture_output=True)
+                    "--json", os.path.join(work, out), "--learner", "hist", "--bag", "2"] + extra,
+                   check=True, capture_output=True)
     bags.append(open(os.path.join(work, out)).read())
 one, two = json.load(open(model)), json.loads(bags[0])
 check(bags[0] == bags[1] and len(two["trees"]) == 2 * len(one["trees"]) and
@@ -242,11 +244,7 @@ check(bags[0] == bags[1] and len(two["trees"]) == 2 * len(one["trees"]) and
       "--bag 2: two joined fits, reproducibly, and the same with --jobs 2")
 # --bag-seed S draws the bootstrap from seeds S.. (another draw of the same recipe); 1 is the
 # default's draw, byte for byte; below 1 is refused.
-subprocess.run([sys.executable, os.path.join(scripts, "train_layout_merge.py"), zonemap,
-                os.path.join(work, "a", "plan"), os.path.join(work, "a", "robot"), sim,
-                "--json", os.path.join(work, "bag_s1.json"), "--learner", "hist", "--bag", "2",
-                "--bag-seed", "1"], check=True, capture_output=True)
-check(open(os.path.join(work, "bag_s1.json")).read() == bags[0], "--bag-seed 1 is the default's draw")
+check(bags[2] == bags[0], "--bag-seed 1 is the default's draw")
 bad, _ = rows_of("--bag", "2", "--bag-seed", "0")
 check(bad.returncode != 0 and "--bag-seed 0" in bad.stderr, "--bag-seed 0 is refused")
 bad, _ = rows_of("--jobs", "0")
