@@ -258,9 +258,15 @@ std::string FormatImageLine(double stamp_s, const Pose3& odom, std::string_view 
   const Eigen::Quaterniond q(odom.linear());
   const Eigen::Vector3d t = odom.translation();
   char buf[256];
-  // Stamps with microseconds, as TUM's files and a camera driver's clock give them.
-  std::snprintf(buf, sizeof buf, "image %.6f %.9g %.9g %.9g %.9g %.9g %.9g %.9g ", stamp_s, t.x(),
-                t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+  // Stamps with microseconds, as TUM's files and a camera driver's clock give them. A stamp no
+  // clock gives (the fuzzer's 1e302) would print 300 digits and be cut at the buffer, so the
+  // line would not parse back: beyond 1e15 s it is written in %.17g, short and exact.
+  const int n = std::abs(stamp_s) < 1e15
+                    ? std::snprintf(buf, sizeof buf, "image %.6f ", stamp_s)
+                    : std::snprintf(buf, sizeof buf, "image %.17g ", stamp_s);
+  std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n),
+                "%.9g %.9g %.9g %.9g %.9g %.9g %.9g ", t.x(), t.y(), t.z(), q.x(), q.y(), q.z(),
+                q.w());
   std::string out = buf;
   out += colour_path;
   out += ' ';

@@ -204,5 +204,21 @@ TEST_CASE("the line buffer holds the longest valid frame and route") {
   CHECK(FormatImageLine(big.stamp_s, big.odom, path, path).size() <= MaxInputLineBytes(1, 1));
 }
 
+TEST_CASE("an image line with a stamp no clock gives still parses back") {
+  // The fuzzer's input `image 1e302 0 0 0 0 0 5 1 ~ -`: written with microseconds, 1e302 took 300
+  // digits and the line was cut at the formatter's buffer.
+  const Frame pose = MakeFrame(0);
+  for (const double stamp : {1e302, -1e302, 1e15, 4294967296.5}) {
+    const std::string line = FormatImageLine(stamp, pose.odom, "~", "-");
+    CHECK(line.size() <= MaxInputLineBytes(1, 1));
+    InputLine out = Reserved(1, 1);
+    LineError err;
+    REQUIRE(ParseInputLine(line, &out, &err) == LineKind::kImage);
+    CHECK(out.frame.stamp_s == stamp);
+    CHECK(out.colour_path == "~");
+    CHECK(out.depth_path == "-");
+  }
+}
+
 }  // namespace
 }  // namespace zm
