@@ -8,11 +8,14 @@ render_sim.py's grid and ground truth agree in size, its corridor segments are o
 train_layout_merge.py fits a model that zonemap runs, --bag joins bootstrap fits into one model
 zonemap runs, --dagger-passes adds model-driven rows, and --loo-models keeps the leave-one-out's
 models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
-segmentation_identical.py tells identical zones from moved ones.
+segmentation_identical.py tells identical zones from moved ones; ipa_to_grid.py reads the ipa
+dataset's SVG ground truths into a map and its rooms.
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
 """
+import base64
+import io
 import json
 import os
 import shutil
@@ -430,5 +433,59 @@ moved = subprocess.run([sys.executable, os.path.join(scripts, "segmentation_iden
                         zonemap, rules, robot_dir], capture_output=True, text=True)
 check(moved.returncode == 1 and "DIFFERS: " in moved.stdout,
       "segmentation_identical.py: zones that move are named and fail")
+
+# ipa_to_grid.py: an SVG in the ipa dataset's form (the map as an embedded PNG, separators drawn
+# over it, one rotated, one inside a translated group) gives the map back unchanged and one room
+# per free component once the separators close their doorways; a speck gets no colour.
+ipa_src = os.path.join(work, "ipa_src")
+os.makedirs(ipa_src)
+grid = np.full((40, 60), 254, np.uint8)  # free, 0.05 m cells: 3 m x 2 m
+grid[0, :] = grid[-1, :] = grid[:, 0] = grid[:, -1] = 0
+grid[:, 20] = 0
+grid[18:24, 20] = 254   # a doorway between the left and the middle room
+grid[:, 40] = 0
+grid[10:30, 40] = 254   # a wide opening between the middle and the right room
+grid[2:5, 2:5] = 205    # unknown cells stay as they are
+grid[4, 44:53] = 0
+grid[1:5, 44] = grid[1:5, 52] = 0  # walls close off a speck of 21 cells in the right room
+buffer = io.BytesIO()
+Image.fromarray(grid).save(buffer, format="PNG")
+payload = base64.b64encode(buffer.getvalue()).decode()
+payload = "\n".join(payload[i:i + 76] for i in range(0, len(payload), 76))  # as Inkscape wraps
+with open(os.path.join(ipa_src, "toy_gt_segmentation.svg"), "w") as f:
+    f.write('''<?xml version="1.0" encoding="UTF-8" standalone="no"?>
+<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink"
+     xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape" width="120" height="80">
+  <image width="120" height="80" x="0" y="0" xlink:href="data:image/png;base64,%s" />
+  <g inkscape:groupmode="layer" id="layer1" transform="translate(4,0)">
+    <rect style="fill:#000000;stroke:#000000;stroke-width:1px" width="2" height="14"
+          x="36" y="33" transform="rotate(0)" />
+  </g>
+  <rect style="fill:#cccccc;stroke:#000000;stroke-width:1px" width="42" height="1.5"
+        x="-20" y="-0.75" transform="matrix(0,1,-1,0,81,40)" />
+</svg>
+''' % payload)
+out_ipa = os.path.join(work, "ipa_out")
+conv = subprocess.run([sys.executable, os.path.join(scripts, "ipa_to_grid.py"), ipa_src, out_ipa],
+                      capture_output=True, text=True)
+check(conv.returncode == 0 and "ipa_toy: 60x40 cells, 2 separators, 3 rooms" in conv.stdout,
+      "ipa_to_grid.py reads the embedded map and both separators: " + conv.stdout.strip())
+if conv.returncode == 0:
+    check(np.array_equal(load(os.path.join(out_ipa, "ipa_toy_map.png")), grid),
+          "ipa_to_grid.py writes the embedded map unchanged")
+    gt = load(os.path.join(out_ipa, "ipa_toy_gt.png"))
+    colours = {tuple(int(v) for v in gt[r, c]) for r, c in ((10, 10), (10, 30), (10, 50))}
+    check(len(colours) == 3 and all(max(c) > 20 for c in colours),
+          "ipa_to_grid.py: the two separators make three rooms, each its own colour")
+    check(not gt[20, 20].any() and not gt[20, 40].any() and not gt[2, 48].any() and not gt[3, 3].any(),
+          "ipa_to_grid.py: walls, the speck and unknown cells are in no room")
+bad = os.path.join(work, "ipa_bad")
+os.makedirs(bad)
+with open(os.path.join(bad, "x_gt_segmentation.svg"), "w") as f:
+    f.write('<svg xmlns="http://www.w3.org/2000/svg"><rect width="1" height="1"/></svg>')
+refused = subprocess.run([sys.executable, os.path.join(scripts, "ipa_to_grid.py"), bad,
+                          os.path.join(work, "ipa_bad_out")], capture_output=True, text=True)
+check(refused.returncode != 0 and "0 embedded images" in refused.stderr,
+      "ipa_to_grid.py refuses an SVG without an embedded map, naming it")
 
 sys.exit(1 if failures else 0)
