@@ -10,16 +10,13 @@
 #include "import/rtabmap_import.h"
 
 namespace zm {
-namespace {
 
-std::size_t ElementBytes(std::int32_t type) {
+std::size_t RtabmapElementBytes(std::int32_t type) {
   static constexpr std::size_t kDepthBytes[8] = {1, 1, 2, 2, 4, 4, 8, 2};
   const auto depth = static_cast<std::size_t>(type & 7);
   const auto channels = static_cast<std::size_t>(1 + (type >> 3));
   return kDepthBytes[depth] * channels;
 }
-
-}  // namespace
 
 Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob,
                                             const std::string& what) {
@@ -36,7 +33,8 @@ Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob,
                    std::to_string(m.cols) + " of OpenCV type " + std::to_string(m.type) +
                    " (invalid)");
   }
-  const std::uint64_t want = std::uint64_t(m.rows) * std::uint64_t(m.cols) * ElementBytes(m.type);
+  const std::uint64_t want =
+      std::uint64_t(m.rows) * std::uint64_t(m.cols) * RtabmapElementBytes(m.type);
   constexpr std::uint64_t kLimit = 1ull << 30;
   if (want > kLimit) {
     return Corrupt(what + ": trailer claims " + std::to_string(want) + " bytes, limit " +

@@ -110,8 +110,12 @@ struct RtabmapMatrix {
   std::int32_t type = 0;  // CV_8U=0 ... CV_64F=6, + 8 * (channels - 1)
   std::vector<std::byte> data;
 };
+// Bytes per element of an OpenCV type: the depth (type & 7: 8U 8S 16U 16S 32S 32F 64F 16F, OpenCV 4's
+// numbering, whose 7 is CV_16F) times the channels (1 + type >> 3). The one table the decoder and
+// its fuzz target's oracle both use.
+[[nodiscard]] std::size_t RtabmapElementBytes(std::int32_t type);
 // Errors name `what` (e.g. "Admin.opt_poses") and the sizes; the decompressed size must equal
-// rows * cols * element size exactly.
+// rows * cols * RtabmapElementBytes(type) exactly.
 [[nodiscard]] Result<RtabmapMatrix> UncompressRtabmapData(std::span<const std::byte> blob,
                                                           const std::string& what);
 [[nodiscard]] std::vector<std::byte> CompressRtabmapData(const RtabmapMatrix& m);

@@ -329,6 +329,30 @@ TEST_CASE("damaged optimized poses (zlib + trailer) give one clear error, no out
   }
 }
 
+TEST_CASE("RTAB-Map matrices: the element size is OpenCV 4's, CV_16F (depth 7) two bytes") {
+  // OpenCV's depth numbering: 8U 8S 16U 16S 32S 32F 64F 16F; type = depth + 8 * (channels - 1).
+  CHECK(RtabmapElementBytes(CV_8UC1) == 1);
+  CHECK(RtabmapElementBytes(CV_8UC3) == 3);
+  CHECK(RtabmapElementBytes(CV_32SC1) == 4);
+  CHECK(RtabmapElementBytes(CV_32FC1) == 4);
+  CHECK(RtabmapElementBytes(CV_64FC1) == 8);
+  CHECK(RtabmapElementBytes(CV_16FC1) == 2);
+  CHECK(RtabmapElementBytes(CV_16FC2) == 4);
+  // A 1 x 2 CV_16FC2 matrix (the fuzzer's input, fuzz/regressions/rtabmap_blob/cv16f_2ch.bin, is
+  // one) decodes to its 8 bytes, and a compressed one round-trips.
+  RtabmapMatrix m{1, 2, CV_16FC2, Blob(8)};
+  for (std::size_t i = 0; i < m.data.size(); ++i) m.data[i] = std::byte(i + 1);
+  const auto back = UncompressRtabmapData(CompressRtabmapData(m), "half floats");
+  REQUIRE(back.ok());
+  CHECK(back->type == CV_16FC2);
+  CHECK(back->data == m.data);
+  m.data.resize(6);  // too short for its claim: the compressed stream no longer matches
+  const auto bad = UncompressRtabmapData(CompressRtabmapData(m), "half floats");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(bad.status().message().find("half floats: trailer claims 1x2 of OpenCV type 15 = 8 bytes, but the data inflates to 6") !=
+        std::string::npos);
+}
+
 TEST_CASE("damaged node, data and link blobs give one clear error naming them, no output") {
   const auto run = [](std::string sql, Blob blob, std::string expect) {
     return [=](RtabDb& r, const Blob&, const Blob&) {
