@@ -14,7 +14,7 @@ images are read. This reads every such SVG of SVG_DIR and writes, per map,
 Components under MIN_ROOM_CELLS (zonemap's own kDefaultMinGtRoomCells, score.h) get no colour:
 the scorer would drop them anyway. The resolution is 0.05 m per cell, the dataset's.
 
-Only the standard library, numpy and PIL.
+Only the standard library, numpy, PIL and render_r2v.py's component labelling.
 """
 import base64
 import io
@@ -26,6 +26,9 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 from PIL import Image, ImageDraw
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from render_r2v import components  # noqa: E402  (4-connected labels, 1..n)
 
 SVG = "{http://www.w3.org/2000/svg}"
 XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
@@ -74,7 +77,8 @@ def parse_transform(text):
 
 
 def path_polygons(d):
-    """A path's subpaths as point lists; curves sampled at eight points (separators are straight)."""
+    """A path's subpaths as point lists; curves sampled at eight points (separators are
+    straight)."""
     tokens = re.findall(r"[MmLlHhVvCcSsQqTtAaZz]|" + NUMBER, d)
     i, cmd, cur, start, subs, pts = 0, None, (0.0, 0.0), (0.0, 0.0), [], []
 
@@ -178,30 +182,6 @@ def separators(root):
     return out
 
 
-def components(free):
-    """4-connected components of a boolean image: labels (-1 outside) and sizes."""
-    h, w = free.shape
-    flat = free.ravel()
-    labels = np.full(h * w, -1, dtype=np.int64)
-    sizes = []
-    for seed in np.flatnonzero(flat):
-        if labels[seed] >= 0:
-            continue
-        k = len(sizes)
-        labels[seed] = k
-        stack, n = [seed], 0
-        while stack:
-            p = stack.pop()
-            n += 1
-            y, x = divmod(p, w)
-            for q, inside in ((p - 1, x > 0), (p + 1, x < w - 1), (p - w, y > 0), (p + w, y < h - 1)):
-                if inside and flat[q] and labels[q] < 0:
-                    labels[q] = k
-                    stack.append(q)
-        sizes.append(n)
-    return labels.reshape(h, w), sizes
-
-
 def colour(i):
     """Room i's colour: distinct for i < 6**3, every channel above the scorer's black (<= 20)."""
     return (40 + 40 * (i % 6), 40 + 40 * (i // 6 % 6), 40 + 40 * (i // 36 % 6))
@@ -227,7 +207,8 @@ def convert(svg_path):
         m_img = compose(parse_transform(e.get("transform")), m_img)
     a, b, c, d, tx, ty = m_img
     det = a * d - b * c
-    inverse = (d / det, -b / det, -c / det, a / det, (c * ty - d * tx) / det, (b * tx - a * ty) / det)
+    inverse = (d / det, -b / det, -c / det, a / det,
+               (c * ty - d * tx) / det, (b * tx - a * ty) / det)
     ix, iy = float(el.get("x", 0)), float(el.get("y", 0))
     sx, sy = w / float(el.get("width", w)), h / float(el.get("height", h))
 
@@ -251,14 +232,16 @@ def convert(svg_path):
             draw.line(p, fill=255, width=width)
         count += 1
     free = (grey >= FREE_MIN) & (np.asarray(cut) == 0)
-    labels, sizes = components(free)
-    rooms = sorted((i for i, n in enumerate(sizes) if n >= MIN_ROOM_CELLS), key=lambda i: -sizes[i])
+    labels, n = components(free)
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)  # sizes[0]: cells in no component
+    rooms = sorted((i for i in range(1, n + 1) if sizes[i] >= MIN_ROOM_CELLS),
+                   key=lambda i: -sizes[i])
     if len(rooms) > 6 ** 3:
         raise ValueError(f"{svg_path}: {len(rooms)} rooms, more than the 216 colours")
     gt = np.zeros((h, w, 3), np.uint8)
     for k, i in enumerate(rooms):
         gt[labels == i] = colour(k)
-    return grey, gt, count, [sizes[i] for i in rooms]
+    return grey, gt, count, [int(sizes[i]) for i in rooms]
 
 
 def main(argv):

@@ -477,7 +477,7 @@ if conv.returncode == 0:
     colours = {tuple(int(v) for v in gt[r, c]) for r, c in ((10, 10), (10, 30), (10, 50))}
     check(len(colours) == 3 and all(max(c) > 20 for c in colours),
           "ipa_to_grid.py: the two separators make three rooms, each its own colour")
-    check(not gt[20, 20].any() and not gt[20, 40].any() and not gt[2, 48].any() and not gt[3, 3].any(),
+    check(not any(gt[r, c].any() for r, c in ((20, 20), (20, 40), (2, 48), (3, 3))),
           "ipa_to_grid.py: walls, the speck and unknown cells are in no room")
 bad = os.path.join(work, "ipa_bad")
 os.makedirs(bad)
