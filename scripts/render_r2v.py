@@ -215,7 +215,20 @@ def robot_world(items, free, occupied, rooms, n, rng, off=()):
         rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
         leaves.append((tuple(a), tuple(a + rot @ v)))
     leaf = line_mask(free.shape, leaves, 1) & free
-    # Clutter: about one piece per 6 m2 of room, 0.3-1.2 m a side; a third are chairs (legs).
+    clutter = room_clutter(free, rooms, n, rng)
+    if "leaves" in off:
+        leaf &= False
+    if "clutter" in off:
+        clutter &= False
+    occupied |= leaf | clutter
+    free &= ~(leaf | clutter)
+    return free, occupied
+
+
+def room_clutter(free, rooms, n, rng):
+    """Clutter in the rooms (robot/'s, and render_raster.py's): about one piece per 6 m2 of room,
+    0.3-1.2 m a side; a third are chairs (four legs). rooms labels the ground truth 1..n.
+    Returns the clutter's cells (free ones only)."""
     clutter = np.zeros_like(free)
     h, w = free.shape
     for room in range(1, n + 1):
@@ -232,14 +245,7 @@ def robot_world(items, free, occupied, rooms, n, rng, off=()):
                         clutter[rr:rr + 1, cc:cc + 1] = True
             else:
                 clutter[r:r1, c:c1] = True
-    clutter &= free & (rooms > 0)
-    if "leaves" in off:
-        leaf &= False
-    if "clutter" in off:
-        clutter &= False
-    occupied |= leaf | clutter
-    free &= ~(leaf | clutter)
-    return free, occupied
+    return clutter & free & (rooms > 0)
 
 
 def laser_rays(free, viewpoints, range_m, rays=1440):

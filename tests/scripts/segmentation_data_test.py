@@ -9,7 +9,8 @@ train_layout_merge.py fits a model that zonemap runs, --bag joins bootstrap fits
 zonemap runs, --dagger-passes adds model-driven rows, and --loo-models keeps the leave-one-out's
 models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
 segmentation_identical.py tells identical zones from moved ones; ipa_to_grid.py reads the ipa
-dataset's SVG ground truths into a map and its rooms.
+dataset's SVG ground truths into a map and its rooms; render_raster.py maps such a raster again
+as a robot would.
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
@@ -487,5 +488,59 @@ refused = subprocess.run([sys.executable, os.path.join(scripts, "ipa_to_grid.py"
                           os.path.join(work, "ipa_bad_out")], capture_output=True, text=True)
 check(refused.returncode != 0 and "0 embedded images" in refused.stderr,
       "ipa_to_grid.py refuses an SVG without an embedded map, naming it")
+
+# render_raster.py: a raster map with rooms, mapped again as a robot would. Two rooms of 4 x 5 m
+# joined by a 1 m doorway; renders are reproducible, differ from seed to seed, see free only
+# where the map is free, and keep the ground truth's rooms.
+raster_src = os.path.join(work, "raster_src")
+os.makedirs(raster_src)
+grid = np.full((120, 180), 205, np.uint8)
+grid[10:110, 10:170] = 254
+grid[10:110, 10] = grid[10:110, 169] = grid[10, 10:170] = grid[109, 10:170] = 0
+grid[10:110, 90:93] = 0
+grid[50:70, 90:93] = 254  # the doorway
+rooms_in = np.zeros(grid.shape, np.uint8)
+rooms_in[11:109, 11:91] = 1
+rooms_in[11:109, 91:169] = 2
+gt_in = np.zeros(grid.shape + (3,), np.uint8)
+gt_in[rooms_in == 1] = (200, 40, 40)
+gt_in[rooms_in == 2] = (40, 200, 40)
+gt_in[grid != 254] = 0
+Image.fromarray(grid).save(os.path.join(raster_src, "two_map.png"))
+Image.fromarray(gt_in).save(os.path.join(raster_src, "two_gt.png"))
+renders = {}
+for tag, extra in (("a", []), ("b", []), ("l", ["--laser"])):
+    out = os.path.join(work, "raster_" + tag)
+    run = subprocess.run([sys.executable, os.path.join(scripts, "render_raster.py"), raster_src,
+                          out, "--seeds", "2"] + extra, capture_output=True, text=True)
+    check(run.returncode == 0 and "two_s2: " in run.stdout,
+          "render_raster.py renders each map --seeds times: " + run.stdout + run.stderr)
+    kind = "laser" if extra else "robot"
+    renders[tag] = {k: (load(os.path.join(out, kind, f"two_s{k}_map.png")),
+                        load(os.path.join(out, kind, f"two_s{k}_gt.png"))) for k in (1, 2)
+                    if os.path.exists(os.path.join(out, kind, f"two_s{k}_map.png"))}
+if all(len(v) == 2 for v in renders.values()):
+    check(all(np.array_equal(renders["a"][k][0], renders["b"][k][0]) for k in (1, 2)),
+          "render_raster.py: a render is reproducible")
+    check(not np.array_equal(renders["a"][1][0], renders["a"][2][0]),
+          "render_raster.py: a map's renders differ from seed to seed")
+    for tag in ("a", "l"):
+        for k in (1, 2):
+            seen, gt = renders[tag][k]
+            check(not ((seen >= 250) & (grid != 254)).any(),
+                  f"render_raster.py ({tag}, s{k}): free only where the map is free")
+            check((seen == 0).sum() > 0 and (seen >= 250).sum() > 0.5 * (grid == 254).sum(),
+                  f"render_raster.py ({tag}, s{k}): walls returned and most free space seen")
+            colours = {tuple(int(v) for v in gt[r, c]) for r, c in ((60, 50), (60, 130))}
+            check(len(colours) == 2 and (gt.reshape(-1, 3).any(axis=1).reshape(grid.shape)
+                                         == (rooms_in > 0) & (grid == 254)).all(),
+                  f"render_raster.py ({tag}, s{k}): the ground truth's two rooms, on free cells")
+    check(not np.array_equal(renders["l"][1][0], renders["a"][1][0]),
+          "render_raster.py --laser draws laser/'s look")
+Image.fromarray(gt_in[:60]).save(os.path.join(raster_src, "two_gt.png"))
+refused = subprocess.run([sys.executable, os.path.join(scripts, "render_raster.py"), raster_src,
+                          os.path.join(work, "raster_bad")], capture_output=True, text=True)
+check(refused.returncode != 0 and "two_gt.png is 180x60" in refused.stderr,
+      "render_raster.py refuses a ground truth of another size than its map, naming it")
 
 sys.exit(1 if failures else 0)
