@@ -9,12 +9,20 @@ doorways (filled rectangles and paths, often rotated). A room is a 4-connected c
 map's free cells once the separators are drawn, which is how the dataset's own ground-truth
 images are read. This reads every such SVG of SVG_DIR and writes, per map,
   OUT_DIR/ipa_NAME_map.png  the embedded map as 8-bit grey, unchanged (254 free, 205 unknown,
-                            0 occupied in these files; zonemap reads >= 250 as free)
+                            0 occupied in these files; zonemap reads >= 250 as free), or
+                            a drawing read as such a map (below)
   OUT_DIR/ipa_NAME_gt.png   RGB, one flat colour per room, black elsewhere, as the shared maps'
+Some SVGs embed a drawing instead of a map: office_a-i, and lab_a_scan, lab_b_scan and lab_f
+(a white or light grey floor, walls as grey lines or outlined with a grey fill, a grey outside,
+edges anti-aliased; fewer than 99 % of the cells at a map's levels 0, 205, 254 and 255). Such an
+image is read as a map first (drawn_plan_grid: the floor's grey, or brighter, is free, what is
+not floor within 0.3 m of it is wall, the rest unknown), and ipa_NAME_map.png is that map (254 /
+0 / 205), not the drawing. (Until issue 28's twenty-seventh round the drawings were written as
+they are: zonemap read their grey walls as unknown.)
 Components under MIN_ROOM_CELLS (zonemap's own kDefaultMinGtRoomCells, score.h) get no colour:
 the scorer would drop them anyway. The resolution is 0.05 m per cell, the dataset's.
 
-Only the standard library, numpy, PIL and render_r2v.py's component labelling.
+Only the standard library, numpy, PIL and render_r2v.py's component labelling and dilation.
 """
 import base64
 import io
@@ -28,12 +36,16 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from render_r2v import components  # noqa: E402  (4-connected labels, 1..n)
+from render_r2v import RES, components, near  # noqa: E402  (4-connected labels, 1..n; a dilation)
 
 SVG = "{http://www.w3.org/2000/svg}"
 XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
 FREE_MIN = 250        # zonemap's PNG threshold for a free cell (grid_map.h)
 MIN_ROOM_CELLS = 200  # kDefaultMinGtRoomCells (score.h)
+MAP_LEVELS = (0, 205, 254, 255)  # a map's grey levels: occupied, unknown, free
+MAP_MIN_LEVEL_SHARE = 0.99  # fewer of the image's cells at them: a drawing, not a map
+DRAWN_FLOOR_TOLERANCE = 8  # grey levels around a drawn plan's floor colour (anti-aliasing)
+DRAWN_WALL_M = 0.3    # a drawn plan's walls: non-floor cells this close to the floor
 NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 IDENTITY = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
 
@@ -187,6 +199,24 @@ def colour(i):
     return (40 + 40 * (i % 6), 40 + 40 * (i // 6 % 6), 40 + 40 * (i // 36 % 6))
 
 
+def drawn_plan_grid(grey):
+    """A drawing (a white or light grey floor, walls as grey lines or outlined with a grey fill, the
+    outside a mid grey) as a map: the floor's grey (the most
+    common level of 200 and above) less DRAWN_FLOOR_TOLERANCE, or brighter, is free (254); a cell
+    that is not and
+    lies within DRAWN_WALL_M of a free cell is wall (0); the rest is unknown (205)."""
+    bright = grey[grey >= 200]
+    if bright.size == 0:
+        raise ValueError("the embedded image has no cell of grey 200 or above: no floor to read")
+    floor = int(np.bincount(bright).argmax())
+    free = grey.astype(int) >= floor - DRAWN_FLOOR_TOLERANCE  # white highlights are floor too
+    near_free = near(free, int(round(DRAWN_WALL_M / RES)))
+    out = np.full(grey.shape, 205, np.uint8)
+    out[near_free] = 0
+    out[free] = 254
+    return out
+
+
 def convert(svg_path):
     root = ET.fromstring(open(svg_path, encoding="utf-8").read().encode("utf-8"))
     images = root.findall(f".//{SVG}image")
@@ -231,6 +261,9 @@ def convert(svg_path):
                 p = p + [p[0]]
             draw.line(p, fill=255, width=width)
         count += 1
+    drawn = np.isin(grey, MAP_LEVELS).mean() < MAP_MIN_LEVEL_SHARE
+    if drawn:
+        grey = drawn_plan_grid(grey)
     free = (grey >= FREE_MIN) & (np.asarray(cut) == 0)
     labels, n = components(free)
     sizes = np.bincount(labels.ravel(), minlength=n + 1)  # sizes[0]: cells in no component
@@ -241,7 +274,7 @@ def convert(svg_path):
     gt = np.zeros((h, w, 3), np.uint8)
     for k, i in enumerate(rooms):
         gt[labels == i] = colour(k)
-    return grey, gt, count, [int(sizes[i]) for i in rooms]
+    return grey, gt, count, [int(sizes[i]) for i in rooms], drawn
 
 
 def main(argv):
@@ -254,11 +287,11 @@ def main(argv):
         sys.exit(f"{src}: no *_gt_segmentation.svg")
     for f in names:
         name = "ipa_" + f[: -len("_gt_segmentation.svg")]
-        grey, gt, count, rooms = convert(os.path.join(src, f))
+        grey, gt, count, rooms, drawn = convert(os.path.join(src, f))
         Image.fromarray(grey).save(os.path.join(out, name + "_map.png"))
         Image.fromarray(gt, "RGB").save(os.path.join(out, name + "_gt.png"))
         print(f"{name}: {grey.shape[1]}x{grey.shape[0]} cells, {count} separators, "
-              f"{len(rooms)} rooms of >= {MIN_ROOM_CELLS} cells")
+              f"{len(rooms)} rooms of >= {MIN_ROOM_CELLS} cells" + (", a drawing" if drawn else ""))
 
 
 if __name__ == "__main__":

@@ -480,6 +480,37 @@ if conv.returncode == 0:
           "ipa_to_grid.py: the two separators make three rooms, each its own colour")
     check(not any(gt[r, c].any() for r, c in ((20, 20), (20, 40), (2, 48), (3, 3))),
           "ipa_to_grid.py: walls, the speck and unknown cells are in no room")
+# A drawn plan (office_a-i's kind): floor a light grey, walls outlined with a grey fill, the outside
+# a mid grey, hardly a white cell. It is read as a map: floor free, walls occupied, outside unknown.
+drawn = np.full((40, 60), 178, np.uint8)  # the outside
+drawn[8:32, 8:52] = 238                   # the floor
+drawn[8:32, 29:33] = 170                  # an interior wall ...
+drawn[8:32, 29] = drawn[8:32, 32] = 80    # ... outlined
+drawn[17:23, 29:33] = 238                 # with a doorway
+drawn[10, 10] = 255                       # one white speck (anti-aliasing)
+buffer = io.BytesIO()
+Image.fromarray(drawn).save(buffer, format="PNG")
+payload = base64.b64encode(buffer.getvalue()).decode()
+drawn_src = os.path.join(work, "ipa_drawn")
+os.makedirs(drawn_src)
+with open(os.path.join(drawn_src, "plan_gt_segmentation.svg"), "w") as f:
+    f.write('<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink"'
+            ' width="60" height="40">\n'
+            '  <image width="60" height="40" xlink:href="data:image/png;base64,%s" />\n'
+            '  <rect style="fill:#000000;stroke:none" width="4" height="6" x="29" y="17" />\n'
+            '</svg>\n' % payload)
+out_drawn = os.path.join(work, "ipa_drawn_out")
+conv = subprocess.run([sys.executable, os.path.join(scripts, "ipa_to_grid.py"), drawn_src,
+                       out_drawn], capture_output=True, text=True)
+check(conv.returncode == 0 and "ipa_plan: 60x40 cells, 1 separators, 2 rooms" in conv.stdout
+      and "a drawing" in conv.stdout,
+      "ipa_to_grid.py reads a drawn plan as a map: " + conv.stdout.strip() + conv.stderr)
+if conv.returncode == 0:
+    m = load(os.path.join(out_drawn, "ipa_plan_map.png"))
+    check(m[10, 10] == 254 and m[20, 15] == 254 and m[20, 30] == 254 and m[10, 30] == 0
+          and m[4, 4] == 0 and m[0, 0] == 205,
+          "ipa_to_grid.py: a drawn plan's floor (its doorway too) is free, its walls and the "
+          "outside within 0.3 m of the floor occupied, the outside beyond unknown")
 bad = os.path.join(work, "ipa_bad")
 os.makedirs(bad)
 with open(os.path.join(bad, "x_gt_segmentation.svg"), "w") as f:
