@@ -201,10 +201,9 @@ def colour(i):
 
 def drawn_plan_grid(grey):
     """A drawing (a white or light grey floor, walls as grey lines or outlined with a grey fill, the
-    outside a mid grey) as a map: the floor's grey (the most
-    common level of 200 and above) less DRAWN_FLOOR_TOLERANCE, or brighter, is free (254); a cell
-    that is not and
-    lies within DRAWN_WALL_M of a free cell is wall (0); the rest is unknown (205)."""
+    outside a mid grey) as a map: the floor's grey (the most common level of 200 and above) less
+    DRAWN_FLOOR_TOLERANCE, or brighter, is free (254); a cell that is not and lies within
+    DRAWN_WALL_M of a free cell is wall (0); the rest is unknown (205)."""
     bright = grey[grey >= 200]
     if bright.size == 0:
         raise ValueError("the embedded image has no cell of grey 200 or above: no floor to read")

@@ -26,7 +26,7 @@ k of NAME written as NAME_sK (k = 1..K), each from generators seeded by (crc32(N
 is the map's rooms restricted to its free cells, relabelled 1..n (a colour on fewer than 200
 cells, the scorer's smallest room, is none), unchanged by the render.
 
-Only numpy, PIL and render_r2v.py's functions.
+Only numpy, PIL, render_r2v.py's functions and ipa_to_grid.py's two thresholds.
 """
 import argparse
 import os
@@ -37,13 +37,12 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from ipa_to_grid import FREE_MIN, MIN_ROOM_CELLS  # noqa: E402  (zonemap's thresholds, once)
 from render_r2v import (LASER_RAYS, RES, near, real_grid, robot_scan,  # noqa: E402
                         room_clutter, write)
 
-FREE_MIN = 250        # zonemap's PNG threshold for a free cell (grid_map.h)
 LATTICE_M = 1.0       # the route's viewpoint spacing
 CLEARANCE_M = 0.4     # a viewpoint's least distance to anything not free
-MIN_ROOM_CELLS = 200  # kDefaultMinGtRoomCells (score.h)
 
 
 def read_pair(map_dir, name):
