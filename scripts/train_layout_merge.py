@@ -74,7 +74,7 @@ FEATURES = ["open_m", "wall_m", "open_fraction", "area_s", "area_l", "peak_s", "
             "cap_share", "map_specks_per_100m2", "map_blobs_per_100m2",
             "map_loose_occupied_share", "map_rough_face_share", "map_unknown_border_share",
             "map_rough_cut", "channel_width_near", "channel_width_far",
-            "end_extent_min_m", "end_extent_max_m"]
+            "end_extent_min_m", "end_extent_max_m", "visibility", "visibility_s"]
 
 
 def maps(dirs, exclude):

@@ -1,7 +1,9 @@
 #include "segment/layout_merge.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <opencv2/imgproc.hpp>
@@ -246,11 +248,126 @@ std::array<double, 2> EndExtents(const BorderEnds& ends, const OccupiedParts& pa
   return e;
 }
 
+// visibility, visibility_s (kLayoutFeatureNames): the first's index, the lattice, the samples.
+constexpr int kVisibilityFeature = kLayoutFeatureCount - 2;
+constexpr double kVisibilitySampleM = 0.5;
+constexpr int kVisibilityMaxSamples = 16;   // at most this many per piece (a bit mask each)
+constexpr double kVisibilityMaxM = 15.0;
+
+// Lines of sight between the cut's pieces, sampled once per piece and computed per pair of
+// pieces when a feature first asks for it: a merged piece's visibility is the sum over its
+// pieces', so no line is traced twice however the merges go.
+class Visibility {
+ public:
+  // `see_through`: CV_8UC1, nonzero where a line of sight passes. `dt`: the pieces' clearance.
+  Visibility(const cv::Mat& labels, int n, const cv::Mat& dt, cv::Mat see_through, double res)
+      : see_through_(std::move(see_through)),
+        max_cells_(kVisibilityMaxM / res),
+        samples_(Idx(n) + 1) {
+    const int step = std::max(1, static_cast<int>(std::lround(kVisibilitySampleM / res)));
+    std::vector<std::pair<float, cv::Point>> peak(Idx(n) + 1, {-1.0f, cv::Point()});
+    for (int r = 0; r < labels.rows; ++r) {
+      const int* l = labels.ptr<int>(r);
+      for (int c = 0; c < labels.cols; ++c) {
+        if (l[c] <= 0 || l[c] > n) continue;
+        PieceSamples& p = samples_[Idx(l[c])];
+        p.area += 1.0;
+        p.box |= cv::Rect(c, r, 1, 1);
+        const float d = dt.at<float>(r, c);
+        if (d > peak[Idx(l[c])].first) peak[Idx(l[c])] = {d, cv::Point(c, r)};
+        if (r % step == 0 && c % step == 0) p.points.emplace_back(c, r);
+      }
+    }
+    for (int i = 1; i <= n; ++i) {
+      PieceSamples& p = samples_[Idx(i)];
+      if (p.area == 0.0) continue;
+      if (p.points.empty()) p.points.push_back(peak[Idx(i)].second);
+      if (p.points.size() > kVisibilityMaxSamples) {  // evenly over the lattice's row order
+        std::vector<cv::Point> kept;
+        for (std::size_t k = 0; k < kVisibilityMaxSamples; ++k) {
+          kept.push_back(p.points[k * p.points.size() / kVisibilityMaxSamples]);
+        }
+        p.points = std::move(kept);
+      }
+      p.weight = p.area / static_cast<double>(p.points.size());
+    }
+  }
+
+  // visibility and visibility_s of two merged pieces, given their cut pieces; S is `small`.
+  std::array<double, 2> Of(const std::vector<int>& small, const std::vector<int>& large) {
+    double seen = 0.0, area_s = 0.0, area_l = 0.0, seen_s = 0.0;
+    for (int j : large) area_l += samples_[Idx(j)].area;
+    for (int i : small) {
+      const PieceSamples& p = samples_[Idx(i)];
+      area_s += p.area;
+      std::uint32_t sees = 0;
+      for (int j : large) {
+        const Pair& v = Get(i, j);
+        seen += v.seen;
+        sees |= i < j ? v.first_sees : v.second_sees;
+      }
+      seen_s += p.weight * static_cast<double>(std::popcount(sees));
+    }
+    return {seen / std::max(area_s * area_l, 1.0), seen_s / std::max(area_s, 1.0)};
+  }
+
+ private:
+  struct PieceSamples {
+    std::vector<cv::Point> points;
+    double area = 0.0;   // cells
+    double weight = 0.0;  // cells per sample
+    cv::Rect box;
+  };
+  struct Pair {
+    double seen = 0.0;  // sum of weight x weight over the sample pairs in sight (cells^2)
+    std::uint32_t first_sees = 0, second_sees = 0;  // per sample of the lower / higher label
+  };
+
+  bool InSight(cv::Point a, cv::Point b) const {
+    cv::LineIterator it(see_through_, a, b, 8);
+    for (int k = 0; k < it.count; ++k, ++it) {
+      if (**it == 0) return false;
+    }
+    return true;
+  }
+
+  const Pair& Get(int i, int j) {
+    if (i > j) std::swap(i, j);
+    const std::uint64_t key = (static_cast<std::uint64_t>(i) << 32) | static_cast<std::uint32_t>(j);
+    const auto found = memo_.find(key);
+    if (found != memo_.end()) return found->second;
+    Pair& v = memo_[key];
+    const PieceSamples& a = samples_[Idx(i)];
+    const PieceSamples& b = samples_[Idx(j)];
+    const cv::Rect& p = a.box;
+    const cv::Rect& q = b.box;
+    const int dx = std::max({0, q.x - (p.x + p.width), p.x - (q.x + q.width)});
+    const int dy = std::max({0, q.y - (p.y + p.height), p.y - (q.y + q.height)});
+    if (std::hypot(dx, dy) > max_cells_) return v;
+    for (std::size_t s = 0; s < a.points.size(); ++s) {
+      for (std::size_t t = 0; t < b.points.size(); ++t) {
+        const cv::Point d = a.points[s] - b.points[t];
+        if (std::hypot(d.x, d.y) > max_cells_ || !InSight(a.points[s], b.points[t])) continue;
+        v.seen += a.weight * b.weight;
+        v.first_sees |= 1u << s;
+        v.second_sees |= 1u << t;
+      }
+    }
+    return v;
+  }
+
+  cv::Mat see_through_;
+  double max_cells_;
+  std::vector<PieceSamples> samples_;
+  std::unordered_map<std::uint64_t, Pair> memo_;
+};
+
 std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb, const Contact& c,
                                                 const cv::Mat& occupied, const cv::Mat& free,
                                                 const Frame& f, double res,
                                                 const MapContext& map,
-                                                const OccupiedParts& parts) {
+                                                const OccupiedParts& parts,
+                                                const std::array<double, 2>& visibility) {
   const bool a_small = pa.area <= pb.area;
   const Piece& s = a_small ? pa : pb;
   const Piece& l = a_small ? pb : pa;
@@ -317,7 +434,9 @@ std::array<float, kLayoutFeatureCount> Features(const Piece& pa, const Piece& pb
       channel[0],
       channel[1],
       extents[0],
-      extents[1]};
+      extents[1],
+      visibility[0],
+      visibility[1]};
   std::array<float, kLayoutFeatureCount> x{};
   for (int i = 0; i < kLayoutFeatureCount; ++i) x[Idx(i)] = static_cast<float>(values[i]);
   return x;
@@ -461,9 +580,30 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
   for (auto it = pairs.begin(); it != pairs.end();) {
     it = it->second.edges == 0.0 ? pairs.erase(it) : std::next(it);
   }
+  // The lines of sight cost a tenth of a hospital's segmentation: traced only for a trace (every
+  // feature is training data) or a model whose trees ask for them; otherwise both are 0.
+  std::optional<Visibility> visibility;
+  if (trace.csv != nullptr || model.Uses(kVisibilityFeature) || model.Uses(kVisibilityFeature + 1)) {
+    // Lines of sight pass free cells, pieces and clutter (occupied components a robot sees past).
+    cv::Mat see_through = (labels > 0) | (free != 0);
+    for (int r = 0; r < rows; ++r) {
+      const int* comp = parts.component.ptr<int>(r);
+      std::uint8_t* out = see_through.ptr<std::uint8_t>(r);
+      for (int c = 0; c < cols; ++c) {
+        if (comp[c] > 0 && parts.extent_m[Idx(comp[c])] <= kBlobMaxM + 1e-9) out[c] = 255;
+      }
+    }
+    visibility.emplace(labels, n, dt, std::move(see_through), res);
+  }
+  std::vector<std::vector<int>> members(Idx(n) + 1);  // the cut's pieces in each merged one
+  for (int i = 1; i <= n; ++i) members[Idx(i)] = {i};
   auto features = [&](const PairKey& k, const Contact& c) {
+    const bool first_small = pieces[Idx(k.first)].area <= pieces[Idx(k.second)].area;
+    const auto& small = members[Idx(first_small ? k.first : k.second)];
+    const auto& large = members[Idx(first_small ? k.second : k.first)];
     return Features(pieces[Idx(k.first)], pieces[Idx(k.second)], c, in.occupied, free, frame, res,
-                    context, parts);
+                    context, parts,
+                    visibility ? visibility->Of(small, large) : std::array<double, 2>{});
   };
   for (auto& [k, c] : pairs) c.probability = model.Probability(features(k, c));
 
@@ -517,6 +657,8 @@ Result<int> MergeLayoutPieces(const LayoutMergeInputs& in, const LayoutMergeMode
     for (const auto& [room, cells] : pb.gt) pa.gt[room] += cells;
     for (const auto& [seg, cells] : pb.rule) pa.rule[seg] += cells;
     parent[Idx(b)] = a;
+    members[Idx(a)].insert(members[Idx(a)].end(), members[Idx(b)].begin(), members[Idx(b)].end());
+    members[Idx(b)].clear();
     pairs.erase(PairKey{a, b});
     // Every border of b becomes a border of a.
     std::vector<std::pair<int, Contact>> moved;

@@ -27,7 +27,7 @@ namespace zm {
 
 // The features of a pair of neighbouring pieces, S the smaller (by area), L the larger; lengths
 // in metres, areas in m2. The order is the model's input order.
-inline constexpr int kLayoutFeatureCount = 45;
+inline constexpr int kLayoutFeatureCount = 47;
 // One feature, or one family, per line with its meaning.
 // clang-format off
 inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureNames = {
@@ -83,6 +83,16 @@ inline constexpr std::array<const char*, kLayoutFeatureCount> kLayoutFeatureName
     // are walls that run on for metres; in a robot's grid of a flat, a gap beside a table, a
     // cabinet or a sofa ends at about a metre of furniture.
     "end_extent_min_m", "end_extent_max_m",
+    // Whether the two see each other (issue 28, twenty-eighth round). A room cut by clutter or a
+    // noisy wall face is still one open space: from most of one piece most of the other is in
+    // sight. Two rooms see each other only through their door. Each piece is sampled on a 0.5 m
+    // lattice (at most 16 cells; a piece too small for the lattice by its clearance peak), each
+    // sample weighted by its share of the piece's area. A line of sight is a straight line
+    // through nothing but free cells, pieces and occupied components of extent <= 1.5 m
+    // (clutter, which a robot sees past); unknown cells and walls block it. Samples farther
+    // than 15 m apart count as unseen.
+    "visibility",    // share of the area-weighted sample pairs (one in S, one in L) in sight
+    "visibility_s",  // share of S's area whose sample sees some sample of L
 };
 // clang-format on
 
@@ -104,6 +114,8 @@ struct LayoutMergeModel {
   RuleMergeOptions rule_merge;
 
   [[nodiscard]] double Probability(const std::array<float, kLayoutFeatureCount>& x) const;
+  // Whether some tree splits on feature `index` (a costly feature is computed only then).
+  [[nodiscard]] bool Uses(int index) const;
 };
 
 // Parses a model from its JSON text ({"features":[names], "init", "learning_rate",

@@ -1,5 +1,6 @@
 // The layout merge model (layout_merge.h): evaluation, parsing, the compiled-in model, and the
 // record of the options its training pieces were cut with.
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -74,6 +75,13 @@ double LayoutMergeModel::Probability(const std::array<float, kLayoutFeatureCount
     raw += rate * static_cast<double>(t.value[Idx(n)]);
   }
   return 1.0 / (1.0 + std::exp(-raw));
+}
+
+bool LayoutMergeModel::Uses(int index) const {
+  for (const Tree& t : trees) {
+    if (std::find(t.feature.begin(), t.feature.end(), index) != t.feature.end()) return true;
+  }
+  return false;
 }
 
 Result<LayoutMergeModel> ParseLayoutMergeModel(const std::string& json_text) {

@@ -267,22 +267,22 @@ check(bad.returncode != 0 and "--dagger-passes 0" in bad.stderr, "--dagger-passe
 # floor of issue 28's rounds is trained; zonemap runs it; a count beyond the trace's is refused.
 rows_of("--json", os.path.join(work, "f35.json"), "--features", "35")
 f35 = json.load(open(os.path.join(work, "f35.json")))
-all45 = json.load(open(model))["features"]
-check(len(all45) == 45 and f35["features"] == all45[:35] and
+all47 = json.load(open(model))["features"]
+check(len(all47) == 47 and f35["features"] == all47[:35] and
       all(f < 35 for t in f35["trees"] for f in t["feature"]), "--features 35 trains on the first 35")
 check(runs_model(os.path.join(work, "f35.json")), "zonemap runs a model of 35 features")
 # --drop: a feature in the middle left out; the model lists every name, no tree splits on it.
 rows_of("--json", os.path.join(work, "drop.json"), "--drop", "channel_width_near", "--drop",
         "channel_width_far")
 dropped = json.load(open(os.path.join(work, "drop.json")))
-check(dropped["features"] == all45 and
-      not any(f in (all45.index("channel_width_near"), all45.index("channel_width_far"))
+check(dropped["features"] == all47 and
+      not any(f in (all47.index("channel_width_near"), all47.index("channel_width_far"))
               for t in dropped["trees"] for f in t["feature"]) and
       runs_model(os.path.join(work, "drop.json")), "--drop trains without the named features")
 bad, _ = rows_of("--drop", "no_such_feature")
 check(bad.returncode != 0 and "--drop no_such_feature" in bad.stderr, "--drop of no feature is refused")
-bad, _ = rows_of("--features", "46")
-check(bad.returncode != 0 and "--features 46: from 1 to 45" in bad.stderr,
+bad, _ = rows_of("--features", "48")
+check(bad.returncode != 0 and "--features 48: from 1 to 47" in bad.stderr,
       "--features beyond the trace's is refused")
 sys.path.insert(0, scripts)
 import train_layout_merge  # noqa: E402

@@ -89,6 +89,8 @@ TEST_CASE("a layout merge model parses, and each defect gets one clear error") {
   auto ok = ParseLayoutMergeModel(StumpModel(0.8));
   REQUIRE(ok.ok());
   CHECK(ok->trees.size() == 1);
+  CHECK(ok->Uses(2));  // its one split, on open_fraction
+  CHECK_FALSE(ok->Uses(kLayoutFeatureCount - 2));  // so no line of sight is traced for it
 
   std::string wrong_name = StumpModel(0.8);
   wrong_name.replace(wrong_name.find("wall_m"), 6, "wall_x");
@@ -360,6 +362,61 @@ TEST_CASE("a border's end extents tell a door's jambs from a gap beside furnitur
   const auto open = FirstRowFeatures(gap, room.gt);
   CHECK(open.at("end_extent_min_m") == 0.0);
   CHECK(open.at("end_extent_max_m") == doctest::Approx(8.0));
+}
+
+// The first trace row of each label (1: the two pieces are one room, 0: not), by feature name.
+std::map<int, std::map<std::string, double>> RowsByLabel(const LayoutMergeInputs& in,
+                                                         const cv::Mat& gt) {
+  Result<int> merged = 0;
+  std::map<int, std::map<std::string, double>> rows;
+  for (const std::string& line : TraceLines(in, gt, false, 0.99, &merged)) {  // no merge
+    std::vector<double> v;
+    std::stringstream ss(line);
+    std::string field;
+    while (std::getline(ss, field, ',')) v.push_back(std::stod(field));
+    REQUIRE(v.size() == 2 + kLayoutFeatureCount);
+    auto& row = rows[static_cast<int>(v[1])];
+    if (!row.empty()) continue;
+    for (int i = 0; i < kLayoutFeatureCount; ++i) {
+      row[kLayoutFeatureNames[static_cast<std::size_t>(i)]] = v[static_cast<std::size_t>(2 + i)];
+    }
+  }
+  REQUIRE(merged.ok());
+  return rows;
+}
+
+TEST_CASE("two pieces of one room see each other, past clutter; two rooms only through a door") {
+  Scene s;
+  auto rows = RowsByLabel(s.Inputs(), s.gt);
+  REQUIRE(rows.size() == 2);
+  // Room A's two halves: every sample of one sees every sample of the other.
+  CHECK(rows[1].at("visibility") == doctest::Approx(1.0));
+  CHECK(rows[1].at("visibility_s") == doctest::Approx(1.0));
+  // A's right half and room B: only lines through the 0.9 m door, about a quarter.
+  CHECK(rows[0].at("visibility") > 0.0);
+  CHECK(rows[0].at("visibility") < 0.35);
+  CHECK(rows[0].at("visibility_s") < rows[1].at("visibility_s"));
+
+  // A table (1.0 x 0.5 m, occupied, no piece) on the line between A's halves: a robot sees past
+  // it, so the halves still see each other wholly...
+  Scene table;
+  table.occupied(cv::Rect(40, 45, 20, 10)).setTo(255);
+  table.labels(cv::Rect(40, 45, 20, 10)).setTo(0);
+  CHECK(RowsByLabel(table.Inputs(), table.gt)[1].at("visibility") == doctest::Approx(1.0));
+  // ...but a wall 3 m long (longer than any clutter, 1.5 m) hides part of each from the other.
+  Scene wall;
+  wall.occupied(cv::Rect(48, 20, 4, 60)).setTo(255);
+  wall.labels(cv::Rect(48, 20, 4, 60)).setTo(0);
+  const double behind = RowsByLabel(wall.Inputs(), wall.gt)[1].at("visibility");
+  CHECK(behind > 0.0);
+  CHECK(behind < 0.8);
+
+  // Unknown cells (neither free, occupied nor a piece) block a line of sight like a wall.
+  Scene unknown;
+  LayoutMergeInputs in = unknown.Inputs();
+  unknown.labels(cv::Rect(48, 20, 4, 60)).setTo(0);
+  in.free = unknown.labels > 0;
+  CHECK(RowsByLabel(in, unknown.gt)[1].at("visibility") == doctest::Approx(behind));
 }
 
 TEST_CASE("bad inputs to the layout merge are one clear error") {
