@@ -29,7 +29,8 @@ Usage: scripts/train_layout_merge.py ZONEMAP DIR [DIR ...] [--json OUT.json] [--
            [--exclude NAME ...] [--threshold 0.4] [--dagger-threshold 0.6]
            [--weight DIR=W ...] [--loo DIR [--loo-models OUT_DIR]] [--param K=V ...]
            [--learner exact|hist] [--bag K] [--dagger-passes N] [--features N]
-           [--drop NAME ...] [--bag-seed S] [--jobs N]
+           [--drop NAME ...] [--bag-seed S] [--jobs N] [--trees N --depth D --rate R]
+           [--row-weight pair|area_s|sqrt_area_s]
 Each DIR holds <name>_map.png and <name>_gt.png (scripts/render_r2v.py's layout). --exclude
 leaves maps out by name (leave-one-out figures). Each DIR has the same total weight, shared by
 its maps, unless --weight gives it W times that. --loo DIR (DIR also among the training DIRs)
@@ -46,6 +47,11 @@ trained with --features 35.
 --drop NAME (repeatable) trains without that feature, which need not be at the end: its column
 is set to 0 in every row, so no tree splits on it, and the model still lists the first N names
 (issue 28's twentieth round: the end extents without the eighteenth round's channel widths).
+--trees N, --depth D, --rate R size the ensemble (200, 4, 0.1 by default, as every shipped
+model; issue 28's twenty-eighth round probed 400 trees of depth 6 at 0.05).
+--row-weight shares each map's weight among its rows equally ("pair", the default), by the
+smaller piece's area ("area_s": the cells a wrong decision on the pair costs the area-weighted
+precision and recall) or by its square root (twenty-eighth round's probes).
 --jobs N runs N zonemap traces at once (the maps are independent), and N of --bag's K fits: the
 same model, byte for byte, in less time on a machine with N cores to spare.
 Needs python3-sklearn, python3-numpy (Debian); development only, not a build dependency.
@@ -132,7 +138,16 @@ def collect(zonemap, pairs, tmp, extra, dir_weight):
         x, y, trained_with = traces[i]
         xs.append(x)
         ys.append(y)
-        ws.append(np.full(len(y), dir_weight.get(d, 1.0) / (max(1, len(y)) * per_dir[d])))
+        share = np.full(len(y), 1.0 / max(1, len(y)))  # the map's weight over its rows
+        if ROW_WEIGHT != "pair" and len(y):
+            # Each row by the area a wrong decision on it costs: the smaller piece's cells are
+            # the recall a missed merge loses, and the precision a wrong one does.
+            stake = x[:, FEATURES.index("area_s")].astype(np.float64)
+            if ROW_WEIGHT == "sqrt_area_s":
+                stake = np.sqrt(stake)
+            if stake.sum() > 0:
+                share = stake / stake.sum()
+        ws.append(share * dir_weight.get(d, 1.0) / per_dir[d])
         owners.append(np.full(len(y), i))
         options.append(trained_with)
     assert all(o == options[0] for o in options), "maps cut with different options"
@@ -174,6 +189,8 @@ LEARNER = "exact"  # --learner
 JOBS = 1  # --jobs
 DROPPED = []  # --drop: column indices set to 0
 BAG_SEED = 1  # --bag-seed: the first bootstrap seed of --bag
+TREES, DEPTH, RATE = 200, 4, 0.1  # --trees, --depth, --rate
+ROW_WEIGHT = "pair"  # --row-weight
 
 
 def run_all(fn, items):
@@ -189,10 +206,11 @@ def run_all(fn, items):
 def fit(x, y, w):
     w = w * len(w) / w.sum()
     if LEARNER == "hist":
-        return HistGradientBoostingClassifier(max_iter=200, max_depth=4, learning_rate=0.1,
+        return HistGradientBoostingClassifier(max_iter=TREES, max_depth=DEPTH, learning_rate=RATE,
                                               early_stopping=False, random_state=0).fit(
             x, y, sample_weight=w)
-    return GradientBoostingClassifier(n_estimators=200, max_depth=4, random_state=0).fit(
+    return GradientBoostingClassifier(n_estimators=TREES, max_depth=DEPTH, learning_rate=RATE,
+                                      random_state=0).fit(
         x, y, sample_weight=w)
 
 
@@ -317,7 +335,7 @@ def write_inc(path, text):
 
 
 def main(argv):
-    global LEARNER, FEATURES, JOBS, DROPPED, BAG_SEED
+    global LEARNER, FEATURES, JOBS, DROPPED, BAG_SEED, TREES, DEPTH, RATE, ROW_WEIGHT
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog=__doc__)
@@ -339,6 +357,10 @@ def main(argv):
     ap.add_argument("--features", type=int, default=len(FEATURES), metavar="N")
     ap.add_argument("--drop", action="append", default=[], metavar="NAME")
     ap.add_argument("--jobs", type=int, default=1, metavar="N")
+    ap.add_argument("--trees", type=int, default=200, metavar="N")
+    ap.add_argument("--depth", type=int, default=4, metavar="D")
+    ap.add_argument("--rate", type=float, default=0.1, metavar="R")
+    ap.add_argument("--row-weight", choices=["pair", "area_s", "sqrt_area_s"], default="pair")
     a = ap.parse_args(argv)
     if a.jobs < 1:
         ap.error(f"--jobs {a.jobs}: at least 1")
@@ -349,7 +371,11 @@ def main(argv):
                  "writes")
     if a.bag_seed < 1:
         ap.error(f"--bag-seed {a.bag_seed}: at least 1")
+    if a.trees < 1 or a.depth < 1 or not 0.0 < a.rate <= 1.0:
+        ap.error(f"--trees {a.trees} --depth {a.depth} --rate {a.rate}: at least 1 tree of "
+                 "depth 1, a rate in (0, 1]")
     LEARNER, JOBS, BAG_SEED = a.learner, a.jobs, a.bag_seed
+    TREES, DEPTH, RATE, ROW_WEIGHT = a.trees, a.depth, a.rate, a.row_weight
     FEATURES = FEATURES[:a.features]
     for name in a.drop:
         if name not in FEATURES:

@@ -284,6 +284,21 @@ check(bad.returncode != 0 and "--drop no_such_feature" in bad.stderr, "--drop of
 bad, _ = rows_of("--features", "48")
 check(bad.returncode != 0 and "--features 48: from 1 to 47" in bad.stderr,
       "--features beyond the trace's is refused")
+# --trees / --depth / --rate: the ensemble's size (issue 28's twenty-eighth round's probes).
+rows_of("--json", os.path.join(work, "small.json"), "--trees", "20", "--depth", "2",
+        "--rate", "0.3")
+small = json.load(open(os.path.join(work, "small.json")))
+check(len(small["trees"]) == 20 and
+      all(sum(f >= 0 for f in t["feature"]) <= 3 for t in small["trees"]) and
+      runs_model(os.path.join(work, "small.json")), "--trees 20 --depth 2: twenty trees of depth 2")
+bad, _ = rows_of("--depth", "0")
+check(bad.returncode != 0 and "--depth 0" in bad.stderr, "--depth 0 is refused")
+# --row-weight area_s: the same oracle rows, each weighed by its smaller piece's area; another model.
+_, na = rows_of("--json", os.path.join(work, "area.json"), "--row-weight", "area_s")
+area = json.load(open(os.path.join(work, "area.json")))
+check(na is not None and na[0] == n1[0] and area["trees"] != json.load(open(model))["trees"] and
+      runs_model(os.path.join(work, "area.json")),
+      "--row-weight area_s: the same oracle rows, weighed otherwise, another model")
 sys.path.insert(0, scripts)
 import train_layout_merge  # noqa: E402
 counts = train_layout_merge.bootstrap_counts(["a", "a", "a", "b", "b"], 1)
