@@ -10,7 +10,8 @@ zonemap runs, --dagger-passes adds model-driven rows, and --loo-models keeps the
 models; score_sets.py passes --param on, segmentation_border_probe.py scores as zonemap does;
 segmentation_identical.py tells identical zones from moved ones; ipa_to_grid.py reads the ipa
 dataset's SVG ground truths into a map and its rooms; render_raster.py maps such a raster again
-as a robot would.
+as a robot would; valetudo_to_grid.py reads a robot vacuum's ValetudoMap JSON into a map and its
+rooms.
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
@@ -588,5 +589,59 @@ refused = subprocess.run([sys.executable, os.path.join(scripts, "render_raster.p
                           os.path.join(work, "raster_bad")], capture_output=True, text=True)
 check(refused.returncode != 0 and "two_gt.png is 180x60" in refused.stderr,
       "render_raster.py refuses a ground truth of another size than its map, naming it")
+
+# valetudo_to_grid.py: a ValetudoMap in Valetudo's JSON (5 cm cells; runs as x, y, count, or
+# plain x, y pairs). Two rooms of 40 x 20 cells either side of a wall with a doorway, a strip of
+# floor no room holds, one wall cell a segment lists too (it stays a wall), and a speck of a
+# segment too small to be a room.
+def runs(cells):
+    out = []
+    for x, y, n in cells:
+        out += [x, y, n]
+    return out
+
+
+wall = [(100, 200, 82), (100, 221, 82)] + [(100, y, 1) for y in range(201, 221)] + \
+       [(181, y, 1) for y in range(201, 221)] + [(140, y, 1) for y in range(201, 221) if
+                                                 not 208 <= y < 214]
+left = [(101, y, 39) for y in range(201, 221)] + [(140, 205, 1)]  # (140, 205) is wall
+right = [(141, y, 40) for y in range(201, 221)]
+valetudo = {"__class": "ValetudoMap", "pixelSize": 5, "size": {"x": 6554, "y": 6554}, "layers": [
+    {"type": "wall", "metaData": {}, "pixels": [], "compressedPixels": runs(wall)},
+    {"type": "floor", "metaData": {}, "pixels": [], "compressedPixels": runs([(140, y, 1) for y in
+                                                                            range(208, 214)])},
+    {"type": "segment", "metaData": {"segmentId": "1", "name": "Bad"}, "pixels": [],
+     "compressedPixels": runs(left)},
+    {"type": "segment", "metaData": {"segmentId": "2"}, "compressedPixels": [],
+     "pixels": [v for y in range(201, 221) for x in range(141, 181) for v in (x, y)]},
+    {"type": "segment", "metaData": {"segmentId": "3"}, "pixels": [],
+     "compressedPixels": runs([(300, 300, 5)])}]}
+val_src = os.path.join(work, "valetudo_src")
+os.makedirs(val_src)
+json.dump(valetudo, open(os.path.join(val_src, "home.json"), "w"))
+out_val = os.path.join(work, "valetudo_out")
+conv = subprocess.run([sys.executable, os.path.join(scripts, "valetudo_to_grid.py"), val_src,
+                       out_val], capture_output=True, text=True)
+check(conv.returncode == 0 and "valetudo_home: 225x121 cells, 2 rooms" in conv.stdout,
+      "valetudo_to_grid.py reads both rooms and no speck: " + conv.stdout.strip() + conv.stderr)
+if conv.returncode == 0:
+    m = load(os.path.join(out_val, "valetudo_home_map.png"))
+    gt = load(os.path.join(out_val, "valetudo_home_gt.png"))
+    at = lambda x, y: (y - 190, x - 90)  # noqa: E731  the bounding box and a 10-cell margin
+    check(m[at(120, 210)] == 254 and m[at(160, 210)] == 254 and m[at(140, 210)] == 254 and
+          m[at(140, 205)] == 0 and m[at(100, 210)] == 0 and m[0, 0] == 205,
+          "valetudo_to_grid.py: floor and rooms free, walls occupied (a room's too), the rest "
+          "unknown")
+    a, b = tuple(int(v) for v in gt[at(120, 210)]), tuple(int(v) for v in gt[at(160, 210)])
+    check(a != b and min(max(a), max(b)) > 20 and not gt[at(140, 210)].any() and
+          not gt[at(140, 205)].any() and not gt[at(302, 300)].any(),
+          "valetudo_to_grid.py: each room its colour; the doorway's floor, a wall and the speck "
+          "in none")
+valetudo["pixelSize"] = 2
+json.dump(valetudo, open(os.path.join(val_src, "home.json"), "w"))
+conv = subprocess.run([sys.executable, os.path.join(scripts, "valetudo_to_grid.py"), val_src,
+                       out_val], capture_output=True, text=True)
+check(conv.returncode != 0 and "cells of 2 cm, only 5 cm is read" in conv.stderr,
+      "valetudo_to_grid.py refuses another cell size, naming it")
 
 sys.exit(1 if failures else 0)
