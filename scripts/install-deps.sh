@@ -5,6 +5,8 @@
 #
 #   scripts/install-deps.sh            host packages + the aarch64 cross toolchain and sysroot
 #   scripts/install-deps.sh --host     host packages only
+#   ... --probes                       also python3-torch, for scripts/image_cue_probe.py (a
+#                                      development probe; no build, test or demo needs it)
 #
 # Why an arm64 sysroot instead of `apt-get install libopencv-dev:arm64`: on Debian 12 the two
 # architectures of libopencv-dev Conflict with each other, and libopencv-imgcodecs406:arm64
@@ -17,10 +19,12 @@
 set -euo pipefail
 
 want_arm64=1
+want_probes=0
 for a in "$@"; do
   case "$a" in
     --host) want_arm64=0 ;;
-    *) echo "install-deps.sh: unknown option '$a' (known: --host)" >&2; exit 2 ;;
+    --probes) want_probes=1 ;;
+    *) echo "install-deps.sh: unknown option '$a' (known: --host, --probes)" >&2; exit 2 ;;
   esac
 done
 
@@ -60,6 +64,7 @@ missing() {
 
 pkgs=("${host_pkgs[@]}")
 if [ "$want_arm64" = 1 ]; then pkgs+=("${cross_pkgs[@]}"); fi
+if [ "$want_probes" = 1 ]; then pkgs+=(python3-torch); fi
 updated=0
 todo=$(missing "${pkgs[@]}")
 if [ -n "$todo" ]; then

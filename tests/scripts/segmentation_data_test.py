@@ -11,7 +11,7 @@ models; score_sets.py passes --param on, segmentation_border_probe.py scores as 
 segmentation_identical.py tells identical zones from moved ones; ipa_to_grid.py reads the ipa
 dataset's SVG ground truths into a map and its rooms; render_raster.py maps such a raster again
 as a robot would; valetudo_to_grid.py reads a robot vacuum's ValetudoMap JSON into a map and its
-rooms.
+rooms; image_cue_probe.py trains and scores (skipped without python3-torch).
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
@@ -643,5 +643,40 @@ conv = subprocess.run([sys.executable, os.path.join(scripts, "valetudo_to_grid.p
                        out_val], capture_output=True, text=True)
 check(conv.returncode != 0 and "cells of 2 cm, only 5 cm is read" in conv.stderr,
       "valetudo_to_grid.py refuses another cell size, naming it")
+
+# image_cue_probe.py, a development probe (it needs python3-torch, which only
+# `scripts/install-deps.sh --probes` installs; without it this part says so and is skipped):
+# one epoch on set 1's robot render and the hospital, then its scores of the robot render, where
+# joining nothing gives zonemap's own figures.
+try:
+    import torch  # noqa: F401
+except ImportError:
+    torch = None
+if torch is None:
+    print("skip image_cue_probe.py: python3-torch is not installed "
+          "(scripts/install-deps.sh --probes)")
+else:
+    probe = os.path.join(scripts, "image_cue_probe.py")
+    net_pt = os.path.join(work, "cue.pt")
+    robot_dir = os.path.join(work, "a", "robot")
+    tr = subprocess.run([sys.executable, probe, "train", net_pt, robot_dir, sim, "--epochs", "1"],
+                        capture_output=True, text=True)
+    check(tr.returncode == 0 and "epoch 0: loss" in tr.stdout and os.path.exists(net_pt),
+          "image_cue_probe.py trains a network: " + tr.stdout.strip() + tr.stderr[-300:])
+    sc = subprocess.run([sys.executable, probe, "score", zonemap, net_pt, robot_dir],
+                        capture_output=True, text=True)
+    own = json.loads(subprocess.run(
+        [zonemap, "zones", "segment", os.path.join(robot_dir, name + "_map.png"), "--out",
+         os.devnull, "--score", os.path.join(robot_dir, name + "_gt.png"), "--json"],
+        capture_output=True, text=True, check=True).stdout)["score"]
+    want = " / ".join(f"{100 * own[k]:.1f}" for k in ("precision", "recall", "mean_iou",
+                                                      "mean_iou_shown"))
+    check(sc.returncode == 0 and f"joined where cue < 0.0: {want}" in sc.stdout and
+          "cue AUC among them" in sc.stdout,
+          "image_cue_probe.py score: joining nothing gives zonemap's own figures (" + want + ")")
+    bad = subprocess.run([sys.executable, probe, "train", net_pt, robot_dir, "--epochs", "0"],
+                         capture_output=True, text=True)
+    check(bad.returncode != 0 and "--epochs 0" in bad.stderr, "image_cue_probe.py: --epochs 0 "
+          "is refused")
 
 sys.exit(1 if failures else 0)
