@@ -32,44 +32,32 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from segmentation_border_probe import score  # noqa: E402  (ScoreSegmentation's figures)
+from ipa_to_grid import FREE_MIN  # noqa: E402  (zonemap's free threshold)
+from segmentation_border_probe import gt_rooms, labels_png, score  # noqa: E402  (as zonemap)
 
 BORDER_CELLS = 8   # another room within 0.4 m of a cell: a border cell
 CROP = 192
 CUTS = (0.0, 0.1, 0.2, 0.3, 0.4)
-BACKGROUND = {0, 160 * 65793, 255 * 65793}  # --labels' occupied, unknown and unsegmented cells
 
 
 def torch_or_exit():
     try:
-        import torch  # noqa: F401
+        import torch
     except ImportError:
         sys.exit("image_cue_probe.py: needs python3-torch (scripts/install-deps.sh --probes)")
-    import torch
     torch.set_num_threads(2)
     return torch
-
-
-def rooms(gt_png, shape):
-    """Ground-truth room ids as ScoreSegmentation reads them (colours of >= 200 cells, not black)."""
-    g = np.asarray(Image.open(gt_png).convert("RGB")).astype(np.int64)[:shape[0], :shape[1]]
-    key = (g[..., 0] << 16) | (g[..., 1] << 8) | g[..., 2]
-    key[(g <= 20).all(axis=2)] = -1
-    u, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
-    ids = np.zeros(len(u), np.int64)
-    ids[(u >= 0) & (cnt >= 200)] = np.arange(1, 1 + ((u >= 0) & (cnt >= 200)).sum())
-    return ids[inv.reshape(key.shape)]
 
 
 def load(map_png):
     """(input channels, border target, loss mask, room ids, free) over the map and its GT."""
     grey = np.asarray(Image.open(map_png).convert("L"))
     gt_png = map_png[: -len("_map.png")] + "_gt.png"
-    gsize = Image.open(gt_png).size
+    gsize = Image.open(gt_png).size  # map and ground truth cropped to their common size
     h, w = min(grey.shape[0], gsize[1]), min(grey.shape[1], gsize[0])
     grey = grey[:h, :w]
-    x = np.stack([grey >= 250, grey <= 50, (grey > 50) & (grey < 250)]).astype(np.float32)
-    lab = rooms(gt_png, (h, w))
+    x = np.stack([grey >= FREE_MIN, grey <= 50, (grey > 50) & (grey < FREE_MIN)]).astype(np.float32)
+    lab = gt_rooms(gt_png)[:h, :w]
     r = BORDER_CELLS
     padded = np.pad(lab, r)
     border = np.zeros(lab.shape, bool)
@@ -78,8 +66,8 @@ def load(map_png):
             if dy * dy + dx * dx <= r * r:
                 o = padded[r + dy:r + dy + h, r + dx:r + dx + w]
                 border |= (o > 0) & (o != lab)
-    mask = (lab > 0) & (grey >= 250)
-    return x, (border & (lab > 0)).astype(np.float32), mask.astype(np.float32), lab, grey >= 250
+    free = grey >= FREE_MIN
+    return x, (border & (lab > 0)).astype(np.float32), (free & (lab > 0)).astype(np.float32), lab, free
 
 
 def network(torch):
@@ -134,16 +122,22 @@ def train(a):
 
 
 def segments(zonemap, map_png, extra, tmp):
-    """zonemap's --labels of the map as ids (colours; 0 for the background)."""
+    """zonemap's segments of the map (--labels read back as label ids, 0 for none)."""
     png = os.path.join(tmp, "labels.png")
     subprocess.run([zonemap, "zones", "segment", map_png, "--out", os.devnull, "--labels", png]
                    + extra, check=True, capture_output=True)
-    a = np.asarray(Image.open(png).convert("RGB")).astype(np.int64)
-    key = (a[..., 0] << 16) | (a[..., 1] << 8) | a[..., 2]
-    u, inv = np.unique(key, return_inverse=True)
-    ids = np.arange(1, len(u) + 1)
-    ids[[k in BACKGROUND for k in u]] = 0
-    return ids[inv.reshape(key.shape)]
+    return labels_png(png)
+
+
+def majority(pieces, of):
+    """Each piece's most common non-zero value of `of` (0 where it has none), in one pass."""
+    m = (pieces > 0) & (of > 0)
+    stride = int(of.max()) + 1
+    n = int(pieces.max()) + 1
+    counts = np.bincount(pieces[m].astype(np.int64) * stride + of[m].astype(np.int64),
+                         minlength=n * stride).reshape(n, stride)
+    best = counts.argmax(axis=1)  # 0 for a piece with no count: column 0 is never counted
+    return {int(i): int(best[i]) for i in np.unique(pieces[pieces > 0])}
 
 
 def score_cmd(a):
@@ -171,14 +165,7 @@ def score_cmd(a):
                 with torch.no_grad():
                     p = torch.sigmoid(net(torch.tensor(x[None, :, :h, :w])))[0, 0].numpy()
 
-                def majority(of):
-                    out = {}
-                    for i in np.unique(pieces[pieces > 0]):
-                        v = of[pieces == i]
-                        v = v[v > 0]
-                        out[i] = int(np.bincount(v).argmax()) if len(v) else 0
-                    return out
-                room, seg = majority(gt), majority(final)
+                room, seg = majority(pieces, gt), majority(pieces, final)
                 border = {}
                 for s, t, ps, pt in ((pieces[:, :-1], pieces[:, 1:], p[:, :-1], p[:, 1:]),
                                      (pieces[:-1], pieces[1:], p[:-1], p[1:])):

@@ -45,20 +45,21 @@ def label_of_colour():
 LUT = label_of_colour()
 
 
-def load(zonemap, label_dir, d, name):
-    m = os.path.join(d, name + "_map.png")
-    lp = os.path.join(label_dir, d.strip("/").replace("/", "_") + "__" + name + ".png")
-    if not os.path.exists(lp):
-        subprocess.run([zonemap, "zones", "segment", m, "--out", os.devnull, "--labels", lp],
-                       check=True, capture_output=True)
-    im = np.asarray(Image.open(lp).convert("RGB")).astype(np.int64)
+def labels_png(png):
+    """zonemap's --labels PNG back to its label ids (0 where no segment: walls, unknown)."""
+    im = np.asarray(Image.open(png).convert("RGB")).astype(np.int64)
     key = (im[..., 0] << 16) | (im[..., 1] << 8) | im[..., 2]
     lab = np.zeros(key.shape, np.int32)
     for k in np.unique(key):
         if int(k) in LUT:
             lab[key == k] = LUT[int(k)]
-    mp = np.asarray(Image.open(m).convert("L"))
-    gi = np.asarray(Image.open(os.path.join(d, name + "_gt.png")).convert("RGB")).astype(np.int64)
+    return lab
+
+
+def gt_rooms(gt_png):
+    """The ground truth's rooms as ScoreSegmentation reads them: ids 1..n for the colours of at
+    least kDefaultMinGtRoomCells cells that are not black, 0 elsewhere."""
+    gi = np.asarray(Image.open(gt_png).convert("RGB")).astype(np.int64)
     gk = (gi[..., 0] << 16) | (gi[..., 1] << 8) | gi[..., 2]
     gk[(gi <= 20).all(axis=2)] = -1
     u, inv, cnt = np.unique(gk, return_inverse=True, return_counts=True)
@@ -68,7 +69,18 @@ def load(zonemap, label_dir, d, name):
         if uu >= 0 and c >= 200:  # kDefaultMinGtRoomCells
             nxt += 1
             ids[i] = nxt
-    gt = ids[inv.reshape(gk.shape)]
+    return ids[inv.reshape(gk.shape)]
+
+
+def load(zonemap, label_dir, d, name):
+    m = os.path.join(d, name + "_map.png")
+    lp = os.path.join(label_dir, d.strip("/").replace("/", "_") + "__" + name + ".png")
+    if not os.path.exists(lp):
+        subprocess.run([zonemap, "zones", "segment", m, "--out", os.devnull, "--labels", lp],
+                       check=True, capture_output=True)
+    lab = labels_png(lp)
+    mp = np.asarray(Image.open(m).convert("L"))
+    gt = gt_rooms(os.path.join(d, name + "_gt.png"))
     h, w = min(lab.shape[0], gt.shape[0]), min(lab.shape[1], gt.shape[1])  # as ScoreSegmentation
     return lab[:h, :w], gt[:h, :w], mp[:h, :w] >= 250, mp[:h, :w] <= 50
 

@@ -252,6 +252,7 @@ std::array<double, 2> EndExtents(const BorderEnds& ends, const OccupiedParts& pa
 constexpr int kVisibilityFeature = kLayoutFeatureCount - 2;
 constexpr double kVisibilitySampleM = 0.5;
 constexpr int kVisibilityMaxSamples = 16;   // at most this many per piece (a bit mask each)
+static_assert(kVisibilityMaxSamples <= 32, "a piece's samples are bits of a std::uint32_t");
 constexpr double kVisibilityMaxM = 15.0;
 
 // Lines of sight between the cut's pieces, sampled once per piece and computed per pair of
