@@ -11,7 +11,8 @@ models; score_sets.py passes --param on, segmentation_border_probe.py scores as 
 segmentation_identical.py tells identical zones from moved ones; ipa_to_grid.py reads the ipa
 dataset's SVG ground truths into a map and its rooms; render_raster.py maps such a raster again
 as a robot would; valetudo_to_grid.py reads a robot vacuum's ValetudoMap JSON into a map and its
-rooms; image_cue_probe.py trains and scores (skipped without python3-torch).
+rooms; grid_overlap.py finds one place in two maps, turned and moved; image_cue_probe.py trains
+and scores (skipped without python3-torch).
 Behaviour, not figures.
 
 Usage: segmentation_data_test.py PROJECT_DIR WORK_DIR   (ZONEMAP in the environment)
@@ -643,6 +644,84 @@ conv = subprocess.run([sys.executable, os.path.join(scripts, "valetudo_to_grid.p
                        out_val], capture_output=True, text=True)
 check(conv.returncode != 0 and "cells of 2 cm, only 5 cm is read" in conv.stderr,
       "valetudo_to_grid.py refuses another cell size, naming it")
+
+# grid_overlap.py: the same place in two maps, turned and moved, is found; another place is not.
+# An L of two rooms, its copy rotated by 90 degrees, mirrored and framed in another margin with a
+# speck of noise, and a plain rectangle of about the same area.
+ov_dir = os.path.join(work, "overlap")
+os.makedirs(ov_dir)
+
+
+def put(name, free_mask, rooms):
+    grey = np.where(free_mask, 254, 205).astype(np.uint8)
+    Image.fromarray(grey).save(os.path.join(ov_dir, name + "_map.png"))
+    rgb = np.zeros(free_mask.shape + (3,), np.uint8)
+    rgb[rooms] = (200, 40, 40)
+    Image.fromarray(rgb).save(os.path.join(ov_dir, name + "_gt.png"))
+
+
+ell = np.zeros((90, 120), bool)
+ell[10:40, 10:110] = True
+ell[40:80, 10:50] = True
+turned = np.pad(np.rot90(ell, 1)[:, ::-1], ((7, 23), (31, 3)))
+turned[60, 40] = not turned[60, 40]
+box = np.zeros((80, 110), bool)
+box[10:70, 10:100] = True
+put("ell", ell, ell)
+put("ell_turned", turned, turned)
+put("box", box, box)
+ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), ov_dir,
+                     "--min-iou", "0.9"], capture_output=True, text=True)
+check(ov.returncode == 0 and "ell  ell_turned" in ov.stdout and "box" not in ov.stdout and
+      "1 of 3 pairs share at least 0.90" in ov.stdout,
+      "grid_overlap.py finds one place turned, mirrored and moved, and not another: " +
+      ov.stdout.strip() + ov.stderr[-300:])
+line = next((ln for ln in ov.stdout.splitlines() if "ell_turned" in ln), "0")
+check(float(line.split()[0]) > 0.99, "grid_overlap.py: the pair's IoU is all but one cell's: "
+      + line)
+ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), ov_dir,
+                     "--against", ov_dir, "--min-iou", "0.9", "--gt", "--coarse", "2"],
+                    capture_output=True, text=True)
+check(ov.returncode == 0 and "2 of 6 pairs share at least 0.90 of their ground truth's room "
+      "cells" in ov.stdout, "grid_overlap.py --against compares every map with every other "
+      "(both ways), by the ground truths, on 2 x 2 blocks: " + ov.stdout.strip())
+# --layout: one footprint with its rooms drawn otherwise is another layout; the same layout turned
+# is one. A flat of 60 x 120 cells as three rooms in a row, the same turned, and as two rooms above
+# two.
+split = os.path.join(work, "overlap_split")
+os.makedirs(split)
+
+
+def flat(name, cuts, turn=False):
+    lab = np.zeros((80, 140), np.uint8)
+    lab[10:70, 10:130] = 1
+    for (y0, y1, x0, x1), v in cuts:
+        lab[y0:y1, x0:x1] = v
+    if turn:
+        lab = np.rot90(lab, 1)
+    rgb = np.zeros(lab.shape + (3,), np.uint8)
+    for v, c in ((1, (200, 40, 40)), (2, (40, 200, 40)), (3, (40, 40, 200)), (4, (200, 200, 40))):
+        rgb[lab == v] = c
+    Image.fromarray(np.where(lab > 0, 254, 205).astype(np.uint8)).save(
+        os.path.join(split, name + "_map.png"))
+    Image.fromarray(rgb).save(os.path.join(split, name + "_gt.png"))
+
+
+row = [((10, 70, 50, 90), 2), ((10, 70, 90, 130), 3)]
+flat("row", row)
+flat("row_turned", row, turn=True)
+flat("grid", [((10, 40, 70, 130), 2), ((40, 70, 10, 70), 3), ((40, 70, 70, 130), 4)])
+ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), split, "--gt",
+                     "--min-iou", "0.9", "--layout", "--min-layout", "0.8"],
+                    capture_output=True, text=True)
+check(ov.returncode == 0 and "row  row_turned" in ov.stdout and "grid" not in ov.stdout and
+      "1 of 3 pairs share at least 0.90" in ov.stdout,
+      "grid_overlap.py --layout keeps one flat turned and not one footprint with other rooms: "
+      + ov.stdout.strip() + ov.stderr[-300:])
+ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), ov_dir,
+                     "--coarse", "0"], capture_output=True, text=True)
+check(ov.returncode != 0 and "--coarse must be 1 or more, not 0" in ov.stderr,
+      "grid_overlap.py refuses --coarse 0, naming it")
 
 # image_cue_probe.py, a development probe (it needs python3-torch, which only
 # `scripts/install-deps.sh --probes` installs; without it this part says so and is skipped):
