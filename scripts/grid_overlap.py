@@ -26,54 +26,56 @@ footprint's and kept only at or above --min-layout. On R2V's flats one plan in t
 0.889, flats of one type with other rooms 0.6-0.72, unrelated flats about 0.3. Both grids are
 taken at one cell size (zonemap's PNGs: 0.05 m). Every grid's spectra are held at one padded
 shape (the largest grid's), so memory grows with the largest grid and the number of maps: 427 R2V
-renders at --coarse 4 take 0.8 GB and 210 s on one core. Only numpy and PIL.
+renders at --coarse 4 take 0.8 GB and 210 s on one core. numpy, scipy (python3-sklearn's) and
+PIL.
 """
 import argparse
+import functools
 import glob
 import os
 import sys
 
 import numpy as np
 from PIL import Image
+from scipy import ndimage
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from ipa_to_grid import FREE_MIN  # noqa: E402
 
-
 BORDER_WIDEN = 2   # cells (0.1 m) each side of a room border: a render's walls move by a cell
 
 
-def room_borders(map_png):
-    """The ground truth's room borders, widened by BORDER_WIDEN cells, as 0/1 float64."""
+def rooms_of(map_png):
+    """The map's ground truth, each colour but black one room. Not gt_rooms's reading (the
+    scorer's, which drops colours under 0.5 m2): for telling one plan from another, a closet
+    is part of the layout."""
     rgb = np.asarray(Image.open(map_png[:-len("_map.png")] + "_gt.png").convert("RGB"))
-    lab = rgb.astype(np.int64) @ np.array([1 << 16, 1 << 8, 1])
-    edge = np.zeros(lab.shape, bool)
-    edge[:, :-1] |= lab[:, :-1] != lab[:, 1:]
-    edge[:, 1:] |= lab[:, :-1] != lab[:, 1:]
-    edge[:-1, :] |= lab[:-1, :] != lab[1:, :]
-    edge[1:, :] |= lab[:-1, :] != lab[1:, :]
-    r = BORDER_WIDEN
-    padded = np.pad(edge, r)
-    wide = np.zeros(edge.shape, bool)
-    for dy in range(-r, r + 1):
-        for dx in range(-r, r + 1):
-            wide |= padded[r + dy:r + dy + edge.shape[0], r + dx:r + dx + edge.shape[1]]
-    return wide.astype(np.float64)
+    return rgb.astype(np.int64) @ np.array([1 << 16, 1 << 8, 1])
 
 
-def free_cells(map_png, coarse, gt=False):
+@functools.lru_cache(maxsize=None)   # a map is in many pairs; read and widen it once
+def room_borders(map_png):
+    """The ground truth's room borders (cells with a 4-neighbour of another room, or of no
+    room), widened by BORDER_WIDEN cells, as 0/1 float64."""
+    lab = rooms_of(map_png)
+    cross = ndimage.generate_binary_structure(2, 1)
+    edge = ndimage.grey_erosion(lab, footprint=cross) != ndimage.grey_dilation(lab, footprint=cross)
+    side = 2 * BORDER_WIDEN + 1
+    return ndimage.binary_dilation(edge, structure=np.ones((side, side))).astype(np.float64)
+
+
+def cells(map_png, coarse, gt=False):
     """The map's free cells (or with gt its ground truth's room cells) as 0/1 float64, K x K
     blocks to one cell when coarse > 1."""
     if gt:
-        rgb = np.asarray(Image.open(map_png[:-len("_map.png")] + "_gt.png").convert("RGB"))
-        free = rgb.max(axis=2) > 0
+        on = rooms_of(map_png) > 0
     else:
-        free = np.asarray(Image.open(map_png).convert("L")) >= FREE_MIN
+        on = np.asarray(Image.open(map_png).convert("L")) >= FREE_MIN
     if coarse > 1:
-        h, w = (free.shape[0] // coarse) * coarse, (free.shape[1] // coarse) * coarse
-        blocks = free[:h, :w].reshape(h // coarse, coarse, w // coarse, coarse)
-        free = blocks.mean(axis=(1, 3)) > 0.5
-    return free.astype(np.float64)
+        h, w = (on.shape[0] // coarse) * coarse, (on.shape[1] // coarse) * coarse
+        blocks = on[:h, :w].reshape(h // coarse, coarse, w // coarse, coarse)
+        on = blocks.mean(axis=(1, 3)) > 0.5
+    return on.astype(np.float64)
 
 
 def fast_length(n):
@@ -161,7 +163,7 @@ def main():
     right = maps_of(a.against) if a.against else left
     if not left or not right:
         sys.exit("grid_overlap.py: no *_map.png in " + " ".join(a.dirs + (a.against or [])))
-    grids = {m: free_cells(m, a.coarse, a.gt) for m in set(left) | set(right)}
+    grids = {m: cells(m, a.coarse, a.gt) for m in set(left) | set(right)}
     spectra = Spectra(grids, set(right))
     name = lambda m: os.path.basename(m)[:-len("_map.png")]  # noqa: E731
     hits, pairs = [], 0
@@ -181,11 +183,12 @@ def main():
                 hits.append((layout, iou, name(m), name(n)))
     for hit in sorted(hits, reverse=True):
         print("  ".join(f"{v:.3f}" if isinstance(v, float) else v for v in hit))
-    cells = "ground truth's room cells" if a.gt else "free cells"
-    print(f"{len(hits)} of {pairs} pairs share at least {a.min_iou:.2f} of their {cells} "
+    what = "ground truth's room cells" if a.gt else "free cells"
+    print(f"{len(hits)} of {pairs} pairs share at least {a.min_iou:.2f} of their {what} "
           f"(IoU, best of translations and 8 orientations, {a.coarse}x{a.coarse} cells to one)"
           + (f" and at least {a.min_layout:.2f} of their room borders (layout IoU, first column)"
              if a.layout else ""))
+
 
 if __name__ == "__main__":
     main()

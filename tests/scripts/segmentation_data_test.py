@@ -646,32 +646,41 @@ check(conv.returncode != 0 and "cells of 2 cm, only 5 cm is read" in conv.stderr
       "valetudo_to_grid.py refuses another cell size, naming it")
 
 # grid_overlap.py: the same place in two maps, turned and moved, is found; another place is not.
-# An L of two rooms, its copy rotated by 90 degrees, mirrored and framed in another margin with a
+# An L-shaped room, its copy rotated by 90 degrees, mirrored and framed in another margin with a
 # speck of noise, and a plain rectangle of about the same area.
 ov_dir = os.path.join(work, "overlap")
+split = os.path.join(work, "overlap_split")
 os.makedirs(ov_dir)
+os.makedirs(split)
+ROOM_COLOURS = ((200, 40, 40), (40, 200, 40), (40, 40, 200), (200, 200, 40))
 
 
-def put(name, free_mask, rooms):
-    grey = np.where(free_mask, 254, 205).astype(np.uint8)
-    Image.fromarray(grey).save(os.path.join(ov_dir, name + "_map.png"))
-    rgb = np.zeros(free_mask.shape + (3,), np.uint8)
-    rgb[rooms] = (200, 40, 40)
-    Image.fromarray(rgb).save(os.path.join(ov_dir, name + "_gt.png"))
+def put(d, name, lab):
+    """A map free wherever lab names a room (1..4), and its ground truth, one colour a room."""
+    Image.fromarray(np.where(lab > 0, 254, 205).astype(np.uint8)).save(
+        os.path.join(d, name + "_map.png"))
+    rgb = np.zeros(lab.shape + (3,), np.uint8)
+    for v, c in enumerate(ROOM_COLOURS, 1):
+        rgb[lab == v] = c
+    Image.fromarray(rgb).save(os.path.join(d, name + "_gt.png"))
 
 
-ell = np.zeros((90, 120), bool)
-ell[10:40, 10:110] = True
-ell[40:80, 10:50] = True
+def overlap(*args):
+    return subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py")] + list(args),
+                          capture_output=True, text=True)
+
+
+ell = np.zeros((90, 120), np.uint8)
+ell[10:40, 10:110] = 1
+ell[40:80, 10:50] = 1
 turned = np.pad(np.rot90(ell, 1)[:, ::-1], ((7, 23), (31, 3)))
-turned[60, 40] = not turned[60, 40]
-box = np.zeros((80, 110), bool)
-box[10:70, 10:100] = True
-put("ell", ell, ell)
-put("ell_turned", turned, turned)
-put("box", box, box)
-ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), ov_dir,
-                     "--min-iou", "0.9"], capture_output=True, text=True)
+turned[60, 40] = 1 - turned[60, 40]
+box = np.zeros((80, 110), np.uint8)
+box[10:70, 10:100] = 1
+put(ov_dir, "ell", ell)
+put(ov_dir, "ell_turned", turned)
+put(ov_dir, "box", box)
+ov = overlap(ov_dir, "--min-iou", "0.9")
 check(ov.returncode == 0 and "ell  ell_turned" in ov.stdout and "box" not in ov.stdout and
       "1 of 3 pairs share at least 0.90" in ov.stdout,
       "grid_overlap.py finds one place turned, mirrored and moved, and not another: " +
@@ -679,47 +688,33 @@ check(ov.returncode == 0 and "ell  ell_turned" in ov.stdout and "box" not in ov.
 line = next((ln for ln in ov.stdout.splitlines() if "ell_turned" in ln), "0")
 check(float(line.split()[0]) > 0.99, "grid_overlap.py: the pair's IoU is all but one cell's: "
       + line)
-ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), ov_dir,
-                     "--against", ov_dir, "--min-iou", "0.9", "--gt", "--coarse", "2"],
-                    capture_output=True, text=True)
+ov = overlap(ov_dir, "--against", ov_dir, "--min-iou", "0.9", "--gt", "--coarse", "2")
 check(ov.returncode == 0 and "2 of 6 pairs share at least 0.90 of their ground truth's room "
       "cells" in ov.stdout, "grid_overlap.py --against compares every map with every other "
       "(both ways), by the ground truths, on 2 x 2 blocks: " + ov.stdout.strip())
 # --layout: one footprint with its rooms drawn otherwise is another layout; the same layout turned
 # is one. A flat of 60 x 120 cells as three rooms in a row, the same turned, and as two rooms above
 # two.
-split = os.path.join(work, "overlap_split")
-os.makedirs(split)
 
 
-def flat(name, cuts, turn=False):
+def flat(cuts):
     lab = np.zeros((80, 140), np.uint8)
     lab[10:70, 10:130] = 1
     for (y0, y1, x0, x1), v in cuts:
         lab[y0:y1, x0:x1] = v
-    if turn:
-        lab = np.rot90(lab, 1)
-    rgb = np.zeros(lab.shape + (3,), np.uint8)
-    for v, c in ((1, (200, 40, 40)), (2, (40, 200, 40)), (3, (40, 40, 200)), (4, (200, 200, 40))):
-        rgb[lab == v] = c
-    Image.fromarray(np.where(lab > 0, 254, 205).astype(np.uint8)).save(
-        os.path.join(split, name + "_map.png"))
-    Image.fromarray(rgb).save(os.path.join(split, name + "_gt.png"))
+    return lab
 
 
-row = [((10, 70, 50, 90), 2), ((10, 70, 90, 130), 3)]
-flat("row", row)
-flat("row_turned", row, turn=True)
-flat("grid", [((10, 40, 70, 130), 2), ((40, 70, 10, 70), 3), ((40, 70, 70, 130), 4)])
-ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), split, "--gt",
-                     "--min-iou", "0.9", "--layout", "--min-layout", "0.8"],
-                    capture_output=True, text=True)
+row = flat([((10, 70, 50, 90), 2), ((10, 70, 90, 130), 3)])
+put(split, "row", row)
+put(split, "row_turned", np.rot90(row, 1))
+put(split, "grid", flat([((10, 40, 70, 130), 2), ((40, 70, 10, 70), 3), ((40, 70, 70, 130), 4)]))
+ov = overlap(split, "--gt", "--min-iou", "0.9", "--layout", "--min-layout", "0.8")
 check(ov.returncode == 0 and "row  row_turned" in ov.stdout and "grid" not in ov.stdout and
       "1 of 3 pairs share at least 0.90" in ov.stdout,
       "grid_overlap.py --layout keeps one flat turned and not one footprint with other rooms: "
       + ov.stdout.strip() + ov.stderr[-300:])
-ov = subprocess.run([sys.executable, os.path.join(scripts, "grid_overlap.py"), ov_dir,
-                     "--coarse", "0"], capture_output=True, text=True)
+ov = overlap(ov_dir, "--coarse", "0")
 check(ov.returncode != 0 and "--coarse must be 1 or more, not 0" in ov.stderr,
       "grid_overlap.py refuses --coarse 0, naming it")
 
